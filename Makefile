@@ -1,0 +1,25 @@
+# The two commands a newcomer types (see README.md):
+#   make main   -> runs the flagship studies and writes reports/
+#   make test   -> runs the test suite (what CI runs)
+SHELL := /bin/bash
+
+.PHONY: main test test-fast lint bench venv
+
+venv:
+	@scripts/bootstrap.sh >/dev/null
+
+main: venv
+	.venv/bin/python -m bayesfric main
+
+test: venv
+	.venv/bin/python -m ruff check bayesfric tests benchmarks data
+	.venv/bin/python -m pytest -q
+
+test-fast: venv
+	.venv/bin/python -m pytest -q -m "not slow"
+
+lint: venv
+	.venv/bin/python -m ruff check bayesfric tests benchmarks data
+
+bench: venv
+	.venv/bin/python benchmarks/run_all.py

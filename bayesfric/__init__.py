@@ -1,0 +1,12 @@
+"""bayesfric: Bayesian model comparison of friction laws.
+
+Laws are declared once (:mod:`bayesfric.laws`), data are SI xarray Datasets
+(:mod:`bayesfric.datasets`), fits are arviz DataTrees (:mod:`bayesfric.inference`).
+"""
+
+import jax
+
+# Friction coefficients span many decades (N·m and N·m·s/rad on MN·m loads); use 64-bit floats.
+jax.config.update("jax_enable_x64", True)
+
+__version__ = "0.1.0"

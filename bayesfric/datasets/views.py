@@ -1,0 +1,80 @@
+"""Views of a loaded dataset that the model needs: law inputs, response, scales, selections."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+import xarray as xr
+
+from bayesfric.datasets.loader import OBS_DIM, DataError
+from bayesfric.laws.base import TRAJECTORY_START, Law
+from bayesfric.priors import DataScale
+
+__all__ = ["law_inputs", "response_values", "data_scale", "select", "trajectory_starts"]
+
+
+def trajectory_starts(ds: xr.Dataset) -> np.ndarray:
+    """Boolean array, True where an ordered trajectory starts (first row, and wherever the
+    dataset's ``trajectory`` group changes value). Without a trajectory group, one trajectory."""
+    n = ds.sizes[OBS_DIM]
+    starts = np.zeros(n, dtype=bool)
+    if n:
+        starts[0] = True
+    key = ds.attrs.get("trajectory")
+    if key:
+        values = np.asarray(ds[key].values)
+        starts[1:] |= values[1:] != values[:-1]
+    return starts
+
+
+def law_inputs(ds: xr.Dataset, law: Law) -> dict[str, np.ndarray]:
+    """The arrays a law reads, by input name, in canonical SI units."""
+    out = {}
+    for name in law.inputs:
+        if name == TRAJECTORY_START:
+            out[name] = trajectory_starts(ds)
+        elif name in ds.coords:
+            out[name] = np.asarray(ds[name].values, dtype=float)
+        else:
+            have = [k for k, v in ds.coords.items() if v.attrs.get("role") == "input"]
+            raise DataError(
+                f"dataset {ds.attrs.get('name', '?')!r} has no input {name!r} needed by law "
+                f"{law.name!r} (inputs present: {', '.join(have) or 'none'})"
+            )
+    return out
+
+
+def response_values(ds: xr.Dataset, law: Law | None = None) -> np.ndarray:
+    """The response column in SI units; checks it is the quantity the law predicts."""
+    name = ds.attrs["response"]
+    if law is not None and name != law.response:
+        raise DataError(
+            f"law {law.name!r} predicts {law.response}, but dataset "
+            f"{ds.attrs.get('name', '?')!r} has response {name}"
+        )
+    return np.asarray(ds[name].values, dtype=float)
+
+
+def data_scale(ds: xr.Dataset) -> DataScale:
+    """Scales used by data-scaled priors (rule in :mod:`bayesfric.priors`)."""
+    inputs = {k: v.values for k, v in ds.coords.items() if v.attrs.get("role") == "input"}
+    return DataScale.of(ds[ds.attrs["response"]].values, inputs)
+
+
+def select(ds: xr.Dataset, where: Mapping[str, Any] | None = None) -> xr.Dataset:
+    """Rows whose coordinates equal the given values (a list means 'any of')."""
+    if not where:
+        return ds
+    keep = np.ones(ds.sizes[OBS_DIM], dtype=bool)
+    for key, value in where.items():
+        if key not in ds.coords:
+            raise DataError(f"dataset {ds.attrs.get('name', '?')!r} has no coordinate {key!r} to select on")
+        values = value if isinstance(value, list | tuple) else [value]
+        keep &= np.isin(ds[key].values, values)
+    if not keep.any():
+        raise DataError(f"selection {dict(where)} leaves no rows of dataset {ds.attrs.get('name', '?')!r}")
+    out = ds.isel({OBS_DIM: np.flatnonzero(keep)})
+    out.attrs = dict(ds.attrs, selection=str(dict(where)))
+    return out

@@ -1,0 +1,83 @@
+"""Inference: NUTS and emcee backends with one signature, both returning an arviz DataTree.
+
+>>> dt = fit(get_law("stribeck"), ds, sampler="nuts")          # doctest: +SKIP
+>>> save_fit(dt, "fit.nc"); xr.open_datatree("fit.nc")          # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any, Literal
+
+import xarray as xr
+
+from bayesfric.inference.diagnostics import GATE, Gate, Verdict, check, verdict_of
+from bayesfric.inference.ensemble import sample_emcee
+from bayesfric.inference.nuts import sample_nuts
+from bayesfric.laws.base import Law
+from bayesfric.model import Noise, build_program
+from bayesfric.priors import Prior
+
+__all__ = ["fit", "save_fit", "load_fit", "SAMPLERS", "GATE", "Gate", "Verdict", "check", "verdict_of"]
+
+SAMPLERS = {"nuts": sample_nuts, "emcee": sample_emcee}
+
+
+def fit(
+    law: Law,
+    ds: xr.Dataset,
+    *,
+    sampler: Literal["nuts", "emcee"] = "nuts",
+    priors: Mapping[str, Prior | Mapping[str, Any]] | None = None,
+    noise: Noise | None = None,
+    constants: Mapping[str, float] | None = None,
+    seed: int = 0,
+    progress: bool = False,
+    **settings: Any,
+) -> xr.DataTree:
+    """Fit ``law`` to ``ds`` and return the DataTree (see :func:`bayesfric.inference.datatree.assemble`).
+
+    Parameters
+    ----------
+    law : Law
+        A registered law.
+    ds : xarray.Dataset
+        Loaded data.
+    sampler : {"nuts", "emcee"}
+        Backend; both share this signature and return the same groups.
+    priors, noise, constants
+        Passed to :func:`bayesfric.model.build_program`.
+    seed : int
+        Seed of every random draw of the fit.
+    progress : bool
+        Show a progress bar while sampling.
+    **settings
+        Backend settings (NUTS: draws, tune, chains, target_accept; emcee: draws, tune, walkers, thin).
+    """
+    if sampler not in SAMPLERS:
+        raise ValueError(f"unknown sampler {sampler!r}; choose one of {', '.join(SAMPLERS)}")
+    program = build_program(law, ds, priors=priors, noise=noise, constants=constants)
+    return SAMPLERS[sampler](program, ds, seed=seed, progress=progress, **settings)
+
+
+def save_fit(dt: xr.DataTree, path: str | Path) -> Path:
+    """Write a fit as NetCDF atomically (temporary file in the same folder, then rename)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.close(fd)
+    try:
+        dt.to_netcdf(tmp, engine="h5netcdf")
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+    return path
+
+
+def load_fit(path: str | Path) -> xr.DataTree:
+    """Open a saved fit (plain ``xarray.open_datatree`` works too)."""
+    return xr.open_datatree(path, engine="h5netcdf").load()

@@ -1,0 +1,117 @@
+"""Assemble one arviz DataTree from constrained posterior draws, whatever sampler made them."""
+
+from __future__ import annotations
+
+import json
+from importlib.metadata import version
+from typing import Any
+
+import arviz as az
+import jax
+import numpy as np
+import xarray as xr
+from numpyro.infer import Predictive, log_likelihood
+
+from bayesfric.datasets.loader import OBS_DIM
+from bayesfric.inference.diagnostics import check
+from bayesfric.model import OBS_SITE, Program
+
+__all__ = ["assemble", "provenance"]
+
+
+def _flatten(samples: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    return {k: np.asarray(v).reshape((-1,) + np.shape(v)[2:]) for k, v in samples.items()}
+
+
+def _chains(flat: dict[str, Any], n_chains: int) -> dict[str, np.ndarray]:
+    return {k: np.asarray(v).reshape((n_chains, -1) + np.shape(v)[1:]) for k, v in flat.items()}
+
+
+def provenance(program: Program, ds: xr.Dataset, sampler: str, settings: dict, seed: int) -> dict:
+    """Provenance attrs stored on every fit (strings and numbers only, NetCDF-safe)."""
+    return {
+        "law": program.law.name,
+        "law_source": program.law.source,
+        "law_family": program.law.family,
+        "noise": json.dumps({"kind": program.noise.kind, "group": program.noise.group}),
+        "priors": json.dumps({k: p.to_dict() for k, p in program.priors.items()}),
+        "priors_resolved": json.dumps({k: str(p) for k, p in program.resolved.items()}),
+        "constants": json.dumps(program.constants),
+        "dataset": str(ds.attrs.get("name", "")),
+        "data_provenance": str(ds.attrs.get("provenance", "")),
+        "data_source": str(ds.attrs.get("source", "")),
+        "data_hash": str(ds.attrs.get("data_hash", "")),
+        "data_selection": str(ds.attrs.get("selection", "")),
+        "sampler": sampler,
+        "sampler_settings": json.dumps(settings),
+        "seed": int(seed),
+        "versions": json.dumps({p: version(p) for p in ("bayesfric", "numpyro", "jax", "arviz", "emcee")}),
+    }
+
+
+def assemble(
+    program: Program,
+    ds: xr.Dataset,
+    samples: dict[str, np.ndarray],
+    sample_stats: dict[str, np.ndarray],
+    *,
+    sampler: str,
+    settings: dict,
+    seed: int,
+    n_prior: int = 500,
+) -> xr.DataTree:
+    """Build the fit's DataTree: posterior, sample_stats, log_likelihood, posterior_predictive,
+    prior, prior_predictive, observed_data, constant_data, with provenance and the gate verdict.
+
+    ``samples`` are constrained draws shaped (chain, draw, ...); every latent site of the
+    program must be present.
+    """
+    n_chains = next(iter(samples.values())).shape[0]
+    flat = _flatten(samples)
+    kwargs = program.model_kwargs
+    key_pp, key_prior = jax.random.split(jax.random.PRNGKey(seed + 1))
+
+    ll = log_likelihood(program.model, flat, **kwargs)[OBS_SITE]
+    pp_kwargs = dict(kwargs, response=None)
+    pp = Predictive(program.model, posterior_samples=flat, return_sites=[OBS_SITE])(key_pp, **pp_kwargs)
+    prior = Predictive(program.model, num_samples=n_prior)(key_prior, **pp_kwargs)
+    prior_pred = {OBS_SITE: prior.pop(OBS_SITE)}
+    # posterior keeps sampled + derived sites; drop nothing the sampler returned
+    posterior = {k: v for k, v in samples.items()}
+    for name, value in program.law.derived_values({k: flat[k] for k in program.law.params}).items():
+        posterior.setdefault(name, np.asarray(value).reshape((n_chains, -1) + np.shape(value)[1:]))
+
+    obs = np.arange(program.n_obs)
+    constant = {k: np.asarray(v, dtype=float) for k, v in program.inputs.items()}
+    dims = {OBS_SITE: [OBS_DIM], **{k: [OBS_DIM] for k in constant}}
+    coords: dict[str, Any] = {OBS_DIM: obs}
+    if program.noise.group is not None:
+        dims.update(group_z=["group"], group_offset=["group"], group_index=[OBS_DIM])
+        coords["group"] = [str(g) for g in program.group_labels]
+        constant["group_index"] = np.asarray(program.group_index)
+    dt = az.from_dict(
+        {
+            "posterior": posterior,
+            "sample_stats": sample_stats,
+            "log_likelihood": {OBS_SITE: np.asarray(ll).reshape((n_chains, -1, program.n_obs))},
+            "posterior_predictive": _chains({OBS_SITE: pp[OBS_SITE]}, n_chains),
+            "prior": {k: np.asarray(v)[None] for k, v in prior.items()},
+            "prior_predictive": {k: np.asarray(v)[None] for k, v in prior_pred.items()},
+            "observed_data": {OBS_SITE: program.response},
+            "constant_data": constant,
+        },
+        dims=dims,
+        coords=coords,
+    )
+    # group coordinates of the data (series, run ...) travel with the observations
+    for name, coord in ds.coords.items():
+        if coord.attrs.get("role") == "group":
+            dt["observed_data"] = dt["observed_data"].to_dataset().assign_coords(
+                {name: (OBS_DIM, np.asarray(coord.values).astype(str))}
+            )
+    dt["observed_data"].attrs.update(
+        {"quantity": ds.attrs.get("response", ""), "units": ds[ds.attrs["response"]].attrs.get("units", "")}
+    )
+    dt.attrs.update(provenance(program, ds, sampler, settings, seed))
+    dt.attrs["diagnostics"] = check(dt).to_json()
+    return dt

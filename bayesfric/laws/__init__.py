@@ -1,0 +1,14 @@
+"""The law library. Importing this package registers every law family.
+
+One module per family; each law is declared once with :func:`bayesfric.laws.base.law`.
+"""
+
+from bayesfric.laws import bearing, classical, drum, hysteresis, thermal  # noqa: F401  (registers laws)
+from bayesfric.laws.base import REGISTRY, Constant, Derived, Law, Param, get_law, law
+
+__all__ = ["REGISTRY", "Law", "Param", "Constant", "Derived", "get_law", "law", "all_laws"]
+
+
+def all_laws() -> list[Law]:
+    """Every registered law, sorted by family then name."""
+    return sorted(REGISTRY.values(), key=lambda w: (w.family, w.name))

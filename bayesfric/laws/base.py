@@ -1,0 +1,267 @@
+"""Declaration machinery for friction laws: a law is stated once, everything else derives from it.
+
+A law is a pure ``jax.numpy`` function whose positional signature is *inputs, then parameters,
+then constants* (lmfit-style: the declaration is checked against the signature at import). The
+:func:`law` decorator attaches the metadata -- name, family, operating inputs from the fixed
+vocabulary in :mod:`bayesfric.quantities`, response, and per parameter its unit, prior, meaning
+and literature source -- validates it, and registers the law. The registry, the CLI listing,
+the report tables and the generic probabilistic program all read this one declaration.
+
+Example
+-------
+>>> @law(
+...     name="coulomb", family="classical", inputs=("velocity",), response="torque",
+...     source="seed 004, Eq. 1",
+...     params={"T_C": Param("N*m", Prior("HalfNormal", scale=1.0, scaled_by={"response": 1}),
+...                          "Coulomb friction torque", "generic (data-scaled)")},
+... )
+... def coulomb(velocity, T_C):
+...     '''Coulomb friction: T = sign(v) T_C.'''
+...     return jnp.sign(velocity) * T_C
+"""
+
+from __future__ import annotations
+
+import inspect
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import jax.numpy as jnp
+
+from bayesfric.priors import Prior
+from bayesfric.quantities import QUANTITIES, RESPONSES, UnitError, parse_unit
+
+__all__ = [
+    "Param",
+    "Constant",
+    "Derived",
+    "Law",
+    "LawDeclarationError",
+    "law",
+    "REGISTRY",
+    "get_law",
+    "TRAJECTORY_START",
+]
+
+#: Structural input of trajectory (stateful) laws: True at the first sample of each ordered
+#: trajectory, where the internal state is reset. Built by the dataset, not measured.
+TRAJECTORY_START = "trajectory_start"
+
+
+class LawDeclarationError(TypeError):
+    """A law declaration that is inconsistent with its function or the vocabulary."""
+
+
+@dataclass(frozen=True)
+class Param:
+    """A sampled parameter of a law.
+
+    Parameters
+    ----------
+    unit : str
+        SI unit in pint syntax (``"N*m"``, ``"N*m*s/rad"``, ``"1"`` for dimensionless).
+    prior : Prior
+        Default prior (absolute or data-scaled, see :mod:`bayesfric.priors`).
+    meaning : str
+        Physical meaning, one line.
+    source : str
+        Literature source of the parameter and of its prior.
+    """
+
+    unit: str
+    prior: Prior
+    meaning: str
+    source: str
+    shape: tuple[int, ...] = ()  # vector-valued parameters (e.g. spline knot increments)
+
+
+@dataclass(frozen=True)
+class Constant:
+    """A fixed, non-sampled setting of a law (geometry, a fixed exponent); overridable per study."""
+
+    value: float
+    unit: str
+    meaning: str
+
+
+@dataclass(frozen=True)
+class Derived:
+    """A quantity computed from the parameters and reported with the posterior (e.g. T_s = T_C + ΔT)."""
+
+    fn: Callable[..., Any]
+    unit: str
+    meaning: str
+
+
+@dataclass(frozen=True)
+class Law:
+    """A declared friction law. Call it like its function; use :meth:`mean` with mappings."""
+
+    name: str
+    family: str
+    inputs: tuple[str, ...]
+    response: str
+    params: Mapping[str, Param]
+    fn: Callable[..., Any]
+    source: str
+    summary: str
+    constants: Mapping[str, Constant] = field(default_factory=dict)
+    derived: Mapping[str, Derived] = field(default_factory=dict)
+    trajectory: bool = False
+    notes: str = ""
+
+    def __call__(self, *args, **kwargs):
+        return self.fn(*args, **kwargs)
+
+    @property
+    def operating_inputs(self) -> tuple[str, ...]:
+        """Inputs that are physical operating quantities (excludes ``trajectory_start``)."""
+        return tuple(i for i in self.inputs if i != TRAJECTORY_START)
+
+    def mean(
+        self,
+        inputs: Mapping[str, Any],
+        params: Mapping[str, Any],
+        constants: Mapping[str, float] | None = None,
+    ):
+        """Evaluate the law: ``inputs`` and ``params`` by name, constants default to declared."""
+        consts = {k: c.value for k, c in self.constants.items()}
+        if constants:
+            unknown = set(constants) - set(consts)
+            if unknown:
+                raise KeyError(f"law {self.name!r} has no constant(s) {sorted(unknown)}")
+            consts.update(constants)
+        args = [inputs[k] for k in self.inputs] + [params[k] for k in self.params]
+        return self.fn(*args, **consts)
+
+    def derived_values(self, params: Mapping[str, Any]) -> dict[str, Any]:
+        """Evaluate every derived quantity from a parameter mapping."""
+        return {k: d.fn(**{p: params[p] for p in inspect.signature(d.fn).parameters})
+                for k, d in self.derived.items()}
+
+    def default_priors(self) -> dict[str, Prior]:
+        return {k: p.prior for k, p in self.params.items()}
+
+
+REGISTRY: dict[str, Law] = {}
+
+
+def get_law(name: str) -> Law:
+    """Look up a registered law by name; a clear error lists the known names."""
+    _ensure_loaded()
+    try:
+        return REGISTRY[name]
+    except KeyError:
+        raise KeyError(f"unknown law {name!r}; known laws: {', '.join(sorted(REGISTRY))}") from None
+
+
+def _ensure_loaded() -> None:
+    import bayesfric.laws  # noqa: F401  (importing the package registers every family)
+
+
+def law(
+    *,
+    name: str,
+    family: str,
+    inputs: tuple[str, ...],
+    response: str,
+    source: str,
+    params: Mapping[str, Param],
+    constants: Mapping[str, Constant] | None = None,
+    derived: Mapping[str, Derived] | None = None,
+    trajectory: bool = False,
+    notes: str = "",
+) -> Callable[[Callable[..., Any]], Law]:
+    """Declare and register a friction law (see the module docstring).
+
+    Raises
+    ------
+    LawDeclarationError
+        At import, if the function signature is not ``inputs + params + constants`` in that
+        order, an input or the response is not in the vocabulary, a unit does not parse, a
+        parameter lacks a meaning or source, or the name is already registered.
+    """
+
+    def wrap(fn: Callable[..., Any]) -> Law:
+        where = f"law {name!r} ({fn.__module__}.{fn.__qualname__})"
+        consts = dict(constants or {})
+        sig = list(inspect.signature(fn).parameters)
+        expected = list(inputs) + list(params) + list(consts)
+        if sig != expected:
+            raise LawDeclarationError(
+                f"{where}: function signature {sig} does not match the declaration "
+                f"(inputs + params + constants = {expected})"
+            )
+        for i in inputs:
+            if i == TRAJECTORY_START:
+                if not trajectory:
+                    raise LawDeclarationError(f"{where}: {TRAJECTORY_START} needs trajectory=True")
+                continue
+            if i not in QUANTITIES:
+                raise LawDeclarationError(
+                    f"{where}: unknown input {i!r}; the vocabulary is {', '.join(QUANTITIES)}"
+                )
+        if trajectory and TRAJECTORY_START not in inputs:
+            raise LawDeclarationError(f"{where}: trajectory laws must read {TRAJECTORY_START}")
+        if response not in RESPONSES:
+            raise LawDeclarationError(f"{where}: response {response!r} not one of {RESPONSES}")
+        for pname, p in params.items():
+            if not isinstance(p, Param):
+                raise LawDeclarationError(f"{where}: parameter {pname!r} is not a Param")
+            _check_unit(where, pname, p.unit)
+            if not p.meaning.strip() or not p.source.strip():
+                raise LawDeclarationError(f"{where}: parameter {pname!r} needs a meaning and a source")
+            if not isinstance(p.prior, Prior):
+                raise LawDeclarationError(f"{where}: parameter {pname!r} prior is not a Prior spec")
+            for key in p.prior.scaled_by:
+                if key != "response" and key not in inputs:
+                    raise LawDeclarationError(
+                        f"{where}: prior of {pname!r} is scaled by {key!r}, which the law does not read"
+                    )
+        for cname, c in consts.items():
+            _check_unit(where, cname, c.unit)
+        for dname, d in (derived or {}).items():
+            _check_unit(where, dname, d.unit)
+            missing = set(inspect.signature(d.fn).parameters) - set(params)
+            if missing:
+                raise LawDeclarationError(f"{where}: derived {dname!r} reads unknown {sorted(missing)}")
+        if name in REGISTRY:
+            raise LawDeclarationError(f"{where}: a law named {name!r} is already registered")
+        doc = inspect.getdoc(fn) or ""
+        if not doc:
+            raise LawDeclarationError(f"{where}: needs a docstring (its first line is the summary)")
+        declared = Law(
+            name=name,
+            family=family,
+            inputs=tuple(inputs),
+            response=response,
+            params=dict(params),
+            fn=fn,
+            source=source,
+            summary=doc.splitlines()[0],
+            constants=consts,
+            derived=dict(derived or {}),
+            trajectory=trajectory,
+            notes=notes,
+        )
+        REGISTRY[name] = declared
+        return declared
+
+    return wrap
+
+
+def _check_unit(where: str, what: str, unit: str) -> None:
+    if not unit or not unit.strip():
+        raise LawDeclarationError(f"{where}: {what!r} has no unit (use '1' for dimensionless)")
+    try:
+        parse_unit(unit)
+    except UnitError as exc:
+        raise LawDeclarationError(f"{where}: {what!r} unit: {exc}") from None
+
+
+def smooth_sign(x, eps: float = 0.0):
+    """``sign(x)``; with ``eps > 0`` the smooth ``tanh(x/eps)`` (used only where a law says so)."""
+    if eps > 0:
+        return jnp.tanh(x / eps)
+    return jnp.sign(x)

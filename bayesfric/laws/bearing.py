@@ -1,0 +1,1 @@
+"""Law family 'bearing' (being written; see the law-library issue)."""

@@ -1,0 +1,1 @@
+"""Law family 'drum' (being written; see the law-library issue)."""

@@ -1,0 +1,1 @@
+"""Law family 'hysteresis' (being written; see the law-library issue)."""

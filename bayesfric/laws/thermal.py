@@ -1,0 +1,1 @@
+"""Law family 'thermal' (being written; see the law-library issue)."""

@@ -1,0 +1,213 @@
+"""Law + noise model + priors + dataset -> one numpyro program.
+
+Every law becomes the same program shape, so fits compare across laws:
+
+* one sample site per law parameter (named as declared), derived quantities as deterministics;
+* noise parameters ``sigma`` (normal, student_t), ``nu`` (student_t), or ``sigma_rel`` and
+  ``sigma_floor`` (proportional);
+* optional per-group multiplicative offsets ``group_offset`` with scale ``group_sd`` (partial
+  pooling, non-centred): ``mu_i = law(x_i) * exp(b_g[i])``, ``b_g ~ Normal(0, group_sd)``. A
+  multiplicative offset keeps odd symmetry and the sign of friction, and reads as "this series
+  runs a few per cent high";
+* the observation site is always ``response`` over the plate/dimension ``obs``.
+
+The likelihood may be masked by a 0/1 ``mask`` *passed as data*, so cross-validation folds reuse
+one compiled program (see :mod:`bayesfric.compare`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import jax.numpy as jnp
+import numpy as np
+import numpyro
+import numpyro.distributions as dist
+import xarray as xr
+
+from bayesfric.datasets.loader import OBS_DIM, DataError
+from bayesfric.datasets.views import data_scale, law_inputs, response_values
+from bayesfric.laws.base import Law
+from bayesfric.priors import DataScale, Prior, PriorError
+
+__all__ = ["Noise", "Program", "build_program", "OBS_SITE", "NOISE_PRIORS"]
+
+OBS_SITE = "response"
+
+#: Default priors of the noise-model parameters (data-scaled where they carry the response unit).
+NOISE_PRIORS: dict[str, Prior] = {
+    "sigma": Prior("HalfNormal", scale=0.1, scaled_by={"response": 1}),
+    "nu": Prior("Gamma", concentration=2.0, rate=0.1),  # Juárez & Steel (2010) prior on t dof
+    "sigma_rel": Prior("HalfNormal", scale=0.1),  # relative scatter, dimensionless
+    "sigma_floor": Prior("HalfNormal", scale=0.01, scaled_by={"response": 1}),
+    "group_sd": Prior("HalfNormal", scale=0.1),  # relative spread between groups
+}
+_NOISE_SITES = {
+    "normal": ("sigma",),
+    "student_t": ("sigma", "nu"),
+    "proportional": ("sigma_rel", "sigma_floor"),
+}
+
+
+@dataclass(frozen=True)
+class Noise:
+    """Observation noise model.
+
+    Parameters
+    ----------
+    kind : {"normal", "student_t", "proportional"}
+        ``proportional`` uses ``sd_i = sqrt((sigma_rel * mu_i)^2 + sigma_floor^2)``; the floor
+        keeps the density finite where the mean crosses zero.
+    group : str, optional
+        Name of a group coordinate for hierarchical multiplicative offsets.
+    """
+
+    kind: Literal["normal", "student_t", "proportional"] = "normal"
+    group: str | None = None
+
+    def __post_init__(self):
+        if self.kind not in _NOISE_SITES:
+            raise ValueError(f"noise kind {self.kind!r} not one of {tuple(_NOISE_SITES)}")
+
+    def sites(self) -> tuple[str, ...]:
+        return _NOISE_SITES[self.kind] + (("group_sd",) if self.group else ())
+
+
+@dataclass
+class Program:
+    """A law bound to a dataset: the numpyro model plus the arrays it runs on.
+
+    ``model(**model_kwargs)`` is the full-data program; pass ``mask=`` to train on a subset and
+    ``response=None`` to sample predictions.
+    """
+
+    law: Law
+    noise: Noise
+    priors: dict[str, Prior]  # as declared after overrides (may be data-scaled)
+    resolved: dict[str, Prior]  # absolute numbers used
+    constants: dict[str, float]
+    scale: DataScale
+    inputs: dict[str, np.ndarray]
+    response: np.ndarray
+    group_index: np.ndarray | None
+    group_labels: list[Any] = field(default_factory=list)
+
+    @property
+    def n_obs(self) -> int:
+        return int(self.response.shape[0])
+
+    @property
+    def model_kwargs(self) -> dict[str, Any]:
+        return {"inputs": self.inputs, "group_index": self.group_index, "response": self.response}
+
+    def model(self, inputs, group_index=None, response=None, mask=None):
+        """The numpyro program (see the module docstring for its sites)."""
+        law = self.law
+        params = {}
+        for name, declared in law.params.items():
+            prior = self.resolved[name].to_numpyro()
+            if declared.shape:
+                prior = prior.expand(declared.shape).to_event(len(declared.shape))
+            params[name] = numpyro.sample(name, prior)
+        for name, value in law.derived_values(params).items():
+            numpyro.deterministic(name, value)
+        mu = law.mean({k: jnp.asarray(v) for k, v in inputs.items()}, params, self.constants)
+        if self.noise.group is not None:
+            n_groups = len(self.group_labels)
+            group_sd = numpyro.sample("group_sd", self.resolved["group_sd"].to_numpyro())
+            with numpyro.plate("group", n_groups):
+                z = numpyro.sample("group_z", dist.Normal(0.0, 1.0))
+            offset = numpyro.deterministic("group_offset", group_sd * z)
+            mu = mu * jnp.exp(offset[group_index])
+        likelihood = self._likelihood(mu)
+        with numpyro.plate(OBS_DIM, mu.shape[0]):
+            with numpyro.handlers.mask(mask=True if mask is None else mask):
+                numpyro.sample(OBS_SITE, likelihood, obs=response)
+
+    def _likelihood(self, mu):
+        r = self.resolved
+        if self.noise.kind == "normal":
+            return dist.Normal(mu, numpyro.sample("sigma", r["sigma"].to_numpyro()))
+        if self.noise.kind == "student_t":
+            sigma = numpyro.sample("sigma", r["sigma"].to_numpyro())
+            nu = numpyro.sample("nu", r["nu"].to_numpyro())
+            return dist.StudentT(nu, mu, sigma)
+        rel = numpyro.sample("sigma_rel", r["sigma_rel"].to_numpyro())
+        floor = numpyro.sample("sigma_floor", r["sigma_floor"].to_numpyro())
+        return dist.Normal(mu, jnp.sqrt((rel * mu) ** 2 + floor**2))
+
+    def parameter_names(self) -> list[str]:
+        """Law parameters, derived quantities, then noise parameters (report order)."""
+        return list(self.law.params) + list(self.law.derived) + list(self.noise.sites())
+
+
+def build_program(
+    law: Law,
+    ds: xr.Dataset,
+    *,
+    priors: Mapping[str, Prior | Mapping[str, Any]] | None = None,
+    noise: Noise | None = None,
+    constants: Mapping[str, float] | None = None,
+    scale: DataScale | None = None,
+) -> Program:
+    """Bind ``law`` to ``ds`` with optional prior overrides by parameter name.
+
+    Parameters
+    ----------
+    law : Law
+        A registered law.
+    ds : xarray.Dataset
+        Data from :func:`bayesfric.datasets.load_dataset`.
+    priors : mapping, optional
+        Overrides by parameter name (law or noise parameter): :class:`Prior` or its dict form.
+    noise : Noise, optional
+        Default: Normal noise without groups.
+    constants : mapping, optional
+        Overrides of the law's declared constants.
+    scale : DataScale, optional
+        Data scale for data-scaled priors; default computed from ``ds``. Cross-validation passes
+        the full data's scale so every fold uses identical priors.
+
+    Raises
+    ------
+    PriorError
+        An override names a parameter that neither the law nor the noise model has.
+    DataError
+        The dataset lacks an input the law reads, or the group coordinate.
+    """
+    noise = noise or Noise()
+    declared = law.default_priors() | {k: NOISE_PRIORS[k] for k in noise.sites()}
+    for name, spec in (priors or {}).items():
+        if name not in declared:
+            raise PriorError(
+                f"prior override for unknown parameter {name!r} of law {law.name!r}; "
+                f"parameters: {', '.join(declared)}"
+            )
+        declared[name] = spec if isinstance(spec, Prior) else Prior.from_dict(spec)
+    scale = scale or data_scale(ds)
+    resolved = {k: p.resolve(scale) for k, p in declared.items()}
+    consts = {k: c.value for k, c in law.constants.items()}
+    for k, v in (constants or {}).items():
+        if k not in consts:
+            raise PriorError(f"law {law.name!r} has no constant {k!r}; constants: {', '.join(consts) or 'none'}")
+        consts[k] = float(v)
+    group_index, labels = None, []
+    if noise.group is not None:
+        if noise.group not in ds.coords:
+            raise DataError(f"noise group {noise.group!r} is not a coordinate of the dataset")
+        labels_arr, group_index = np.unique(np.asarray(ds[noise.group].values), return_inverse=True)
+        labels = labels_arr.tolist()
+    return Program(
+        law=law,
+        noise=noise,
+        priors=declared,
+        resolved=resolved,
+        constants=consts,
+        scale=scale,
+        inputs=law_inputs(ds, law),
+        response=response_values(ds, law),
+        group_index=group_index,
+        group_labels=labels,
+    )

@@ -1,0 +1,127 @@
+"""The fixed vocabulary of operating quantities and their canonical SI units.
+
+Every law names its inputs and its response from this vocabulary, every dataset column declares
+one of these quantities, and every unit string anywhere in bayesfric is parsed by the one pint
+registry defined here. Canonical units are SI (angles in radians, temperature in kelvin).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import pint
+
+__all__ = [
+    "QUANTITIES",
+    "Quantity",
+    "UnitError",
+    "ureg",
+    "to_canonical",
+    "check_unit",
+    "conversion",
+]
+
+ureg = pint.UnitRegistry(autoconvert_offset_to_baseunit=True)
+# Spellings engineers use in data sheets that pint does not know out of the box.
+ureg.define("revolutions_per_minute_alias = revolution / minute = RPM")
+ureg.define("inch_ounce = inch * force_ounce = in_oz = inoz")
+ureg.define("newton_metre = newton * meter = Nm")
+
+
+class UnitError(ValueError):
+    """A unit string that pint cannot parse, or a unit of the wrong dimension."""
+
+
+@dataclass(frozen=True)
+class Quantity:
+    """One entry of the operating-quantity vocabulary."""
+
+    name: str
+    unit: str  # canonical SI unit, pint syntax
+    meaning: str
+
+
+_VOCABULARY = [
+    Quantity("velocity", "rad/s", "angular velocity of the moving part (joint, shaft, bearing ring)"),
+    Quantity("linear_velocity", "m/s", "sliding velocity of a translational contact"),
+    Quantity("bending_moment", "N*m", "tilting / blade-root bending moment on a bearing"),
+    Quantity("axial_force", "N", "axial force on a bearing"),
+    Quantity("radial_force", "N", "radial force on a bearing"),
+    Quantity("preload", "N", "axial preload of a bearing pair"),
+    Quantity("temperature", "K", "lubricant or housing temperature"),
+    Quantity("angle", "rad", "angular displacement (drive angle, ball position)"),
+    Quantity("displacement", "m", "translational displacement"),
+    Quantity("time", "s", "time since the start of a trajectory"),
+    Quantity("initial_velocity", "rad/s", "angular velocity at t = 0 of a coast-down trajectory"),
+    Quantity("torque", "N*m", "friction torque"),
+    Quantity("force", "N", "friction force"),
+]
+
+QUANTITIES: dict[str, Quantity] = {q.name: q for q in _VOCABULARY}
+
+#: Quantities a law may return as its response.
+RESPONSES = ("torque", "force", "velocity")
+
+
+@lru_cache(maxsize=256)
+def _parse(unit: str) -> pint.Unit:
+    try:
+        return ureg.parse_units(unit.replace("·", "*").replace("°", "deg"))
+    except Exception as exc:  # pint raises several exception types
+        raise UnitError(f"unknown unit {unit!r}") from exc
+
+
+def check_unit(unit: str, quantity: str) -> pint.Unit:
+    """Parse ``unit`` and check it has the dimension of ``quantity``'s canonical unit.
+
+    Parameters
+    ----------
+    unit : str
+        Unit string in pint syntax (``"rpm"``, ``"in*ozf"``, ``"degC"`` ...).
+    quantity : str
+        A name from :data:`QUANTITIES`.
+
+    Returns
+    -------
+    pint.Unit
+        The parsed unit.
+
+    Raises
+    ------
+    UnitError
+        If the unit is unknown or its dimension differs from the quantity's.
+    """
+    if quantity not in QUANTITIES:
+        raise UnitError(f"unknown quantity {quantity!r}; known: {', '.join(QUANTITIES)}")
+    parsed = _parse(unit)
+    canonical = _parse(QUANTITIES[quantity].unit)
+    if parsed.dimensionality != canonical.dimensionality:
+        raise UnitError(
+            f"unit {unit!r} has dimension {parsed.dimensionality}, but {quantity} needs "
+            f"{canonical.dimensionality} (canonical unit {QUANTITIES[quantity].unit})"
+        )
+    return parsed
+
+
+def parse_unit(unit: str) -> pint.Unit:
+    """Parse any unit string (used to validate parameter units of law declarations)."""
+    return _parse(unit)
+
+
+def conversion(unit: str, quantity: str) -> tuple[float, float]:
+    """Affine map ``si = scale * value + offset`` from ``unit`` to ``quantity``'s canonical unit.
+
+    Offset units (°C, °F) are the only ones with a non-zero offset.
+    """
+    parsed = check_unit(unit, quantity)
+    target = QUANTITIES[quantity].unit
+    zero = ureg.Quantity(0.0, parsed).to(target).magnitude
+    one = ureg.Quantity(1.0, parsed).to(target).magnitude
+    return float(one - zero), float(zero)
+
+
+def to_canonical(values, unit: str, quantity: str):
+    """Convert an array of ``values`` in ``unit`` to the canonical SI unit of ``quantity``."""
+    scale, offset = conversion(unit, quantity)
+    return values * scale + offset

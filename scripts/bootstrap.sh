@@ -1,0 +1,41 @@
+#!/usr/bin/env bash
+# Find a Python >= 3.12, create .venv, install bayesfric (+ test extras) into it.
+# Idempotent: reinstalls only when pyproject.toml changed. Prints the venv's python path last.
+set -euo pipefail
+here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+venv="$here/.venv"
+
+works() {  # does "$1" run and report Python >= 3.12?
+  [ -n "$1" ] && "$1" -c 'import sys, venv; sys.exit(sys.version_info < (3, 12))' >/dev/null 2>&1
+}
+
+find_python() {
+  local c
+  # 1. explicit choice; 2. versioned/unversioned names on PATH (pyenv shims refuse to run unless
+  # selected, so every candidate is executed, not just looked up); 3. interpreters installed by
+  # pyenv, uv, or the system, addressed by path so no shim is involved.
+  for c in "${BAYESFRIC_PYTHON:-}" python3.13 python3.12 python3; do
+    if works "$c"; then command -v "$c" 2>/dev/null || echo "$c"; return 0; fi
+  done
+  local roots=("${PYENV_ROOT:-$HOME/.pyenv}/versions" "$HOME/.local/share/uv/python" /opt/python /usr/local /usr)
+  for root in "${roots[@]}"; do
+    for c in $(ls -d "$root"/*3.1[2-9]*/bin/python3 "$root"/bin/python3.1[2-9] 2>/dev/null | sort -rV); do
+      if works "$c"; then echo "$c"; return 0; fi
+    done
+  done
+  return 1
+}
+
+stamp="$(sha256sum "$here/pyproject.toml" | cut -c1-16)"
+if [ ! -x "$venv/bin/python" ] || ! works "$venv/bin/python" || [ "$(cat "$venv/.stamp" 2>/dev/null)" != "$stamp" ]; then
+  py="$(find_python)" || { echo "bootstrap: no Python >= 3.12 found (set BAYESFRIC_PYTHON=/path/to/python3.12)" >&2; exit 1; }
+  echo "bootstrap: using $py ($("$py" --version 2>&1)) to build $venv" >&2
+  rm -rf "$venv"
+  "$py" -m venv "$venv"
+  log="$here/.venv/install.log"
+  if ! { "$venv/bin/python" -m pip install --upgrade pip && "$venv/bin/python" -m pip install -e "$here[test,dask]"; } >"$log" 2>&1; then
+    tail -30 "$log" >&2; echo "bootstrap: installation failed (full log: $log)" >&2; exit 1
+  fi
+  echo "$stamp" > "$venv/.stamp"
+fi
+echo "$venv/bin/python"
