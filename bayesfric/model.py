@@ -62,17 +62,24 @@ class Noise:
         keeps the density finite where the mean crosses zero.
     group : str, optional
         Name of a group coordinate for hierarchical multiplicative offsets.
+    sigma : float, optional
+        Known noise standard deviation in SI units (e.g. from a sensor datasheet) for
+        ``kind="normal"``; then ``sigma`` is a constant, not a sampled site.
     """
 
     kind: Literal["normal", "student_t", "proportional"] = "normal"
     group: str | None = None
+    sigma: float | None = None
 
     def __post_init__(self):
         if self.kind not in _NOISE_SITES:
             raise ValueError(f"noise kind {self.kind!r} not one of {tuple(_NOISE_SITES)}")
+        if self.sigma is not None and (self.kind != "normal" or not self.sigma > 0):
+            raise ValueError("a known sigma needs kind='normal' and sigma > 0")
 
     def sites(self) -> tuple[str, ...]:
-        return _NOISE_SITES[self.kind] + (("group_sd",) if self.group else ())
+        base = () if self.sigma is not None else _NOISE_SITES[self.kind]
+        return base + (("group_sd",) if self.group else ())
 
 
 @dataclass
@@ -102,6 +109,14 @@ class Program:
     def model_kwargs(self) -> dict[str, Any]:
         return {"inputs": self.inputs, "group_index": self.group_index, "response": self.response}
 
+    def site_dims(self) -> dict[str, list[str]]:
+        """Extra dimensions of vector-valued parameter sites (``<name>_dim_<k>``)."""
+        dims = {}
+        for name, p in self.law.params.items():
+            if p.shape:
+                dims[name] = [f"{name}_dim_{k}" for k in range(len(p.shape))]
+        return dims
+
     def model(self, inputs, group_index=None, response=None, mask=None):
         """The numpyro program (see the module docstring for its sites)."""
         law = self.law
@@ -129,6 +144,8 @@ class Program:
     def _likelihood(self, mu):
         r = self.resolved
         if self.noise.kind == "normal":
+            if self.noise.sigma is not None:
+                return dist.Normal(mu, self.noise.sigma)
             return dist.Normal(mu, numpyro.sample("sigma", r["sigma"].to_numpyro()))
         if self.noise.kind == "student_t":
             sigma = numpyro.sample("sigma", r["sigma"].to_numpyro())

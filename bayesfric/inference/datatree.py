@@ -84,6 +84,7 @@ def assemble(
     obs = np.arange(program.n_obs)
     constant = {k: np.asarray(v, dtype=float) for k, v in program.inputs.items()}
     dims = {OBS_SITE: [OBS_DIM], **{k: [OBS_DIM] for k in constant}}
+    dims.update(program.site_dims())
     coords: dict[str, Any] = {OBS_DIM: obs}
     if program.noise.group is not None:
         dims.update(group_z=["group"], group_offset=["group"], group_index=[OBS_DIM])
