@@ -110,6 +110,7 @@ class Law:
     derived: Mapping[str, Derived] = field(default_factory=dict)
     trajectory: bool = False
     notes: str = ""
+    sign_definite: bool = True
 
     def __call__(self, *args, **kwargs):
         return self.fn(*args, **kwargs)
@@ -172,8 +173,14 @@ def law(
     derived: Mapping[str, Derived] | None = None,
     trajectory: bool = False,
     notes: str = "",
+    sign_definite: bool = True,
 ) -> Callable[[Callable[..., Any]], Law]:
     """Declare and register a friction law (see the module docstring).
+
+    ``sign_definite=False`` marks purely empirical curve fits (e.g. polynomial surfaces) whose
+    prior admits friction of the wrong sign; the prior-predictive checks then report the
+    fraction of implausible draws instead of requiring none. ``notes`` holds identifiability
+    remarks the report prints.
 
     Raises
     ------
@@ -244,6 +251,7 @@ def law(
             derived=dict(derived or {}),
             trajectory=trajectory,
             notes=notes,
+            sign_definite=sign_definite,
         )
         REGISTRY[name] = declared
         return declared

@@ -1,0 +1,193 @@
+"""Command-line interface: ``bayesfric laws | fit | data | study | main``.
+
+Every user error (bad data, unknown law, bad prior, bad study file) prints one line to stderr,
+exits with status 2 and writes nothing.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from bayesfric.datasets.loader import DataError
+from bayesfric.laws.base import LawDeclarationError
+from bayesfric.priors import Prior, PriorError
+from bayesfric.quantities import UnitError
+
+__all__ = ["main", "UserError"]
+
+
+class UserError(ValueError):
+    """A mistake in what the user asked for (reported in one line, exit code 2)."""
+
+
+USER_ERRORS = (DataError, PriorError, UnitError, UserError, LawDeclarationError)
+
+
+def _cmd_laws(args: argparse.Namespace) -> None:
+    from bayesfric.laws import all_laws
+    from bayesfric.report.tables import format_table, law_rows
+
+    laws = [w for w in all_laws() if args.family in (None, w.family)]
+    if not laws:
+        raise UserError(f"no laws in family {args.family!r}")
+    if args.names:
+        for w in laws:
+            print(w.name)
+        return
+    header = ["law", "inputs", "parameter", "unit", "prior", "source"]
+    for family in sorted({w.family for w in laws}):
+        print(f"\n== family {family} ==")
+        rows = []
+        for w in (w for w in laws if w.family == family):
+            rows += law_rows(w)
+        print(format_table(header, rows, markdown=args.markdown))
+        for w in (w for w in laws if w.family == family):
+            print(f"  {w.name}: {w.summary}  [{w.source}; response {w.response}]")
+
+
+def _parse_priors(items: list[str] | None) -> dict[str, Prior]:
+    out = {}
+    for item in items or []:
+        if "=" not in item:
+            raise UserError(f"--prior {item!r}: expected NAME=JSON, e.g. T_C='{{\"dist\": \"HalfNormal\", \"scale\": 2}}'")
+        name, spec = item.split("=", 1)
+        try:
+            out[name] = Prior.from_dict(json.loads(spec))
+        except json.JSONDecodeError as exc:
+            raise UserError(f"--prior {name}: invalid JSON ({exc.msg})") from None
+    return out
+
+
+def _parse_select(items: list[str] | None) -> dict[str, object]:
+    out: dict[str, object] = {}
+    for item in items or []:
+        if "=" not in item:
+            raise UserError(f"--select {item!r}: expected COORD=VALUE")
+        key, value = item.split("=", 1)
+        out[key] = int(value) if value.lstrip("-").isdigit() else value
+    return out
+
+
+def _cmd_fit(args: argparse.Namespace) -> None:
+    from bayesfric.datasets import load_dataset, resolve, select
+    from bayesfric.inference import fit, save_fit
+    from bayesfric.laws import get_law
+    from bayesfric.model import Noise
+    from bayesfric.report.tables import fit_report
+
+    try:
+        law = get_law(args.law)
+    except KeyError as exc:
+        raise UserError(exc.args[0]) from None
+    ds = select(load_dataset(resolve(args.data)), _parse_select(args.select))
+    priors = _parse_priors(args.prior)
+    noise = Noise(kind=args.noise, group=args.group)
+    sizes = {"draws": args.draws, "tune": args.tune}
+    sizes |= {"chains": args.chains} if args.sampler == "nuts" else {"walkers": args.walkers}
+    settings = {k: v for k, v in sizes.items() if v is not None}
+    dt = fit(law, ds, sampler=args.sampler, priors=priors, noise=noise, seed=args.seed, progress=not args.quiet,
+             **settings)
+    print(fit_report(dt, law))
+    if args.out:
+        print(f"fit written to {save_fit(dt, args.out)}")
+
+
+def _cmd_data(args: argparse.Namespace) -> None:
+    from bayesfric.datasets import builtin_names, describe, load_builtin, load_dataset
+
+    if args.data_cmd == "list":
+        from bayesfric.report.tables import format_table
+
+        rows = []
+        for name in builtin_names():
+            ds = load_builtin(name)
+            rows.append([name, ds.attrs["provenance"], str(ds.sizes["obs"]), ds.attrs.get("response", ""),
+                         ds.attrs.get("source", "")[:90]])
+        print(format_table(["data set", "provenance", "rows", "response", "source"], rows))
+    else:
+        ds = load_dataset(args.file, args.meta)
+        print(describe(ds))
+        print("OK: the file is valid")
+
+
+def _cmd_study(args: argparse.Namespace) -> None:
+    from bayesfric.study import run_study
+
+    run_study(args.file, out_root=args.out, quick=args.quick)
+
+
+def _cmd_main(args: argparse.Namespace) -> None:
+    from bayesfric.study import run_flagship
+
+    run_flagship(out_root=args.out, quick=args.quick)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="bayesfric", description="Bayesian model comparison of friction laws.")
+    sub = p.add_subparsers(dest="command", required=True)
+
+    q = sub.add_parser("laws", help="list the registered friction laws with units, priors and sources")
+    q.add_argument("--family", help="only this family")
+    q.add_argument("--markdown", action="store_true", help="Markdown tables")
+    q.add_argument("--names", action="store_true", help="names only")
+    q.set_defaults(func=_cmd_laws)
+
+    q = sub.add_parser("fit", help="fit one law to a data file (CSV + TOML sidecar) or a built-in data set")
+    q.add_argument("data", help="CSV file (sidecar FILE.toml next to it) or built-in data set name")
+    q.add_argument("law", help="law name (see `bayesfric laws --names`)")
+    q.add_argument("--sampler", choices=["nuts", "emcee"], default="nuts")
+    q.add_argument("--out", help="write the fit (NetCDF DataTree) here")
+    q.add_argument("--draws", type=int, default=None, help="draws per chain (emcee: steps before thinning)")
+    q.add_argument("--tune", type=int, default=None, help="warm-up draws / burn-in steps")
+    q.add_argument("--chains", type=int, default=None, help="NUTS chains")
+    q.add_argument("--walkers", type=int, default=None, help="emcee walkers")
+    q.add_argument("--seed", type=int, default=0)
+    q.add_argument("--noise", choices=["normal", "student_t", "proportional"], default="normal")
+    q.add_argument("--group", help="group coordinate for partial-pooled offsets (series, run ...)")
+    q.add_argument("--select", action="append", metavar="COORD=VALUE", help="use only these rows")
+    q.add_argument("--prior", action="append", metavar="NAME=JSON", help="override a prior")
+    q.add_argument("--quiet", action="store_true", help="no progress bar")
+    q.set_defaults(func=_cmd_fit)
+
+    q = sub.add_parser("data", help="list built-in data sets or check a user's file")
+    dsub = q.add_subparsers(dest="data_cmd", required=True)
+    d = dsub.add_parser("list", help="built-in data sets with provenance")
+    d.set_defaults(func=_cmd_data)
+    d = dsub.add_parser("check", help="validate CSV + TOML metadata and print what was understood")
+    d.add_argument("file", help="CSV file")
+    d.add_argument("--meta", help="metadata TOML (default: FILE with .toml suffix)")
+    d.set_defaults(func=_cmd_data)
+
+    q = sub.add_parser("study", help="run a study TOML file and write reports/<study>/")
+    q.add_argument("file", help="study TOML file")
+    q.add_argument("--out", default="reports", help="reports root folder")
+    q.add_argument("--quick", action="store_true", help="fewer draws and folds (smoke test, not for decisions)")
+    q.set_defaults(func=_cmd_study)
+
+    q = sub.add_parser("main", help="the main job: run every study in studies/ and write reports/")
+    q.add_argument("--out", default="reports", help="reports root folder")
+    q.add_argument("--quick", action="store_true", help="fewer draws and folds (smoke test)")
+    q.set_defaults(func=_cmd_main)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``bayesfric`` command."""
+    args = build_parser().parse_args(argv)
+    try:
+        args.func(args)
+    except USER_ERRORS as exc:
+        msg = exc.args[0] if exc.args else str(exc)
+        print(f"bayesfric: error: {msg}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("bayesfric: interrupted", file=sys.stderr)
+        return 130
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,128 @@
+"""Tables derived from law declarations and fits (used by the CLI, Markdown and HTML reports)."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+
+import arviz as az
+import numpy as np
+import xarray as xr
+
+from bayesfric.inference.diagnostics import verdict_of
+from bayesfric.laws.base import Law
+from bayesfric.quantities import QUANTITIES
+
+__all__ = ["ParameterRow", "parameter_rows", "format_table", "law_rows", "unit_of"]
+
+_NOISE_UNITS = {"sigma": "response", "sigma_floor": "response", "nu": "1", "sigma_rel": "1", "group_sd": "1"}
+_NOISE_MEANING = {
+    "sigma": "noise standard deviation",
+    "nu": "Student-t degrees of freedom",
+    "sigma_rel": "relative (proportional) noise",
+    "sigma_floor": "noise floor of the proportional model",
+    "group_sd": "relative spread of group offsets",
+}
+
+
+@dataclass
+class ParameterRow:
+    """One line of a parameter report."""
+
+    name: str
+    unit: str
+    meaning: str
+    mean: float
+    sd: float
+    q05: float
+    q95: float
+    r_hat: float
+    ess_bulk: float
+
+
+def unit_of(name: str, law: Law, response: str) -> str:
+    """Unit of a posterior variable: law parameter, derived quantity or noise parameter."""
+    if name in law.params:
+        return law.params[name].unit
+    if name in law.derived:
+        return law.derived[name].unit
+    unit = _NOISE_UNITS.get(name, "?")
+    return QUANTITIES[response].unit if unit == "response" and response in QUANTITIES else unit
+
+
+def _meaning(name: str, law: Law) -> str:
+    if name in law.params:
+        return law.params[name].meaning
+    if name in law.derived:
+        return law.derived[name].meaning
+    return _NOISE_MEANING.get(name, "")
+
+
+def parameter_rows(dt: xr.DataTree, law: Law) -> list[ParameterRow]:
+    """Posterior summary per scalar parameter: mean, sd, 90 % equal-tailed interval, R-hat, ESS.
+
+    Vector-valued parameters (spline knots) get one row per element, ``name[k]``.
+    """
+    post = dt["posterior"].to_dataset()
+    response = dt.attrs.get("response_quantity", law.response)
+    noise = list(json.loads(dt.attrs["priors"]).keys()) if "priors" in dt.attrs else []
+    order = list(law.params) + list(law.derived) + [n for n in noise if n not in law.params]
+    order = [n for n in order if n in post]
+    rhat = az.rhat(post[order])
+    ess = az.ess(post[order], method="bulk")
+    rows = []
+    for name in order:
+        values = np.asarray(post[name].values)
+        flat = values.reshape(values.shape[0] * values.shape[1], -1)
+        r = np.atleast_1d(np.asarray(rhat[name].values)).ravel()
+        e = np.atleast_1d(np.asarray(ess[name].values)).ravel()
+        for k in range(flat.shape[1]):
+            col = flat[:, k]
+            label = name if flat.shape[1] == 1 else f"{name}[{k}]"
+            rows.append(ParameterRow(
+                label, unit_of(name, law, response), _meaning(name, law), float(col.mean()),
+                float(col.std(ddof=1)), float(np.quantile(col, 0.05)), float(np.quantile(col, 0.95)),
+                float(r[k]), float(e[k]),
+            ))
+    return rows
+
+
+def format_table(header: list[str], rows: list[list[str]], markdown: bool = False) -> str:
+    """Plain-text (aligned) or Markdown table."""
+    if markdown:
+        lines = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
+        lines += ["| " + " | ".join(r) + " |" for r in rows]
+        return "\n".join(lines)
+    widths = [max(len(str(x)) for x in col) for col in zip(header, *rows, strict=True)]
+    fmt = "  ".join(f"{{:<{w}}}" for w in widths)
+    return "\n".join([fmt.format(*header), fmt.format(*("-" * w for w in widths))]
+                     + [fmt.format(*r) for r in rows])
+
+
+def fit_report(dt: xr.DataTree, law: Law, markdown: bool = False) -> str:
+    """The parameter report of one fit: table with units, mean, sd, 90 % interval, diagnostics."""
+    header = ["parameter", "unit", "mean", "sd", "5 %", "95 %", "R-hat", "ESS bulk", "meaning"]
+    rows = [[r.name, r.unit, f"{r.mean:.4g}", f"{r.sd:.3g}", f"{r.q05:.4g}", f"{r.q95:.4g}",
+             f"{r.r_hat:.3f}", f"{r.ess_bulk:.0f}", r.meaning] for r in parameter_rows(dt, law)]
+    verdict = verdict_of(dt)
+    lines = [
+        f"law {law.name}: {law.summary}",
+        f"source: {law.source}",
+        f"data: {dt.attrs.get('dataset')} ({dt.attrs.get('data_provenance')}), "
+        f"{dt['observed_data'].sizes.get('obs', 0)} observations, sampler {dt.attrs.get('sampler')}",
+        "",
+        format_table(header, rows, markdown=markdown),
+        "",
+        f"diagnostics: {verdict}",
+    ]
+    return "\n".join(lines)
+
+
+def law_rows(law: Law) -> list[list[str]]:
+    """Rows (law, inputs, parameter, unit, prior, source) describing a declaration."""
+    rows = []
+    for i, (name, p) in enumerate(law.params.items()):
+        shape = f"{name}{list(p.shape)}" if p.shape else name
+        rows.append([law.name if i == 0 else "", ", ".join(law.operating_inputs) if i == 0 else "",
+                     shape, p.unit, str(p.prior), p.source])
+    return rows
