@@ -1,0 +1,78 @@
+"""Both backends return the same DataTree contract; the gate; saving; noise models."""
+
+import arviz as az
+import numpy as np
+import pytest
+import xarray as xr
+
+from bayesfric.datasets.synthetic import simulate
+from bayesfric.inference import GATE, check, fit, load_fit, save_fit, verdict_of
+from bayesfric.laws import get_law
+from bayesfric.model import Noise
+
+GROUPS = {"posterior", "sample_stats", "log_likelihood", "posterior_predictive", "prior",
+          "prior_predictive", "observed_data", "constant_data"}
+PROVENANCE = {"law", "priors", "data_hash", "sampler", "sampler_settings", "seed", "versions", "diagnostics"}
+
+
+@pytest.fixture(scope="module")
+def small_ds():
+    v = np.linspace(-3, 3, 30)
+    return simulate(get_law("coulomb_viscous"), {"velocity": v}, {"T_C": 2.0, "c_v": 0.5}, sigma=0.1, seed=3,
+                    groups={"series": np.tile([1, 2, 3], 10)})
+
+
+@pytest.mark.parametrize("sampler", ["nuts", "emcee"])
+def test_datatree_contract(small_ds, sampler, tmp_path):
+    settings = dict(draws=300, tune=300, chains=2) if sampler == "nuts" else dict(draws=600, tune=600, walkers=16)
+    dt = fit(get_law("coulomb_viscous"), small_ds, sampler=sampler, seed=1, **settings)
+    assert GROUPS <= set(dt.children)
+    assert PROVENANCE <= set(dt.attrs)
+    assert dt.attrs["sampler"] == sampler and dt.attrs["law"] == "coulomb_viscous"
+    assert dt["log_likelihood"]["response"].dims[-1] == "obs"
+    assert dt["posterior_predictive"]["response"].shape[-1] == 30
+    assert set(dt["posterior"].data_vars) >= {"T_C", "c_v", "sigma"}
+    assert set(dt["prior"].data_vars) >= {"T_C", "c_v", "sigma"}
+    assert "series" in dt["observed_data"].coords
+    # verdict stored with the fit equals a fresh check
+    assert verdict_of(dt) == check(dt)
+    path = save_fit(dt, tmp_path / "sub" / "fit.nc")
+    assert not list(path.parent.glob(".*.tmp"))
+    plain = xr.open_datatree(path)
+    summary = az.summary(plain)
+    assert {"T_C", "c_v", "sigma"} <= set(summary.index)
+    again = load_fit(path)
+    np.testing.assert_array_equal(again["posterior"]["T_C"].values, dt["posterior"]["T_C"].values)
+
+
+def test_gate_flags_unmixed_chains(small_ds):
+    dt = fit(get_law("coulomb"), small_ds, draws=200, tune=200, chains=2, seed=0)
+    post = dt["posterior"].to_dataset()
+    shifted = post.copy()
+    shifted["T_C"] = post["T_C"] + xr.DataArray([0.0, 1.0], dims="chain")  # chains disagree
+    dt["posterior"] = shifted
+    verdict = check(dt)
+    assert not verdict.passed
+    assert any("R-hat" in p for p in verdict.problems)
+    assert verdict.rhat_max > GATE.rhat_max
+
+
+def test_gate_thresholds_in_one_place():
+    assert (GATE.rhat_max, GATE.ess_bulk_min, GATE.ess_tail_min, GATE.divergences_max, GATE.ebfmi_min) == (
+        1.01, 400.0, 400.0, 0, 0.3)
+
+
+@pytest.mark.parametrize("noise", [Noise("student_t"), Noise("proportional"), Noise("normal", group="series")])
+def test_noise_models_sample(small_ds, noise):
+    dt = fit(get_law("coulomb_viscous"), small_ds, noise=noise, draws=150, tune=150, chains=1, seed=2)
+    post = dt["posterior"]
+    for site in noise.sites():
+        assert site in post.data_vars
+    if noise.group:
+        assert post["group_offset"].shape[-1] == 3
+    assert np.all(np.isfinite(dt["log_likelihood"]["response"].values))
+
+
+def test_known_sigma_is_not_sampled(small_ds):
+    dt = fit(get_law("coulomb_viscous"), small_ds, noise=Noise(sigma=0.1), draws=100, tune=100, chains=1)
+    assert "sigma" not in dt["posterior"].data_vars

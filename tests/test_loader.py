@@ -1,0 +1,133 @@
+"""CSV + TOML loading: unit conversion to SI and one-line errors for every bad-input case."""
+
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bayesfric.cli import main
+from bayesfric.datasets import DataError, load_dataset
+
+META = """
+[dataset]
+name = "bench"
+title = "test bench"
+provenance = "measured"
+source = "unit test"
+
+[columns.speed]
+role = "input"
+quantity = "velocity"
+unit = "{speed_unit}"
+
+[columns.torque]
+role = "response"
+quantity = "torque"
+unit = "{torque_unit}"
+
+[columns.series]
+role = "group"
+"""
+
+
+def write(tmp_path: Path, rows: str, speed_unit="rpm", torque_unit="N*m", meta=None) -> Path:
+    csv = tmp_path / "bench.csv"
+    csv.write_text(rows)
+    (tmp_path / "bench.toml").write_text(meta or META.format(speed_unit=speed_unit, torque_unit=torque_unit))
+    return csv
+
+
+GOOD = "speed,torque,series\n60,1.5,a\n-120,-2.0,b\n"
+
+
+def test_loads_and_converts(tmp_path):
+    ds = load_dataset(write(tmp_path, GOOD))
+    np.testing.assert_allclose(ds["velocity"].values, [2 * math.pi, -4 * math.pi])  # 60 rpm = 2π rad/s
+    assert ds["velocity"].attrs["units"] == "rad/s" and ds["velocity"].attrs["original_unit"] == "rpm"
+    assert ds.attrs["provenance"] == "measured" and ds.attrs["response"] == "torque"
+    assert list(ds["series"].values) == ["a", "b"]
+    assert len(ds.attrs["data_hash"]) == 16
+
+
+@pytest.mark.parametrize(
+    ("unit", "quantity", "value", "si"),
+    [
+        ("rpm", "velocity", 1.0, 2 * math.pi / 60),
+        ("deg/s", "velocity", 180.0, math.pi),
+        ("°/s", "velocity", 90.0, math.pi / 2),
+        ("lbf", "preload", 1.0, 4.4482216152605),
+        ("in*ozf", "torque", 1.0, 0.0254 * 0.27801385095378125),
+        ("degC", "temperature", 20.0, 293.15),
+        ("°C", "temperature", 38.0, 311.15),
+        ("MN*m", "bending_moment", 6.0, 6e6),
+        ("kN*m", "torque", 2.5, 2500.0),
+        ("deg", "angle", 11.25, 11.25 * math.pi / 180),
+    ],
+)
+def test_unit_conversions(unit, quantity, value, si):
+    from bayesfric.quantities import to_canonical
+
+    assert to_canonical(value, unit, quantity) == pytest.approx(si, rel=1e-12)
+
+
+BAD_CASES = [
+    # (rows, speed_unit, expected fragments of the one-line message)
+    ("speed,series\n1,a\n", "rpm", ["bench.csv", "column 'torque'", "missing"]),
+    (GOOD, "furlong_per_quux", ["bench.toml", "column 'speed'", "unknown unit"]),
+    (GOOD, "N*m", ["bench.toml", "column 'speed'", "dimension"]),
+    ("speed,torque,series\n60,nan,a\n", "rpm", ["bench.csv", "row 1", "column 'torque'", "non-finite"]),
+    ("speed,torque,series\n60,1,a\ninf,1,b\n", "rpm", ["bench.csv", "row 2", "column 'speed'", "non-finite"]),
+    ("", "rpm", ["bench.csv", "empty"]),
+    ("speed,torque,series\n", "rpm", ["bench.csv", "no data rows"]),
+    ("speed,torque,series\n60,1.5,a\n7o,2,b\n", "rpm", ["bench.csv", "row 2", "column 'speed'", "'7o' is not a number"]),
+    ("speed,torque,series\n60,1.5\n", "rpm", ["bench.csv", "row 1", "cells"]),
+]
+
+
+@pytest.mark.parametrize(("rows", "unit", "fragments"), BAD_CASES)
+def test_bad_input_one_line(tmp_path, rows, unit, fragments):
+    with pytest.raises(DataError) as info:
+        load_dataset(write(tmp_path, rows, speed_unit=unit))
+    message = str(info.value)
+    assert "\n" not in message
+    for fragment in fragments:
+        assert fragment in message, (fragment, message)
+
+
+def test_bad_metadata(tmp_path):
+    meta = META.format(speed_unit="rpm", torque_unit="N*m").replace('provenance = "measured"', 'provenance = "guessed"')
+    with pytest.raises(DataError, match="provenance 'guessed'"):
+        load_dataset(write(tmp_path, GOOD, meta=meta))
+    with pytest.raises(DataError, match="metadata file not found"):
+        csv = tmp_path / "other.csv"
+        csv.write_text(GOOD)
+        load_dataset(csv)
+
+
+def test_cli_bad_input_exit_2_no_traceback_nothing_written(tmp_path, capsys):
+    csv = write(tmp_path, "speed,torque,series\n60,x,a\n")
+    out = tmp_path / "fit.nc"
+    code = main(["fit", str(csv), "coulomb", "--out", str(out), "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert err.count("\n") == 1 and "Traceback" not in err and "row 1" in err
+    assert not out.exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bench.csv", "bench.toml"]
+
+
+def test_cli_unknown_law_exit_2(tmp_path):
+    csv = write(tmp_path, GOOD)
+    proc = subprocess.run([sys.executable, "-m", "bayesfric", "fit", str(csv), "no_such_law"],
+                          capture_output=True, text=True)
+    assert proc.returncode == 2
+    assert "unknown law 'no_such_law'" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_cli_data_check(tmp_path, capsys):
+    csv = write(tmp_path, GOOD)
+    assert main(["data", "check", str(csv)]) == 0
+    text = capsys.readouterr().out
+    assert "rpm -> rad/s" in text and "OK" in text
