@@ -12,15 +12,12 @@ import sys
 from pathlib import Path
 
 from bayesfric.datasets.loader import DataError
+from bayesfric.errors import UserError
 from bayesfric.laws.base import LawDeclarationError
 from bayesfric.priors import Prior, PriorError
 from bayesfric.quantities import UnitError
 
 __all__ = ["main", "UserError"]
-
-
-class UserError(ValueError):
-    """A mistake in what the user asked for (reported in one line, exit code 2)."""
 
 
 USER_ERRORS = (DataError, PriorError, UnitError, UserError, LawDeclarationError)

@@ -1,0 +1,85 @@
+"""Figures of a study: data with each law's posterior predictive, and residuals along an axis."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import xarray as xr  # noqa: E402
+
+from bayesfric.quantities import QUANTITIES  # noqa: E402
+
+__all__ = ["plot_predictive", "provenance_label"]
+
+
+def provenance_label(ds: xr.Dataset) -> str:
+    """The label every figure and table of a dataset carries (reconstructed / measured / simulated)."""
+    prov = ds.attrs.get("provenance", "?")
+    source = ds.attrs.get("source", "")
+    if prov == "reconstructed":
+        return f"RECONSTRUCTED data (not measured) — reconstructed from {source}"
+    if prov == "simulated":
+        return f"SIMULATED data — {source}"
+    return f"measured data — {source}"
+
+
+def _save(fig, path: Path) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(suffix=".png", dir=path.parent)
+    os.close(fd)
+    fig.savefig(tmp, dpi=110, bbox_inches="tight")
+    plt.close(fig)
+    os.replace(tmp, path)
+    return path
+
+
+def plot_predictive(
+    ds: xr.Dataset,
+    fits: dict[str, xr.DataTree],
+    axis: str,
+    path: Path,
+    *,
+    heldout: np.ndarray | None = None,
+    title: str = "",
+) -> Path:
+    """Observed response and each law's posterior-predictive mean and 90 % band along ``axis``.
+
+    Upper panel: data (held-out points of the first blocked scheme marked) and, per law, the
+    posterior-predictive mean at each observation. Lower panel: standardised residuals
+    (observed − mean) / predictive sd, which shows where along the envelope each law fails.
+    """
+    x = np.asarray(ds[axis].values, dtype=float)
+    unit = QUANTITIES[axis].unit if axis in QUANTITIES else ""
+    y = np.asarray(ds[ds.attrs["response"]].values, dtype=float)
+    order = np.argsort(x, kind="stable")
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(8.5, 7.5), sharex=True,
+                                      gridspec_kw={"height_ratios": [3, 2]})
+    top.plot(x, y, "o", ms=3, color="0.35", alpha=0.6, label="data")
+    if heldout is not None and heldout.any():
+        top.plot(x[heldout], y[heldout], "o", ms=4, mfc="none", mec="crimson", label="held out (blocked CV)")
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for i, (name, dt) in enumerate(fits.items()):
+        pp = np.asarray(dt["posterior_predictive"]["response"].values)
+        pp = pp.reshape(-1, pp.shape[-1])
+        mean, sd = pp.mean(axis=0), pp.std(axis=0)
+        lo, hi = np.quantile(pp, [0.05, 0.95], axis=0)
+        c = colours[i % len(colours)]
+        top.plot(x[order], mean[order], "-", lw=1.2, color=c, label=name)
+        top.fill_between(x[order], lo[order], hi[order], color=c, alpha=0.12, lw=0)
+        bottom.plot(x, (y - mean) / np.where(sd > 0, sd, 1.0), ".", ms=3, color=c, alpha=0.7)
+    bottom.axhline(0, color="k", lw=0.8)
+    for level in (-2, 2):
+        bottom.axhline(level, color="k", lw=0.5, ls=":")
+    response = ds.attrs["response"]
+    top.set_ylabel(f"{response} [{ds[response].attrs.get('units', '')}]")
+    bottom.set_ylabel("standardised residual")
+    bottom.set_xlabel(f"{axis} [{unit}]")
+    top.legend(fontsize=7, ncol=2)
+    top.set_title((title + "\n" if title else "") + provenance_label(ds), fontsize=8)
+    return _save(fig, path)

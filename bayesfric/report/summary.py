@@ -1,0 +1,186 @@
+"""Write a study's reports: summary.md, ranking.csv, parameters.csv and a self-contained report.html."""
+
+from __future__ import annotations
+
+import base64
+import csv
+import io
+import math
+from pathlib import Path
+
+import jinja2
+
+from bayesfric.report.figures import provenance_label
+from bayesfric.report.tables import format_table, parameter_rows
+from bayesfric.study.outcome import StudyOutcome
+
+__all__ = ["ranking_rows", "write_reports"]
+
+
+def _num(x: float, digits: int = 2) -> str:
+    return f"{x:.{digits}f}" if isinstance(x, float | int) and math.isfinite(x) else "–"
+
+
+def ranking_rows(out: StudyOutcome) -> tuple[list[str], list[list[str]], list[dict]]:
+    """The ranking table: header, formatted rows, and raw records (for CSV).
+
+    Rows are ordered by the first blocked-extrapolation scheme (the question the study asks),
+    falling back to LOO; unreliable fits sink to the bottom and are marked.
+    """
+    estimators = sorted({k for w in out.laws for k in w.evidence})
+    weight_keys = sorted({k for w in out.laws for k in w.weights})
+    header = ["law", "k", "diagnostics"]
+    header += [f"log Z ({e})" for e in estimators] + (["|ΔlogZ|"] if len(estimators) > 1 else [])
+    header += ["elpd LOO", "p_loo", "Pareto k>thr"]
+    for s in out.schemes:
+        header.append(f"elpd {s}")
+        if s in out.blocked:
+            header.append(f"penalty/pt {s}")
+    header += [f"weight {k}" for k in weight_keys] + ["flags"]
+
+    key = out.blocked[0] if out.blocked else None
+
+    def sort_key(w):
+        value = w.cv[key].value if key and key in w.cv else w.loo.value
+        return (not w.reliable, -(value if math.isfinite(value) else -1e300))
+
+    rows, records = [], []
+    for w in sorted(out.laws, key=sort_key):
+        k = sum(max(1, math.prod(p.shape)) for p in w.law.params.values())
+        row = [w.name, str(k), "passed" if w.reliable else "FAILED"]
+        rec: dict = {"law": w.name, "n_params": k, "diagnostics_passed": w.reliable,
+                     "rhat_max": w.verdict.rhat_max, "ess_bulk_min": w.verdict.ess_bulk_min}
+        for e in estimators:
+            est = w.evidence.get(e)
+            row.append(est.fmt(2) if est else "–")
+            rec[f"log_z_{e}"], rec[f"log_z_{e}_error"] = (est.value, est.error) if est else (math.nan, math.nan)
+        if len(estimators) > 1:
+            row.append(_num(w.evidence_disagreement))
+            rec["evidence_disagreement"] = w.evidence_disagreement
+        row += [w.loo.fmt(1), _num(w.p_loo, 1), f"{w.n_high_k} (max {_num(w.pareto_k_max)})"]
+        rec.update(elpd_loo=w.loo.value, elpd_loo_se=w.loo.error, p_loo=w.p_loo, n_high_k=w.n_high_k,
+                   pareto_k_max=w.pareto_k_max)
+        for s in out.schemes:
+            est = w.cv.get(s)
+            text = est.fmt(1) if est else "–"
+            if est and not w.cv_reliable.get(s, True):
+                text += " ⚠"
+            row.append(text)
+            rec[f"elpd[{s}]"], rec[f"se[{s}]"] = (est.value, est.error) if est else (math.nan, math.nan)
+            if s in out.blocked:
+                row.append(_num(w.penalty.get(s, math.nan), 3))
+                rec[f"penalty_per_point[{s}]"] = w.penalty.get(s, math.nan)
+        for kw in weight_keys:
+            row.append(_num(w.weights.get(kw, math.nan), 3))
+            rec[f"weight[{kw}]"] = w.weights.get(kw, math.nan)
+        row.append("; ".join(w.flags) or "–")
+        rec["flags"] = "; ".join(w.flags)
+        rows.append(row)
+        records.append(rec)
+    return header, rows, records
+
+
+def _parameter_records(out: StudyOutcome) -> list[dict]:
+    records = []
+    for w in out.laws:
+        for r in parameter_rows(w.fit, w.law):
+            records.append({"law": w.name, "parameter": r.name, "unit": r.unit, "mean": r.mean, "sd": r.sd,
+                            "q05": r.q05, "q95": r.q95, "r_hat": r.r_hat, "ess_bulk": r.ess_bulk,
+                            "diagnostics_passed": w.reliable, "meaning": r.meaning})
+    return records
+
+
+def _write_csv(path: Path, records: list[dict]) -> None:
+    if not records:
+        path.write_text("")
+        return
+    fields = list(dict.fromkeys(k for r in records for k in r))
+    with path.open("w", newline="") as fh:
+        writer = csv.DictWriter(fh, fieldnames=fields)
+        writer.writeheader()
+        writer.writerows(records)
+
+
+def _markdown(out: StudyOutcome, header, rows, figures: list[Path]) -> str:
+    st = out.study
+    ds = out.data
+    lines = [f"# {st.title}", "", f"> **{provenance_label(ds)}**", ""]
+    if st.question:
+        lines += [f"**Question.** {st.question}", ""]
+    lines += ["## Data", "",
+              f"- data set: `{ds.attrs.get('name')}` — {ds.attrs.get('title', '')}",
+              f"- provenance: **{ds.attrs.get('provenance')}**; source: {ds.attrs.get('source')}",
+              f"- {ds.sizes['obs']} observations; selection: {ds.attrs.get('selection', 'all rows')}; "
+              f"content hash {ds.attrs.get('data_hash')}",
+              f"- noise model: {st.noise.kind}" + (f", partial-pooled offsets per `{st.noise.group}`" if st.noise.group else ""),
+              f"- sampler: {st.sampler}", ""]
+    lines += ["## Findings", ""] + [f"- {f}" for f in out.findings] + [""]
+    lines += ["## Ranking", "",
+              "Ordered by the first blocked-extrapolation scheme (elpd on held-out points outside the "
+              "training envelope; higher is better). *penalty/pt* = (elpd_LOO − elpd_blocked) per held-out "
+              "point, on the same points: how much worse the law predicts outside the tested envelope than "
+              "inside it. Weights exclude fits that failed the diagnostics gate"
+              + (" (the study asked to include them)" if st.include_failed else "") + ". ⚠ = a fold failed the gate.",
+              "", format_table(header, rows, markdown=True), ""]
+    if out.ranking_sensitivity:
+        lines += [f"**Prior sensitivity of the ranking.** {out.ranking_sensitivity}", ""]
+    lines += ["## Parameters", ""]
+    for w in out.laws:
+        lines += [f"### {w.name} — {w.law.summary}", "", f"source: {w.law.source}; diagnostics: {w.verdict}", ""]
+        if w.law.notes:
+            lines += [f"*Identifiability:* {w.law.notes}", ""]
+        prow = [[r.name, r.unit, f"{r.mean:.4g}", f"{r.sd:.3g}", f"{r.q05:.4g} … {r.q95:.4g}", f"{r.r_hat:.3f}",
+                 f"{r.ess_bulk:.0f}"] for r in parameter_rows(w.fit, w.law)]
+        lines += [format_table(["parameter", "unit", "mean", "sd", "90 % interval", "R-hat", "ESS"], prow,
+                               markdown=True), ""]
+        extras = []
+        if math.isfinite(w.prior_implausible):
+            extras.append(f"prior draws with unphysical friction: {w.prior_implausible:.1%}")
+        if math.isfinite(w.loo_pit_pvalue):
+            extras.append(f"LOO-PIT uniformity p = {w.loo_pit_pvalue:.3f}")
+        if w.prior_sensitivity:
+            extras.append(f"prior sensitivity: {w.prior_sensitivity}")
+        if w.high_k_handling:
+            extras.append(w.high_k_handling)
+        lines += [f"- {e}" for e in extras] + [f"- fit file: `fits/{w.fit_file.name}`", ""]
+    lines += ["## Figures", ""] + [f"![{p.stem}](figures/{p.name})" for p in figures] + [""]
+    lines += [f"*Generated by bayesfric in {out.seconds:.0f} s. Rerun: `bayesfric study {st.path}`.*", ""]
+    return "\n".join(lines)
+
+
+_HTML = jinja2.Template("""<!doctype html><html><head><meta charset="utf-8"><title>{{ title }}</title>
+<style>body{font-family:system-ui,sans-serif;max-width:1200px;margin:2em auto;padding:0 1em}
+table{border-collapse:collapse;font-size:12px;margin:1em 0}td,th{border:1px solid #ccc;padding:3px 6px}
+th{background:#f0f0f0}.banner{background:#fff3cd;border:1px solid #e0c060;padding:.6em;font-weight:bold}
+img{max-width:100%}</style></head><body>
+<h1>{{ title }}</h1><div class="banner">{{ banner }}</div>
+{% if question %}<p><b>Question.</b> {{ question }}</p>{% endif %}
+<h2>Findings</h2><ul>{% for f in findings %}<li>{{ f }}</li>{% endfor %}</ul>
+<h2>Ranking</h2><table><tr>{% for h in header %}<th>{{ h }}</th>{% endfor %}</tr>
+{% for r in rows %}<tr>{% for c in r %}<td>{{ c }}</td>{% endfor %}</tr>{% endfor %}</table>
+<h2>Parameters</h2>{% for law in laws %}<h3>{{ law.name }}</h3><p>{{ law.text }}</p>
+<table><tr>{% for h in pheader %}<th>{{ h }}</th>{% endfor %}</tr>
+{% for r in law.rows %}<tr>{% for c in r %}<td>{{ c }}</td>{% endfor %}</tr>{% endfor %}</table>{% endfor %}
+<h2>Figures</h2>{% for f in figures %}<p><img src="data:image/png;base64,{{ f }}"></p>{% endfor %}
+</body></html>""", autoescape=True)
+
+
+def write_reports(out: StudyOutcome, folder: Path, figures: list[Path]) -> None:
+    """Write summary.md, ranking.csv, parameters.csv and report.html into ``folder``."""
+    header, rows, records = ranking_rows(out)
+    (folder / "summary.md").write_text(_markdown(out, header, rows, figures))
+    _write_csv(folder / "ranking.csv", records)
+    _write_csv(folder / "parameters.csv", _parameter_records(out))
+    pheader = ["parameter", "unit", "mean", "sd", "5 %", "95 %", "R-hat", "ESS"]
+    laws = [{"name": w.name, "text": f"{w.law.summary} — {w.law.source}. Diagnostics: {w.verdict}",
+             "rows": [[r.name, r.unit, f"{r.mean:.4g}", f"{r.sd:.3g}", f"{r.q05:.4g}", f"{r.q95:.4g}",
+                       f"{r.r_hat:.3f}", f"{r.ess_bulk:.0f}"] for r in parameter_rows(w.fit, w.law)]}
+            for w in out.laws]
+    encoded = []
+    for p in figures:
+        buf = io.BytesIO(p.read_bytes())
+        encoded.append(base64.b64encode(buf.getvalue()).decode())
+    html = _HTML.render(title=out.study.title, banner=provenance_label(out.data), question=out.study.question,
+                        findings=out.findings, header=header, rows=rows, pheader=pheader, laws=laws,
+                        figures=encoded)
+    (folder / "report.html").write_text(html)

@@ -1,0 +1,199 @@
+"""Run a study: fit every candidate law, compare them every way the study asks, write the reports.
+
+Output goes to ``<out_root>/<study>/`` atomically: everything is written into a temporary sibling
+folder that replaces the old report folder only when the whole study succeeded, so a failed or
+interrupted run never leaves a half-written report.
+"""
+
+from __future__ import annotations
+
+import math
+import shutil
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from bayesfric import compare
+from bayesfric.datasets import DataError, load_dataset, resolve, select
+from bayesfric.inference import SAMPLERS, save_fit
+from bayesfric.laws import get_law
+from bayesfric.model import build_program
+from bayesfric.report.figures import plot_predictive
+from bayesfric.report.summary import write_reports
+from bayesfric.study.config import Study, StudyError, load_study
+from bayesfric.study.outcome import Estimate, LawOutcome, StudyOutcome
+
+__all__ = ["run_study", "validate_against_data"]
+
+#: ``--quick`` settings: a smoke test of the whole pipeline, not for decisions (reports say so).
+QUICK = {"draws": 300, "tune": 300, "chains": 2}
+
+
+def validate_against_data(study: Study, ds) -> None:
+    """Data-dependent checks of a study: every key that names data must exist in it."""
+    where = str(study.path)
+    coords = {k for k, v in ds.coords.items()}
+    inputs = {k for k, v in ds.coords.items() if v.attrs.get("role") == "input"}
+    if study.noise.group and study.noise.group not in coords:
+        raise StudyError(f"{where}: noise.group: {study.noise.group!r} is not a group of the data ({', '.join(sorted(coords))})")
+    if study.grouped and study.grouped not in coords:
+        raise StudyError(f"{where}: compare.grouped: {study.grouped!r} is not a coordinate of the data")
+    for i, b in enumerate(study.blocked):
+        if b.axis not in inputs:
+            raise StudyError(f"{where}: compare.blocked[{i}].axis: {b.axis!r} is not an input of the data "
+                             f"(inputs: {', '.join(sorted(inputs))})")
+    for i, spec in enumerate(study.laws):
+        law = get_law(spec.name)
+        missing = [q for q in law.operating_inputs if q not in inputs]
+        if missing:
+            raise StudyError(f"{where}: laws[{i}] ({spec.name}) reads {missing}, which the data lacks")
+        if law.response != ds.attrs["response"]:
+            raise StudyError(f"{where}: laws[{i}] ({spec.name}) predicts {law.response}, the data has "
+                             f"{ds.attrs['response']}")
+
+
+def _fold_schemes(study: Study, ds, seed: int) -> list[tuple[str, object, bool]]:
+    """(label, Folds, is_blocked) for every CV scheme the study asks for."""
+    schemes = []
+    if study.kfold:
+        schemes.append((f"{study.kfold}-fold", compare.kfold_masks(ds, study.kfold, seed=seed), False))
+    if study.grouped:
+        schemes.append((f"leave-one-{study.grouped}-out", compare.grouped_masks(ds, study.grouped), False))
+    for b in study.blocked:
+        folds = compare.blocked_masks(ds, b.axis, threshold=b.threshold, quantile=b.quantile, direction=b.direction)
+        schemes.append((b.label or folds.scheme, folds, True))
+    return schemes
+
+
+def _run_law(study: Study, spec, ds, folder: Path, schemes, settings: dict, seed: int, quick: bool) -> LawOutcome:
+    start = time.perf_counter()
+    law = get_law(spec.name)
+    program = build_program(law, ds, priors=spec.priors, noise=study.noise, constants=spec.constants)
+    sampler = study.sampler.get("name", "nuts")
+    dt = SAMPLERS[sampler](program, ds, seed=seed, **settings)
+    fit_file = save_fit(dt, folder / "fits" / f"{law.name}.nc")
+    verdict = compare.verdict_of(dt)
+    out = LawOutcome(law=law, fit=dt, fit_file=fit_file, verdict=verdict)
+    if not verdict.passed:
+        out.flags.append("diagnostics FAILED: " + "; ".join(verdict.problems))
+
+    engine = compare.RefitEngine(program, draws=settings["draws"], tune=settings["tune"],
+                                 chains=settings.get("chains", 4), seed=seed)
+    if study.loo:
+        loo = compare.psis_loo(dt, engine=engine)
+        out.loo, out.loo_pointwise = Estimate(loo.elpd, loo.se), loo.elpd_i
+        out.p_loo, out.pareto_k_max, out.n_high_k = loo.p_loo, float(np.max(loo.pareto_k)), loo.n_high_k
+        out.high_k_handling = loo.handling
+    for label, folds, blocked in schemes:
+        cv = compare.cross_validate(engine, folds, seed=seed)
+        out.cv[label] = Estimate(cv.elpd, cv.se)
+        out.cv_pointwise[label] = cv.elpd_i
+        out.cv_reliable[label] = cv.reliable
+        if not cv.reliable:
+            out.flags.append(f"{label}: folds {cv.failed_folds} failed the gate")
+        if blocked and out.loo_pointwise is not None:
+            held = cv.heldout
+            out.penalty[label] = float(np.mean(out.loo_pointwise[held] - cv.elpd_i[held]))
+    if study.evidence:
+        bridge = compare.bridge_log_evidence(program, dt)
+        nested = compare.nested_log_evidence(program, seed=seed)
+        out.evidence = {"bridge": Estimate(bridge.log_z, bridge.error), "nested": Estimate(nested.log_z, nested.error)}
+        agreement = compare.compare_estimators(bridge, nested)
+        out.evidence_disagreement = agreement.difference
+        if agreement.flagged:
+            out.flags.append(f"evidence estimators disagree by {agreement.difference:.2f} nat (> 0.5)")
+    prior = compare.prior_predictive_check(program)
+    out.prior_implausible = prior.fraction_implausible
+    pit = compare.loo_pit_check(dt)
+    out.loo_pit_pvalue = pit.pvalue
+    if math.isfinite(pit.pvalue) and pit.pvalue < 0.01:
+        out.flags.append(f"LOO-PIT not uniform (p = {pit.pvalue:.3f}): predictive distribution miscalibrated")
+    out.prior_sensitivity = compare.prior_sensitivity_text(dt)
+    out.seconds = time.perf_counter() - start
+    return out
+
+
+def _findings(out: StudyOutcome) -> list[str]:
+    lines = []
+    loo_winner = out.winner("loo")
+    if loo_winner:
+        lines.append(f"Best under PSIS-LOO (interpolation): **{loo_winner}**.")
+    for label in out.blocked:
+        w = out.winner(label)
+        if w:
+            same = "the same law" if w == loo_winner else f"a different law from LOO ({loo_winner})"
+            lines.append(f"Best under blocked CV '{label}' (extrapolation): **{w}** — {same}.")
+    for key in ("bridge", "nested"):
+        w = out.winner(key)
+        if w:
+            lines.append(f"Highest log evidence ({key}): **{w}**.")
+    failed = [w.name for w in out.laws if not w.reliable]
+    if failed:
+        lines.append(f"Fits that FAILED the diagnostics gate (excluded from weights, marked in tables): {', '.join(failed)}.")
+    disagree = [w.name for w in out.laws if any("disagree" in f for f in w.flags)]
+    if disagree:
+        lines.append(f"Evidence estimators disagree by more than 0.5 nat for: {', '.join(disagree)} (not averaged).")
+    if out.extra.get("quick"):
+        lines.append("QUICK MODE: reduced draws — a pipeline smoke test, not a basis for decisions.")
+    return lines
+
+
+def run_study(path: str | Path, out_root: str | Path = "reports", quick: bool = False) -> Path:
+    """Run the study file at ``path`` and write ``<out_root>/<study name>/``.
+
+    Returns the report folder. Raises :class:`StudyError` / :class:`DataError` (one line) on
+    bad input before anything is written.
+    """
+    start = time.perf_counter()
+    study = load_study(path)
+    try:
+        ds = select(load_dataset(resolve(study.dataset)), study.select)
+    except DataError as exc:
+        raise StudyError(f"{study.path}: data: {exc}") from None
+    validate_against_data(study, ds)
+    seed = int(study.sampler.get("seed", 0))
+    settings = {k: study.sampler[k] for k in ("draws", "tune", "chains", "target_accept") if k in study.sampler}
+    settings = {"draws": 1000, "tune": 1000, "chains": 4} | settings | (QUICK if quick else {})
+    schemes = _fold_schemes(study, ds, seed)
+
+    out_root = Path(out_root)
+    out_root.mkdir(parents=True, exist_ok=True)
+    final = out_root / study.name
+    work = Path(tempfile.mkdtemp(prefix=f".{study.name}.", dir=out_root))
+    try:
+        outcomes = []
+        for spec in study.laws:
+            print(f"[{study.name}] fitting {spec.name} ...", flush=True)
+            outcomes.append(_run_law(study, spec, ds, work, schemes, settings, seed, quick))
+        outcome = StudyOutcome(study=study, data=ds, laws=outcomes, schemes=[s[0] for s in schemes],
+                               blocked=[s[0] for s in schemes if s[2]],
+                               heldout={s[0]: s[1].heldout.any(axis=0) for s in schemes})
+        outcome.extra["quick"] = quick
+        compare.assign_weights(outcome)
+        outcome.ranking_sensitivity = compare.ranking_sensitivity_text(outcome)
+        outcome.seconds = time.perf_counter() - start
+        outcome.findings = _findings(outcome)
+        figures = _figures(outcome, work)
+        write_reports(outcome, work, figures)
+        if final.exists():
+            shutil.rmtree(final)
+        work.rename(final)
+    except BaseException:
+        shutil.rmtree(work, ignore_errors=True)
+        raise
+    print(f"[{study.name}] report written to {final} ({time.perf_counter() - start:.0f} s)")
+    return final
+
+
+def _figures(out: StudyOutcome, folder: Path) -> list[Path]:
+    inputs = [k for k, v in out.data.coords.items() if v.attrs.get("role") == "input"]
+    axes = list(dict.fromkeys([b.axis for b in out.study.blocked] + inputs))
+    fits = {w.name: w.fit for w in out.laws}
+    paths = []
+    for axis in axes[:2]:
+        held = next((out.heldout[s] for s, b in zip(out.blocked, out.study.blocked, strict=False) if b.axis == axis), None)
+        paths.append(plot_predictive(out.data, fits, axis, folder / "figures" / f"predictive_{axis}.png",
+                                     heldout=held, title=out.study.title))
+    return paths
