@@ -42,6 +42,7 @@ PLOT_LOOP_HEIGHT_IN = 7.0  # Fig. 11: the 24 lb loop spans about 7 graph inches 
 
 # -- assumptions (README §2) -------------------------------------------------------------------
 AMPLITUDE_DEG = round(2.53 / QUANTUM_DEG) * QUANTUM_DEG  # Fig. 11: x' spans ~9 in x 0.563 deg/in
+RATE_DEG_S = 4.0 * AMPLITUDE_DEG * DRIVE_FREQUENCY_HZ  # triangle: 2 sweeps of 2A per period
 POINTS_PER_HALF_CYCLE = 13  # digitised points per reversal-to-reversal branch
 HALF_CYCLES = 3  # 1.5 cycles, starting at the -A extreme
 KNEE_DEG = 0.22  # x_c = F_c/σ; σ ≈ 1/10 of the meter's 0.28 ft·lbf/deg (§III Torque Meter)
@@ -115,7 +116,7 @@ def simulate_loop(rng: np.random.Generator, level: float, exponent: float, wavin
         friction.append(branch)
         state = branch[-1]
     friction = np.concatenate(friction)
-    rate_deg_s = 4.0 * AMPLITUDE_DEG * DRIVE_FREQUENCY_HZ
+    rate_deg_s = RATE_DEG_S
     time = np.arange(angle.size) * QUANTUM_DEG / rate_deg_s
     phases = rng.uniform(0.0, 2.0 * np.pi, 2)
     ripple = (0.6 * np.sin(2 * np.pi * angle / WAVELENGTHS_DEG[0] + phases[0])
@@ -151,6 +152,12 @@ def digitise(angle: np.ndarray, clean: np.ndarray, branch: np.ndarray, level: fl
     return picks
 
 
+def direction_into(angle: np.ndarray) -> np.ndarray:
+    """Sign of the motion arriving at each point (the first point: of the motion leaving it)."""
+    step = np.sign(np.diff(angle))
+    return np.concatenate([step[:1], step])
+
+
 def build_rows() -> list[tuple]:
     """All rows of the table, ordered by loop (condition, preload) and time."""
     rng = np.random.default_rng(SEED)
@@ -171,12 +178,14 @@ def build_rows() -> list[tuple]:
             noisy = torque[keep] + NOISE_SD_IN_OZ * rng.standard_normal(keep.size)
             reading = np.round(noisy / RESOLUTION_IN_OZ) * RESOLUTION_IN_OZ
             loop = f"{condition}_{preload:02d}lbf"
+            rate = RATE_DEG_S * direction_into(angle[keep])
             for j in range(keep.size):
-                rows.append((loop, condition, preload, time[keep[j]], angle[keep[j]], reading[j]))
+                rows.append((loop, condition, preload, time[keep[j]], angle[keep[j]], rate[j],
+                             reading[j]))
     return rows
 
 
-CSV_HEADER = "loop,condition,preload,time,drive_angle,torque"
+CSV_HEADER = "loop,condition,preload,time,drive_angle,drive_rate,torque"
 DATASET_META = {
     "name": NAME,
     "title": (
@@ -206,6 +215,7 @@ COLUMNS = {
     "preload": {"role": "input", "quantity": "preload", "unit": "lbf", "group": True},
     "time": {"role": "input", "quantity": "time", "unit": "s"},
     "drive_angle": {"role": "input", "quantity": "angle", "unit": "deg"},
+    "drive_rate": {"role": "input", "quantity": "velocity", "unit": "deg/s"},
     "torque": {"role": "response", "quantity": "torque", "unit": "in*ozf"},
 }
 
@@ -230,8 +240,9 @@ def write(outdir: Path) -> None:
         "see data/dahl_duplex/README.md",
         CSV_HEADER,
     ]
-    for loop, condition, preload, time, angle, torque in build_rows():
-        lines.append(f"{loop},{condition},{preload:d},{time:.4f},{angle:.6f},{torque:.3f}")
+    for loop, condition, preload, time, angle, rate, torque in build_rows():
+        lines.append(
+            f"{loop},{condition},{preload:d},{time:.4f},{angle:.6f},{rate:.6f},{torque:.3f}")
     (outdir / f"{NAME}.csv").write_text("\n".join(lines) + "\n")
     (outdir / f"{NAME}.toml").write_text(toml_text())
 
