@@ -21,6 +21,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import numpyro
@@ -128,7 +129,11 @@ class Program:
             params[name] = numpyro.sample(name, prior)
         for name, value in law.derived_values(params).items():
             numpyro.deterministic(name, value)
-        mu = law.mean({k: jnp.asarray(v) for k, v in inputs.items()}, params, self.constants)
+        # Data arrays stay concrete inside the sampler's trace, so input-only computations of a
+        # law (e.g. ball-load equilibria) can be evaluated once at trace time, not every step.
+        with jax.ensure_compile_time_eval():
+            arrays = {k: jnp.asarray(v) for k, v in inputs.items()}
+        mu = law.mean(arrays, params, self.constants)
         if self.noise.group is not None:
             n_groups = len(self.group_labels)
             group_sd = numpyro.sample("group_sd", self.resolved["group_sd"].to_numpyro())

@@ -57,7 +57,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-__all__ = ["BearingGeometry", "PITCH_BEARING", "ball_loads", "contact_loads", "sum_ball_loads"]
+__all__ = [
+    "BearingGeometry",
+    "PITCH_BEARING",
+    "ball_loads",
+    "contact_loads",
+    "sum_ball_loads",
+    "sum_contact_powers",
+]
 
 NEWTON_STEPS = 60
 _HESSIAN_FLOOR = 1e-12  # keeps the damped system regular at zero load (unit-stiffness units)
@@ -235,10 +242,6 @@ def sum_ball_loads(
 ):
     """Equivalent load P1 = Σ|Q| over all contacts of all balls and rows (seed 000 Eq. 2), in N.
 
-    When all three load arrays are concrete (not traced, e.g. data closed over by a numpyro
-    model) the solve is evaluated once at trace time (``jax.ensure_compile_time_eval``), so a
-    sampler does not repeat it at every log-density evaluation.
-
     Parameters
     ----------
     bending_moment, axial_force, radial_force : array_like
@@ -251,14 +254,49 @@ def sum_ball_loads(
     jax.Array
         Shape of the broadcast loads.
     """
+    return sum_contact_powers(bending_moment, axial_force, radial_force, geometry, 1.0)
+
+
+def sum_contact_powers(
+    bending_moment,
+    axial_force,
+    radial_force,
+    geometry: BearingGeometry = PITCH_BEARING,
+    power: float = 1.0,
+):
+    """Σ Q^power over all loaded contacts (both pairs, all balls and rows), Q in N.
+
+    Laws whose friction per contact is a power of the contact load (Hertz contact width
+    b ∝ Q^(1/3), EHL rolling force ∝ Q^0.47 ...) read this. When all three load arrays are
+    concrete (not traced, e.g. data closed over by a numpyro model) the solve is evaluated once
+    at trace time (``jax.ensure_compile_time_eval``), so a sampler does not repeat it at every
+    log-density evaluation.
+
+    Parameters
+    ----------
+    bending_moment, axial_force, radial_force : array_like
+        Tilting moment (N·m), axial force (N), radial force (N); broadcast together.
+    geometry : BearingGeometry
+        Bearing geometry (default: :data:`PITCH_BEARING`).
+    power : float
+        Exponent p > 0 (a Python number).
+
+    Returns
+    -------
+    jax.Array
+        Σ Q^p in N^p, shape of the broadcast loads.
+    """
     loads = (bending_moment, axial_force, radial_force)
     if any(isinstance(v, jax.core.Tracer) for v in loads):
-        return jnp.sum(contact_loads(*loads, geometry), axis=(-3, -2, -1))
+        return _sum_powers(*loads, geometry, float(power))
     with jax.ensure_compile_time_eval():
-        return _sum_concrete(*(np.asarray(v, dtype=float) for v in loads), geometry)
+        m, fa, fr = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in loads))
+        total = _jit_sum_powers(m.ravel(), fa.ravel(), fr.ravel(), geometry, float(power))
+        return jnp.asarray(np.asarray(total).reshape(m.shape))
 
 
-def _sum_concrete(bending_moment, axial_force, radial_force, geometry):
-    m, fa, fr = np.broadcast_arrays(bending_moment, axial_force, radial_force)
-    contacts = _contact_loads(m.ravel(), fa.ravel(), fr.ravel(), geometry)
-    return jnp.asarray(np.asarray(jnp.sum(contacts, axis=(-3, -2, -1))).reshape(m.shape))
+def _sum_powers(m, fa, fr, geometry, power):
+    return jnp.sum(_pos_pow(contact_loads(m, fa, fr, geometry), power), axis=(-3, -2, -1))
+
+
+_jit_sum_powers = jax.jit(_sum_powers, static_argnums=(3, 4))
