@@ -10,13 +10,14 @@ import arviz as az
 import jax
 import numpy as np
 import xarray as xr
+from numpyro.handlers import substitute, trace
 from numpyro.infer import Predictive, log_likelihood
 
 from bayesfric.datasets.loader import OBS_DIM
 from bayesfric.inference.diagnostics import check
 from bayesfric.model import OBS_SITE, Program
 
-__all__ = ["assemble", "provenance"]
+__all__ = ["assemble", "provenance", "log_prior_draws"]
 
 
 def _flatten(samples: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -49,6 +50,23 @@ def provenance(program: Program, ds: xr.Dataset, sampler: str, settings: dict, s
     }
 
 
+def log_prior_draws(program: Program, flat: dict[str, Any]) -> dict[str, np.ndarray]:
+    """Per-draw log prior density of every sampled latent site (summed over its elements).
+
+    ``flat`` holds constrained draws shaped (n, ...). The densities are of the constrained
+    parameters, as declared (no Jacobian): what power-scaling sensitivity (``psense``) scales.
+    """
+    kwargs = program.model_kwargs
+
+    def one(params):
+        tr = trace(substitute(program.model, data=params)).get_trace(**kwargs)
+        return {name: site["fn"].log_prob(site["value"]).sum()
+                for name, site in tr.items()
+                if site["type"] == "sample" and not site["is_observed"]}
+
+    return {k: np.asarray(v) for k, v in jax.vmap(one)(flat).items()}
+
+
 def assemble(
     program: Program,
     ds: xr.Dataset,
@@ -60,8 +78,9 @@ def assemble(
     seed: int,
     n_prior: int = 500,
 ) -> xr.DataTree:
-    """Build the fit's DataTree: posterior, sample_stats, log_likelihood, posterior_predictive,
-    prior, prior_predictive, observed_data, constant_data, with provenance and the gate verdict.
+    """Build the fit's DataTree: posterior, sample_stats, log_likelihood, log_prior,
+    posterior_predictive, prior, prior_predictive, observed_data, constant_data, with provenance
+    and the gate verdict.
 
     ``samples`` are constrained draws shaped (chain, draw, ...); every latent site of the
     program must be present.
@@ -72,6 +91,7 @@ def assemble(
     key_pp, key_prior = jax.random.split(jax.random.PRNGKey(seed + 1))
 
     ll = log_likelihood(program.model, flat, **kwargs)[OBS_SITE]
+    log_prior = log_prior_draws(program, flat)
     pp_kwargs = dict(kwargs, response=None)
     pp = Predictive(program.model, posterior_samples=flat, return_sites=[OBS_SITE])(key_pp, **pp_kwargs)
     prior = Predictive(program.model, num_samples=n_prior)(key_prior, **pp_kwargs)
@@ -95,6 +115,7 @@ def assemble(
             "posterior": posterior,
             "sample_stats": sample_stats,
             "log_likelihood": {OBS_SITE: np.asarray(ll).reshape((n_chains, -1, program.n_obs))},
+            "log_prior": _chains(log_prior, n_chains),
             "posterior_predictive": _chains({OBS_SITE: pp[OBS_SITE]}, n_chains),
             "prior": {k: np.asarray(v)[None] for k, v in prior.items()},
             "prior_predictive": {k: np.asarray(v)[None] for k, v in prior_pred.items()},
