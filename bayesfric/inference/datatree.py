@@ -115,7 +115,6 @@ def assemble(
             "posterior": posterior,
             "sample_stats": sample_stats,
             "log_likelihood": {OBS_SITE: np.asarray(ll).reshape((n_chains, -1, program.n_obs))},
-            "log_prior": _chains(log_prior, n_chains),
             "posterior_predictive": _chains({OBS_SITE: pp[OBS_SITE]}, n_chains),
             "prior": {k: np.asarray(v)[None] for k, v in prior.items()},
             "prior_predictive": {k: np.asarray(v)[None] for k, v in prior_pred.items()},
@@ -125,6 +124,8 @@ def assemble(
         dims=dims,
         coords=coords,
     )
+    # one log density per site and draw: built without the site dims of vector-valued parameters
+    dt["log_prior"] = az.from_dict({"log_prior": _chains(log_prior, n_chains)})["log_prior"]
     # group coordinates of the data (series, run ...) travel with the observations
     for name, coord in ds.coords.items():
         if coord.attrs.get("role") == "group":
