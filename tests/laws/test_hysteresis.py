@@ -89,6 +89,16 @@ def test_fixed_i_laws_follow_reversal_and_virgin_branches(name, i):
                                atol=1e-12)
 
 
+@pytest.mark.parametrize("i", [1.0, 1.5, 2.0])
+def test_virgin_start_follows_eq_6_to_8(i):
+    # constant F_start = 0: trajectories start at F = 0 (Eq. 4's initial condition)
+    d = np.concatenate([[0.0], np.cumsum(np.full(80, 0.1))])
+    inputs = {"angle": d * X_C, "preload": np.full(d.size, P_REF), "trajectory_start": starts(d.size)}
+    params = dict(F_c0=1.0, gamma=1.0, x_c0=X_C, kappa=0.0, i=i)
+    torque = np.asarray(get_law("dahl_xc_preload").mean(inputs, params, {"F_start": 0.0}))
+    np.testing.assert_allclose(torque, VIRGIN[i](d), rtol=1e-9, atol=1e-15)
+
+
 def test_dahl_hand_computed_values():
     F_c0, x_c = 2.0, 0.01
     # i = 1: start at −F_c, move +x_c: F = F_c − 2F_c e^(−1) = 2 − 4·0.36787944117144233
@@ -195,6 +205,35 @@ def test_trajectory_reset_and_odd_symmetry():
     both = dahl(np.concatenate([drive, -drive]), start=starts(2 * drive.size, (0, drive.size)))
     np.testing.assert_allclose(both[:drive.size], dahl(drive), rtol=1e-14)
     np.testing.assert_allclose(both[drive.size:], -both[:drive.size], rtol=1e-12, atol=1e-15)
+
+
+def _loop_information(amplitude_in_x_c):
+    """Correlation matrix and sds of (log F_c, log x_c, i) from the Fisher information of the
+    periodic regime of a ±amplitude loop (last 2 of 6 cycles), 100 samples/loop, 1 % noise."""
+    per_sweep = 50
+    angle = triangle(amplitude_in_x_c * X_C, per_sweep, 6)[:-1]
+    keep = slice(angle.size - 4 * per_sweep, None)
+    inputs = {"angle": angle, "preload": np.full(angle.size, P_REF),
+              "trajectory_start": starts(angle.size)}
+
+    def torque(theta):
+        params = dict(F_c0=jax.numpy.exp(theta[0]), gamma=1.0, x_c0=jax.numpy.exp(theta[1]),
+                      i=theta[2])
+        return get_law("dahl").mean(inputs, params)[keep]
+
+    J = np.asarray(jax.jacfwd(torque)(jax.numpy.array([math.log(0.009), math.log(X_C), 1.5])))
+    cov = np.linalg.inv(J.T @ J / (0.01 * 0.009) ** 2)
+    sd = np.sqrt(np.diag(cov))
+    return cov / np.outer(sd, sd), sd
+
+
+def test_small_loops_do_not_separate_knee_and_running_friction():
+    # the identifiability statement in the dahl laws' notes
+    corr_small, sd_small = _loop_information(0.5)
+    corr_large, sd_large = _loop_information(10.0)
+    assert corr_small[0, 1] > 0.999 and sd_small[0] > 0.1  # F_c and x_c collinear, F_c ±10 %+
+    assert abs(corr_large[0, 1]) < 0.5 and sd_large[0] < 0.005  # saturating loops: resolved
+    assert abs(corr_large[1, 2]) < 0.5 and sd_large[2] < 0.02
 
 
 def test_gradient_in_i_is_finite_and_correct_at_one():
