@@ -1,0 +1,191 @@
+"""PSIS-LOO of a fit, with high Pareto-k points handled by exact refits (never ignored).
+
+The Pareto-smoothed importance-sampling estimate comes from arviz-stats (``arviz.loo`` on the
+fit's ``log_likelihood`` group, variable ``response`` over dimension ``obs``). Points whose
+Pareto k̂ exceeds arviz-stats' sample-size-dependent threshold ``good_k = min(1 - 1/log10(S),
+0.7)`` (S = number of posterior draws; 0.7 for S >= 2154) have an unreliable importance-sampling
+estimate; each is refitted exactly with that point left out, using the compile-once
+:class:`~bayesfric.compare.refit.RefitEngine`, and its ``elpd_i`` replaced by the exact
+``log mean_s p(y_i | θ_s^(-i))``. A refit that fails the diagnostics gate is flagged in the
+result.
+
+``p_loo = Σ_i (lppd_i − elpd_i)`` with ``lppd_i = log mean_s p(y_i | θ_s)`` from the full fit;
+``se = sqrt(n · var(elpd_i))`` as in arviz-stats.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import arviz as az
+import numpy as np
+import xarray as xr
+
+from bayesfric.compare.refit import CVResult, RefitEngine, pointwise_lpd, program_from_fit
+from bayesfric.inference.diagnostics import verdict_of
+from bayesfric.model import OBS_SITE, Program
+
+__all__ = ["LooResult", "psis_loo", "K_THRESHOLD_RULE", "Penalty", "extrapolation_penalty"]
+
+K_THRESHOLD_RULE = "arviz-stats good_k = min(1 - 1/log10(S), 0.7), S = posterior draws"
+
+
+@dataclass
+class LooResult:
+    """PSIS-LOO of one fit.
+
+    Attributes
+    ----------
+    law : str
+    elpd, se, p_loo : float
+    elpd_i : ndarray
+        ``(n_obs,)`` pointwise elpd, exact refit values at the high-k points.
+    pareto_k : ndarray
+        ``(n_obs,)`` Pareto k̂ of the PSIS estimate (before any refit).
+    k_threshold : float
+        Threshold used (:data:`K_THRESHOLD_RULE`).
+    high_k : ndarray
+        Indices of points with ``k̂ > k_threshold``.
+    handling : str
+        How the high-k points were handled, one line.
+    refit_failed : list of int
+        High-k points whose exact refit failed the diagnostics gate (their elpd is flagged).
+    fit_passed : bool
+        Whether the full fit passed the diagnostics gate (``fit.attrs["diagnostics"]``).
+    elpd_data : arviz_stats.ELPDDataLOO
+        arviz-stats' object with the refit values substituted (feeds ``arviz.compare``).
+    """
+
+    law: str
+    elpd: float
+    se: float
+    p_loo: float
+    elpd_i: np.ndarray
+    pareto_k: np.ndarray
+    k_threshold: float
+    high_k: np.ndarray
+    handling: str
+    refit_failed: list[int]
+    fit_passed: bool
+    elpd_data: object
+
+    @property
+    def n_high_k(self) -> int:
+        return int(self.high_k.size)
+
+    @property
+    def reliable(self) -> bool:
+        """Full fit passed the gate, and every high-k point was refitted by a passing fit."""
+        return self.fit_passed and "not refitted" not in self.handling and not self.refit_failed
+
+    def __str__(self) -> str:
+        flag = "" if self.reliable else "  [FLAGGED: unreliable]"
+        return (f"{self.law}: elpd_loo {self.elpd:.2f} ± {self.se:.2f}, p_loo {self.p_loo:.1f}, "
+                f"{self.n_high_k} k̂ > {self.k_threshold:.2f} ({self.handling}){flag}")
+
+
+def psis_loo(
+    fit: xr.DataTree,
+    ds: xr.Dataset | None = None,
+    *,
+    program: Program | None = None,
+    engine: RefitEngine | None = None,
+    seed: int = 0,
+) -> LooResult:
+    """PSIS-LOO of ``fit`` with exact refits of the high Pareto-k points.
+
+    Parameters
+    ----------
+    fit : xarray.DataTree
+        A fit from :func:`bayesfric.inference.fit`.
+    ds : xarray.Dataset, optional
+        The data of the fit; needed (or ``program`` / ``engine``) to refit high-k points.
+    program : Program, optional
+        The fit's program, if already built (e.g. with a known-sigma noise model).
+    engine : RefitEngine, optional
+        A compiled refit engine of the same program (reused across calls).
+    seed : int
+        Seed of the refits.
+
+    Returns
+    -------
+    LooResult
+        If high-k points exist and no data were given to refit them, ``handling`` says
+        "not refitted" and the result is flagged unreliable.
+    """
+    data = az.loo(fit, pointwise=True, var_name=OBS_SITE)
+    pareto_k = np.asarray(data.pareto_k.values, dtype=float).ravel()
+    elpd_i = np.asarray(data.elpd_i.values, dtype=float).ravel()
+    threshold = float(data.good_k)
+    high = np.flatnonzero(pareto_k > threshold)
+    refit_failed: list[int] = []
+    if high.size == 0:
+        handling = "none above threshold"
+    elif engine is None and program is None and ds is None:
+        handling = f"{high.size} point(s) not refitted: no data given (PSIS values kept)"
+    else:
+        engine = engine or RefitEngine(program or program_from_fit(fit, ds))
+        masks = np.ones((high.size, elpd_i.size), dtype=bool)
+        masks[np.arange(high.size), high] = False
+        refits = engine.run(masks, seed=seed)
+        elpd_i[high] = refits.lpd[np.arange(high.size), high]
+        refit_failed = [int(high[j]) for j in refits.failed]
+        handling = f"exact refits leaving out each of {high.size} point(s)"
+        if refit_failed:
+            handling += f"; refits of {refit_failed} failed the gate"
+    ll = np.asarray(fit["log_likelihood"][OBS_SITE].values)
+    lppd_i = pointwise_lpd(ll.reshape((-1, ll.shape[-1])))
+    n = elpd_i.size
+    elpd, se = float(elpd_i.sum()), float(np.sqrt(n * elpd_i.var()))
+    p_loo = float((lppd_i - elpd_i).sum())
+    updated = dataclasses.replace(
+        data, elpd=elpd, se=se, p=p_loo,
+        elpd_i=data.elpd_i.copy(data=elpd_i.reshape(data.elpd_i.shape)),
+        warning=bool(high.size) and (bool(refit_failed) or "not refitted" in handling),
+    )
+    return LooResult(
+        law=str(fit.attrs.get("law", "")),
+        elpd=elpd, se=se, p_loo=p_loo, elpd_i=elpd_i, pareto_k=pareto_k,
+        k_threshold=threshold, high_k=high, handling=handling, refit_failed=refit_failed,
+        fit_passed=verdict_of(fit).passed if "diagnostics" in fit.attrs else False,
+        elpd_data=updated,
+    )
+
+
+@dataclass(frozen=True)
+class Penalty:
+    """Extrapolation penalty of one law: what blocking the envelope costs per held-out point.
+
+    ``per_point = mean_i (elpd_loo_i − elpd_blocked_i)`` over the blocked scheme's held-out
+    points (the SAME points for both terms), ``se = sd_i(·) / sqrt(n_points)``. Positive: the
+    law predicts the outer envelope worse when it has not seen it than LOO suggests.
+    """
+
+    law: str
+    scheme: str
+    per_point: float
+    se: float
+    n_points: int
+    reliable: bool
+
+    def __str__(self) -> str:
+        flag = "" if self.reliable else "  [FLAGGED]"
+        return (f"{self.law} / {self.scheme}: extrapolation penalty {self.per_point:.3f} "
+                f"± {self.se:.3f} nats per point over {self.n_points} points{flag}")
+
+
+def extrapolation_penalty(loo: LooResult, blocked: CVResult) -> Penalty:
+    """``(elpd_LOO − elpd_blocked)`` per held-out point of a blocked scheme (see :class:`Penalty`).
+
+    Raises
+    ------
+    ValueError
+        The two results belong to different laws or data sizes.
+    """
+    if loo.law != blocked.law or loo.elpd_i.size != blocked.elpd_i.size:
+        raise ValueError("LOO and blocked CV must be of the same law on the same data")
+    diff = loo.elpd_i[blocked.heldout] - blocked.elpd_i[blocked.heldout]
+    return Penalty(loo.law, blocked.scheme, float(diff.mean()),
+                   float(diff.std(ddof=1) / np.sqrt(diff.size)) if diff.size > 1 else float("nan"),
+                   int(diff.size), loo.reliable and blocked.reliable)
