@@ -1,0 +1,212 @@
+"""Model weights and averaging: stacking / pseudo-BMA+ from LOO or from a CV scheme, Bayes
+factors from log evidences, and model-averaged posterior predictions.
+
+Weights are computed by arviz-stats' ``compare`` (stacking: Yao et al. 2018; ``BB-pseudo-BMA``:
+pseudo-BMA+ with Bayesian-bootstrap stabilisation). From a blocked cross-validation scheme the
+same optimisation runs on the held-out pointwise elpd, so the stacking weights say which mixture
+of laws *extrapolates* best (the held-out points are the outer part of the envelope).
+
+Unreliable results -- a fit that failed the diagnostics gate, a high-k refit or a CV fold that
+failed it -- are excluded from the weights unless ``include_failed=True``; the result lists
+what was excluded and why.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Literal
+
+import arviz as az
+import numpy as np
+import pandas as pd
+import xarray as xr
+from arviz_stats import ELPDDataLOOKFold
+
+from bayesfric.compare.loo import LooResult
+from bayesfric.compare.refit import CVResult
+from bayesfric.datasets.loader import OBS_DIM
+
+__all__ = ["Weights", "model_weights", "BayesFactors", "bayes_factors", "averaged_predictive"]
+
+_METHODS = {
+    "stacking": "stacking", "pseudo-bma+": "BB-pseudo-BMA", "bb-pseudo-bma": "BB-pseudo-BMA",
+}
+
+
+@dataclass
+class Weights:
+    """Model weights.
+
+    Attributes
+    ----------
+    weights : dict of str to float
+        Law -> weight (sums to 1 over the included laws).
+    method : str
+        arviz-stats method name (``"stacking"`` or ``"BB-pseudo-BMA"``).
+    basis : str
+        What the pointwise elpd came from (``"PSIS-LOO"`` or the CV scheme).
+    excluded : dict of str to str
+        Law -> reason, for unreliable results left out.
+    table : pandas.DataFrame
+        arviz-stats' comparison table of the included laws.
+    """
+
+    weights: dict[str, float]
+    method: str
+    basis: str
+    excluded: dict[str, str] = field(default_factory=dict)
+    table: pd.DataFrame | None = None
+
+    def __str__(self) -> str:
+        ranked = sorted(self.weights.items(), key=lambda x: -x[1])
+        parts = ", ".join(f"{k} {w:.3f}" for k, w in ranked)
+        text = f"{self.method} weights from {self.basis}: {parts}"
+        if self.excluded:
+            text += "; excluded: " + "; ".join(f"{k} ({v})" for k, v in self.excluded.items())
+        return text
+
+
+def _why_unreliable(result: LooResult | CVResult) -> str | None:
+    if isinstance(result, LooResult):
+        if not result.fit_passed:
+            return "fit failed the diagnostics gate"
+        if not result.reliable:
+            return f"high Pareto k not resolved: {result.handling}"
+        return None
+    if result.failed_folds:
+        return f"folds {result.failed_folds} failed the diagnostics gate"
+    return None
+
+
+def _as_elpd_data(result: LooResult | CVResult):
+    if isinstance(result, LooResult):
+        return result.elpd_data
+    scored = result.elpd_i[result.heldout]
+    return ELPDDataLOOKFold(
+        elpd=result.elpd, se=result.se, p=float("nan"), n_samples=0,
+        n_data_points=int(scored.size), scale="log", warning=not result.reliable, good_k=None,
+        elpd_i=xr.DataArray(scored, dims=[OBS_DIM],
+                            coords={OBS_DIM: np.flatnonzero(result.heldout)}),
+        pareto_k=None, n_folds=len(result.verdicts),
+    )
+
+
+def model_weights(
+    results: Mapping[str, LooResult | CVResult],
+    *,
+    method: Literal["stacking", "BB-pseudo-BMA", "pseudo-BMA+"] = "stacking",
+    include_failed: bool = False,
+    fits: Mapping[str, xr.DataTree] | None = None,
+) -> Weights:
+    """Stacking or pseudo-BMA+ weights from PSIS-LOO results or from one CV scheme's results.
+
+    Parameters
+    ----------
+    results : mapping
+        Law -> :class:`~bayesfric.compare.loo.LooResult` (all) or
+        :class:`~bayesfric.compare.refit.CVResult` (all, same scheme, same held-out points).
+    method : {"stacking", "BB-pseudo-BMA", "pseudo-BMA+"}
+        ``"pseudo-BMA+"`` is an alias of arviz-stats' ``"BB-pseudo-BMA"``.
+    include_failed : bool
+        Keep unreliable results in the weights (they are still listed in ``excluded`` = {}).
+    fits : mapping, optional
+        Law -> full fit; a fit whose stored verdict failed excludes its law (needed for CV
+        results, which do not carry the full fit's verdict).
+
+    Raises
+    ------
+    ValueError
+        Mixed result kinds or schemes, or fewer than one law left after exclusions.
+    """
+    from bayesfric.inference.diagnostics import verdict_of
+
+    kinds = {type(r) for r in results.values()}
+    if len(kinds) != 1:
+        raise ValueError("weights need results of one kind: all LooResult or all CVResult")
+    if CVResult in kinds:
+        schemes = {r.scheme for r in results.values()}
+        heldouts = {r.heldout.tobytes() for r in results.values()}
+        if len(schemes) != 1 or len(heldouts) != 1:
+            raise ValueError(f"CV weights need one scheme on the same held-out points: {schemes}")
+    basis = "PSIS-LOO" if LooResult in kinds else next(iter(results.values())).scheme
+    arviz_method = _METHODS.get(method.lower())
+    if arviz_method is None:
+        raise ValueError(f"unknown method {method!r}: stacking, BB-pseudo-BMA, pseudo-BMA+")
+    excluded = {}
+    for name, result in results.items():
+        reason = _why_unreliable(result)
+        failed_fit = fits is not None and name in fits and not verdict_of(fits[name]).passed
+        if reason is None and failed_fit:
+            reason = "fit failed the diagnostics gate"
+        if reason is not None:
+            excluded[name] = reason
+    if include_failed:
+        excluded = {}
+    kept = {k: _as_elpd_data(r) for k, r in results.items() if k not in excluded}
+    if not kept:
+        raise ValueError(f"every law was excluded as unreliable: {excluded}")
+    if len(kept) == 1:
+        return Weights({next(iter(kept)): 1.0}, arviz_method, basis, excluded, None)
+    table = az.compare(kept, method=arviz_method, round_to="none")
+    weights = {str(k): float(w) for k, w in table["weight"].items()}
+    total = sum(weights.values())
+    weights = {k: w / total for k, w in weights.items()}  # remove optimiser round-off
+    return Weights(weights, arviz_method, basis, excluded, table)
+
+
+@dataclass(frozen=True)
+class BayesFactors:
+    """Log Bayes factors ``log BF[i, j] = log Z_i − log Z_j`` with propagated errors.
+
+    ``err[i, j] = sqrt(err_i² + err_j²)``: the estimators' errors are treated as independent
+    (true for separate runs; nested-sampling errors are themselves approximate).
+    """
+
+    log_bf: pd.DataFrame
+    err: pd.DataFrame
+
+    def __str__(self) -> str:
+        text = self.log_bf.round(2).astype(str) + " ± " + self.err.round(2).astype(str)
+        return text.to_string()
+
+
+def bayes_factors(log_evidence: Mapping[str, tuple[float, float]]) -> BayesFactors:
+    """Matrix of log Bayes factors from ``{law: (log_Z, err)}`` (see :class:`BayesFactors`)."""
+    names = list(log_evidence)
+    log_z = np.array([float(log_evidence[k][0]) for k in names])
+    err = np.array([float(log_evidence[k][1]) for k in names])
+    if not np.all(np.isfinite(log_z)) or np.any(err < 0):
+        raise ValueError("log evidences must be finite and errors non-negative")
+    return BayesFactors(
+        pd.DataFrame(log_z[:, None] - log_z[None, :], index=names, columns=names),
+        pd.DataFrame(np.sqrt(err[:, None] ** 2 + err[None, :] ** 2), index=names, columns=names),
+    )
+
+
+def averaged_predictive(
+    fits: Mapping[str, xr.DataTree], weights: Weights | Mapping[str, float], *, seed: int = 0
+) -> xr.DataTree:
+    """Model-averaged posterior predictive: draws resampled from each fit's
+    ``posterior_predictive`` in proportion to its weight (``arviz.weight_predictions``).
+
+    Each law contributes ``floor(w · S_min)`` draws (S_min: the smallest number of draws over
+    the fits), flattened into one ``sample`` dimension (first, before ``obs``). Laws with zero
+    or no weight are left out; a single remaining law returns its own groups (chain, draw).
+    """
+    w = weights.weights if isinstance(weights, Weights) else dict(weights)
+    names = [k for k in fits if w.get(k, 0.0) > 0]
+    if not names:
+        raise ValueError("no fit has a positive weight")
+    if len(names) == 1:
+        only = fits[names[0]]
+        return xr.DataTree.from_dict({
+            "posterior_predictive": only["posterior_predictive"].to_dataset(),
+            "observed_data": only["observed_data"].to_dataset(),
+        })
+    averaged = az.weight_predictions([fits[k] for k in names], weights=[w[k] for k in names],
+                                     random_seed=seed)
+    averaged["posterior_predictive"] = (
+        averaged["posterior_predictive"].to_dataset().transpose("sample", ...))
+    averaged.attrs["weights"] = str({k: round(w[k], 4) for k in names})
+    return averaged
