@@ -497,9 +497,8 @@ def coastdown(velocity_law: Law | str, *, inertia: float = DRUM_INERTIA) -> Law:
     )(integrate)
 
 
-# Registered generic coast-down laws (candidates for the roll-out tests of seed 003 §4). A
-# coast-down of the knot law is built on demand with coastdown("drum_torque_spline"): its adaptive
-# solve agrees between batched and unbatched evaluation only to ~1e-8 (step decisions flip on
-# last-bit differences of exp), short of the registry contract's 1e-9, and it costs ~5x more.
+# The registered generic coast-down law (checked against the closed form and by recovery). Others
+# are built on demand, e.g. coastdown("stribeck") or coastdown("drum_torque_spline"); the knot
+# law's adaptive solve agrees between batched and unbatched evaluation only to ~1e-8 (step
+# decisions flip on last-bit differences of exp), short of the registry contract's 1e-9.
 coastdown_coulomb_viscous = coastdown(classical.coulomb_viscous)
-coastdown_stribeck = coastdown(classical.stribeck)
