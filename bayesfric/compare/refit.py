@@ -5,9 +5,10 @@ likelihood takes a 0/1 ``mask`` *as data* (:class:`bayesfric.model.Program`), so
 below is one ``jax.jit`` function of ``(keys, masks, data)``: changing the fold, the seed or
 even the dataset (same shapes) reuses the compiled code. Sampling is blackjax NUTS with
 Stan-style window adaptation of step size and diagonal mass matrix, vectorised with
-``jax.vmap`` over chains and over a fixed-size batch of folds (``fold_batch``; the last batch
-is padded with copies of its first fold so the batch shape, and so the compilation, never
-changes).
+``jax.vmap`` over chains and optionally over a fixed-size batch of folds (``fold_batch``; the
+last batch is padded with copies of its first fold so the batch shape, and so the compilation,
+never changes). numpyro's ``MCMC(jit_model_args=True)`` was measured as the alternative and
+was an order of magnitude slower per fold (see ``benchmarks/README.md``).
 
 Every fold fit goes through the diagnostics gate of :mod:`bayesfric.inference.diagnostics`
 (R-hat, bulk/tail ESS, divergences, E-BFMI on the fold's own draws, thresholds unchanged). A
@@ -117,6 +118,10 @@ class RefitEngine:
     fold_batch : int
         Number of folds sampled together in one vectorised call (``vmap`` over
         ``fold_batch × chains`` NUTS chains). Fixed per engine so one compilation serves any K.
+        Default 1 (chains vectorised, folds in sequence): on the 2-core CPU a 10-fold refit of
+        the stribeck law took 17 s warm with ``fold_batch=1`` against 35 s with 10, because
+        vmapped NUTS steps wait for the longest trajectory of all ``fold_batch × chains``
+        chains (``benchmarks/bench_refit.py``).
     gate : Gate
         Diagnostics thresholds (default: the project gate, unchanged).
     seed : int
@@ -137,7 +142,7 @@ class RefitEngine:
         chains: int = 4,
         target_accept: float = 0.9,
         max_tree_depth: int = 10,
-        fold_batch: int = 10,
+        fold_batch: int = 1,
         gate: Gate = GATE,
         seed: int = 0,
     ):
@@ -205,8 +210,10 @@ class RefitEngine:
         n_folds, b = masks.shape[0], self.fold_batch
         n_pad = (-n_folds) % b
         padded = np.concatenate([masks, np.repeat(masks[:1], n_pad, axis=0)])
-        keys = jax.random.split(jax.random.PRNGKey(seed), padded.shape[0] * self.chains)
-        keys = keys.reshape((padded.shape[0], self.chains) + keys.shape[1:])
+        # fold k's chains draw from fold_in(seed, k): independent of K, batch and padding
+        base = jax.random.PRNGKey(seed)
+        keys = jnp.stack([jax.random.split(jax.random.fold_in(base, k), self.chains)
+                          for k in range(padded.shape[0])])
         p = self.program
         parts = []
         for lo in range(0, padded.shape[0], b):
