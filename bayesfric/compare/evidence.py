@@ -21,6 +21,7 @@ widening its error. The disagreement flag is the guard against that.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import partial
 from typing import Any
 
 import arviz as az
@@ -246,8 +247,10 @@ def smc_log_evidence(
     runs: int = 4,
     target_ess: float = 0.9,
     mcmc_steps: int = 5,
+    kernel: str = "nuts",
     step_size: float = 0.5,
     integration_steps: int = 5,
+    max_doublings: int = 6,
 ) -> Evidence:
     """Adaptive tempered SMC estimate of log p(y) (blackjax), independent of any fit.
 
@@ -265,9 +268,15 @@ def smc_log_evidence(
     target_ess : float
         Fraction of particles kept effective at each tempering step (sets the step size in
         temperature; higher means more, gentler steps and a smaller variance of log Z).
-    mcmc_steps, step_size, integration_steps
-        HMC moves per tempering step; the inverse mass matrix is the particles' variances,
-        recomputed every step, so ``step_size`` is in units of the current posterior spread.
+    mcmc_steps : int
+        MCMC moves per tempering step.
+    kernel : {"nuts", "hmc"}
+        Move kernel. Both use the particles' variances as inverse mass matrix, recomputed every
+        step, so ``step_size`` is in units of the current spread. NUTS (default) adapts its
+        path length per move and mixes hierarchical (funnel-shaped) posteriors where fixed-length
+        HMC left log Z biased low by 1-2 nats in a 9-parameter test.
+    step_size, integration_steps, max_doublings
+        Leapfrog step; HMC path length; NUTS tree depth limit.
 
     Returns
     -------
@@ -294,9 +303,21 @@ def smc_log_evidence(
         draws = predictive(key, **kwargs)
         return density.to_unconstrained({k: draws[k] for k in density.sites})
 
+    if kernel == "nuts":
+        step_fn = partial(blackjax.nuts.build_kernel(), max_num_doublings=max_doublings)
+        init_fn = blackjax.nuts.init
+        fixed = {"step_size": step_size}
+        kernel_text = f"NUTS step {step_size}, ≤ 2^{max_doublings} leapfrog steps"
+    elif kernel == "hmc":
+        step_fn, init_fn = blackjax.hmc.build_kernel(), blackjax.hmc.init
+        fixed = {"step_size": step_size, "num_integration_steps": integration_steps}
+        kernel_text = f"HMC step {step_size} × {integration_steps}"
+    else:
+        raise ValueError(f"kernel must be 'nuts' or 'hmc', not {kernel!r}")
+
     def hmc_parameters(x):
         return extend_params({"inverse_mass_matrix": inverse_mass_matrix_from_particles(x),
-                              "step_size": step_size, "num_integration_steps": integration_steps})
+                              **fixed})
 
     def one_run(key):
         key_prior, key_smc = jax.random.split(key)
@@ -305,8 +326,8 @@ def smc_log_evidence(
             smc_algorithm=blackjax.adaptive_tempered_smc,
             logprior_fn=log_prior,
             loglikelihood_fn=density.log_lik,
-            mcmc_step_fn=blackjax.hmc.build_kernel(),
-            mcmc_init_fn=blackjax.hmc.init,
+            mcmc_step_fn=step_fn,
+            mcmc_init_fn=init_fn,
             resampling_fn=resampling.systematic,
             mcmc_parameter_update_fn=lambda _key, state, _info: hmc_parameters(state.particles),
             initial_parameter_value=hmc_parameters(x0),
@@ -335,7 +356,7 @@ def smc_log_evidence(
     diagnostics = {
         "run_log_z": log_zs.tolist(), "tempering_steps": np.asarray(steps).tolist(),
         "particles": particles, "runs": runs, "target_ess": target_ess, "mcmc_steps": mcmc_steps,
-        "kernel": f"HMC step {step_size} × {integration_steps}, diagonal mass from particles",
+        "kernel": f"{kernel_text}, diagonal mass matrix from the particles",
     }
     error = float(np.std(log_zs, ddof=1) / np.sqrt(runs))
     return Evidence(float(np.mean(log_zs)), error, "smc", diagnostics)
