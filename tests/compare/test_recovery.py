@@ -52,3 +52,14 @@ def test_coulomb_and_coulomb_viscous_are_told_apart():
     # as well (c_v ≈ 0), so LOO's choice there is close to a coin flip and is not asserted.
     loo = result.table("loo")
     assert loo.loc["coulomb_viscous", "coulomb_viscous"] == 2, (loo, result.records)
+
+
+@pytest.mark.slow
+def test_blocked_extrapolation_cv_recovers_the_viscous_law():
+    pytest.importorskip("bayesfric.compare.refit")
+    laws = [get_law("coulomb"), get_law("coulomb_viscous")]
+    result = model_recovery(laws, DESIGN, sigma=0.05, response_scale=1.0, replicates=1, seed=0,
+                            methods=("blocked_cv",), blocked_axis="velocity",
+                            fit_settings=dict(draws=300, tune=300, chains=2))
+    # the held-out high-speed block is where a missing viscous term shows most
+    assert result.table("blocked_cv").loc["coulomb_viscous", "coulomb_viscous"] == 1, result.records
