@@ -9,7 +9,6 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from pathlib import Path
 
 from bayesfric.datasets.loader import DataError
 from bayesfric.errors import UserError

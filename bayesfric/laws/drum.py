@@ -502,3 +502,7 @@ def coastdown(velocity_law: Law | str, *, inertia: float = DRUM_INERTIA) -> Law:
 # law's adaptive solve agrees between batched and unbatched evaluation only to ~1e-8 (step
 # decisions flip on last-bit differences of exp), short of the registry contract's 1e-9.
 coastdown_coulomb_viscous = coastdown(classical.coulomb_viscous)
+# Competitors for the roll-out study: constant (Coulomb) torque, and a Stribeck rise at low speed
+# (the O-rings' breakaway behaviour, seed 003 §4) that the linear O-ring law cannot follow.
+coastdown_coulomb = coastdown(classical.coulomb)
+coastdown_stribeck = coastdown(classical.stribeck)

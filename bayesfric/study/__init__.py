@@ -1,12 +1,32 @@
 """Studies: TOML files under studies/ that run comparisons and write reports/<study>/."""
 
-from bayesfric.study.demo import run_flagship
+from __future__ import annotations
 
-__all__ = ["run_flagship", "run_study"]
+import time
+from pathlib import Path
+
+from bayesfric.study.config import Study, StudyError, load_study
+from bayesfric.study.runner import run_study
+
+__all__ = ["Study", "StudyError", "load_study", "run_study", "run_flagship", "STUDIES_DIR"]
+
+#: The seed studies shipped with the repository.
+STUDIES_DIR = Path(__file__).resolve().parents[2] / "studies"
 
 
-def run_study(path, out_root="reports", quick=False):
-    """Run one study file (see bayesfric.study.runner)."""
-    from bayesfric.study.runner import run_study as _run
+def run_flagship(out_root: str | Path = "reports", quick: bool = False) -> list[Path]:
+    """The main job: run every study in ``studies/`` (one per seed experiment) and write reports.
 
-    return _run(path, out_root=out_root, quick=quick)
+    Prints each study's headline findings and the total wall time.
+    """
+    start = time.perf_counter()
+    folders = []
+    files = sorted(STUDIES_DIR.glob("*.toml"))
+    if not files:
+        raise StudyError(f"{STUDIES_DIR}: no study files")
+    for path in files:
+        folders.append(run_study(path, out_root=out_root, quick=quick))
+    print(f"\nmain job: {len(folders)} studies in {time.perf_counter() - start:.0f} s")
+    for folder in folders:
+        print(f"  {folder / 'summary.md'}")
+    return folders

@@ -55,6 +55,8 @@ class LawOutcome:
     loo_pit_pvalue: float = math.nan
     prior_sensitivity: str = ""
     flags: list[str] = field(default_factory=list)
+    results: dict[str, Any] = field(default_factory=dict)  # "loo" / scheme label -> LooResult / CVResult
+    timings: dict[str, float] = field(default_factory=dict)  # stage -> wall seconds
     seconds: float = 0.0
 
     @property

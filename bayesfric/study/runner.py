@@ -7,7 +7,6 @@ interrupted run never leaves a half-written report.
 
 from __future__ import annotations
 
-import math
 import shutil
 import tempfile
 import time
@@ -69,6 +68,13 @@ def _fold_schemes(study: Study, ds, seed: int) -> list[tuple[str, object, bool]]
 
 def _run_law(study: Study, spec, ds, folder: Path, schemes, settings: dict, seed: int, quick: bool) -> LawOutcome:
     start = time.perf_counter()
+    clock = [start]
+
+    def lap(stage: str) -> None:  # per-stage wall time, printed and stored with the outcome
+        now = time.perf_counter()
+        out.timings[stage] = now - clock[0]
+        clock[0] = now
+
     law = get_law(spec.name)
     program = build_program(law, ds, priors=spec.priors, noise=study.noise, constants=spec.constants)
     sampler = study.sampler.get("name", "nuts")
@@ -76,43 +82,85 @@ def _run_law(study: Study, spec, ds, folder: Path, schemes, settings: dict, seed
     fit_file = save_fit(dt, folder / "fits" / f"{law.name}.nc")
     verdict = compare.verdict_of(dt)
     out = LawOutcome(law=law, fit=dt, fit_file=fit_file, verdict=verdict)
+    lap("fit")
     if not verdict.passed:
         out.flags.append("diagnostics FAILED: " + "; ".join(verdict.problems))
 
-    engine = compare.RefitEngine(program, draws=settings["draws"], tune=settings["tune"],
+    engine = compare.RefitEngine(program, draws=settings["draws"], tune=min(500, settings["tune"]),
                                  chains=settings.get("chains", 4), seed=seed)
+    loo = None
     if study.loo:
-        loo = compare.psis_loo(dt, engine=engine)
+        loo = compare.psis_loo(dt, program=program, engine=engine, seed=seed)
+        out.results["loo"] = loo
         out.loo, out.loo_pointwise = Estimate(loo.elpd, loo.se), loo.elpd_i
         out.p_loo, out.pareto_k_max, out.n_high_k = loo.p_loo, float(np.max(loo.pareto_k)), loo.n_high_k
-        out.high_k_handling = loo.handling
+        out.high_k_handling = f"PSIS-LOO: {loo.n_high_k} points with Pareto k > {loo.k_threshold:.2f} ({loo.handling})"
+        if not loo.reliable:
+            out.flags.append("LOO unreliable: " + loo.handling)
+        lap("loo")
     for label, folds, blocked in schemes:
         cv = compare.cross_validate(engine, folds, seed=seed)
+        out.results[label] = cv
         out.cv[label] = Estimate(cv.elpd, cv.se)
         out.cv_pointwise[label] = cv.elpd_i
         out.cv_reliable[label] = cv.reliable
         if not cv.reliable:
             out.flags.append(f"{label}: folds {cv.failed_folds} failed the gate")
-        if blocked and out.loo_pointwise is not None:
-            held = cv.heldout
-            out.penalty[label] = float(np.mean(out.loo_pointwise[held] - cv.elpd_i[held]))
+        if blocked and loo is not None:
+            out.penalty[label] = compare.extrapolation_penalty(loo, cv).per_point
+        lap(f"cv {label}")
     if study.evidence:
-        bridge = compare.bridge_log_evidence(program, dt)
-        nested = compare.nested_log_evidence(program, seed=seed)
-        out.evidence = {"bridge": Estimate(bridge.log_z, bridge.error), "nested": Estimate(nested.log_z, nested.error)}
-        agreement = compare.compare_estimators(bridge, nested)
+        bridge = compare.bridge_log_evidence(program, dt, seed=seed)
+        smc = compare.smc_log_evidence(program, seed=seed, particles=study.smc_particles, runs=study.smc_runs)
+        out.evidence = {"bridge": Estimate(bridge.log_z, bridge.error), "SMC": Estimate(smc.log_z, smc.error)}
+        agreement = compare.compare_estimators(bridge, smc)
         out.evidence_disagreement = agreement.difference
-        if agreement.flagged:
-            out.flags.append(f"evidence estimators disagree by {agreement.difference:.2f} nat (> 0.5)")
-    prior = compare.prior_predictive_check(program)
-    out.prior_implausible = prior.fraction_implausible
-    pit = compare.loo_pit_check(dt)
-    out.loo_pit_pvalue = pit.pvalue
-    if math.isfinite(pit.pvalue) and pit.pvalue < 0.01:
-        out.flags.append(f"LOO-PIT not uniform (p = {pit.pvalue:.3f}): predictive distribution miscalibrated")
-    out.prior_sensitivity = compare.prior_sensitivity_text(dt)
+        if not agreement.agree:
+            out.flags.append(f"evidence estimators disagree by {agreement.difference:.2f} nat (> {agreement.threshold})")
+        lap("evidence")
+    out.prior_implausible = compare.prior_predictive_check(program, seed=seed).implausible
+    pit = compare.loo_pit_check(dt, seed=seed)
+    out.loo_pit_pvalue = pit.ks_pvalue
+    if not pit.within_band:
+        out.flags.append(f"LOO-PIT outside the {pit.ci_prob:.0%} band (KS p = {pit.ks_pvalue:.3f}): miscalibrated")
+    sens = compare.prior_sensitivity(dt)
+    flagged = [str(i) for i, d in zip(sens.index, sens["diagnosis"], strict=True) if d != "-"]
+    out.prior_sensitivity = ("no parameter flagged by power-scaling (psense)" if not flagged else
+                             "psense flags " + ", ".join(f"{n} ({d})" for n, d in zip(flagged, sens.loc[flagged, "diagnosis"], strict=True)))
+    lap("checks")
     out.seconds = time.perf_counter() - start
+    print(f"    {law.name}: " + ", ".join(f"{k} {v:.0f} s" for k, v in out.timings.items()), flush=True)
     return out
+
+
+def _assign_weights(out: StudyOutcome) -> None:
+    """Stacking and pseudo-BMA+ weights from LOO, stacking from the first blocked scheme, and the
+    prior sensitivity of the LOO ranking. Failed fits are excluded unless the study says otherwise."""
+    fits = {w.name: w.fit for w in out.laws}
+    bases = []
+    if out.study.loo:
+        bases += [("stacking LOO", "loo", "stacking"), ("pseudo-BMA+ LOO", "loo", "pseudo-BMA+")]
+    if out.blocked:
+        bases.append((f"stacking {out.blocked[0]}", out.blocked[0], "stacking"))
+    for label, key, method in bases:
+        results = {w.name: w.results[key] for w in out.laws if key in w.results}
+        try:
+            weights = compare.model_weights(results, method=method, include_failed=out.study.include_failed,
+                                            fits=fits)
+        except ValueError as exc:  # e.g. every fit excluded
+            out.findings.append(f"{label} weights not computed: {exc}")
+            continue
+        for w in out.laws:
+            w.weights[label] = weights.weights.get(w.name, 0.0 if w.name in weights.excluded else float("nan"))
+    if out.study.loo and len(fits) > 1:
+        reliable = {w.name: w.fit for w in out.laws if w.reliable or out.study.include_failed}
+        if len(reliable) > 1:
+            sens = compare.ranking_sensitivity(reliable)
+            order = " > ".join(sens.ranking[1.0])
+            out.ranking_sensitivity = (
+                f"LOO ranking {order}; under prior powers α = 0.5 and 2 it "
+                + ("CHANGES: " + "; ".join(f"α={a}: {' > '.join(r)}" for a, r in sens.ranking.items() if a != 1.0)
+                   if sens.changed else "is unchanged") + " (PSIS reweighting, no refits).")
 
 
 def _findings(out: StudyOutcome) -> list[str]:
@@ -125,7 +173,7 @@ def _findings(out: StudyOutcome) -> list[str]:
         if w:
             same = "the same law" if w == loo_winner else f"a different law from LOO ({loo_winner})"
             lines.append(f"Best under blocked CV '{label}' (extrapolation): **{w}** — {same}.")
-    for key in ("bridge", "nested"):
+    for key in ("bridge", "SMC"):
         w = out.winner(key)
         if w:
             lines.append(f"Highest log evidence ({key}): **{w}**.")
@@ -171,10 +219,9 @@ def run_study(path: str | Path, out_root: str | Path = "reports", quick: bool = 
                                blocked=[s[0] for s in schemes if s[2]],
                                heldout={s[0]: s[1].heldout.any(axis=0) for s in schemes})
         outcome.extra["quick"] = quick
-        compare.assign_weights(outcome)
-        outcome.ranking_sensitivity = compare.ranking_sensitivity_text(outcome)
+        _assign_weights(outcome)
         outcome.seconds = time.perf_counter() - start
-        outcome.findings = _findings(outcome)
+        outcome.findings = _findings(outcome) + outcome.findings
         figures = _figures(outcome, work)
         write_reports(outcome, work, figures)
         if final.exists():
