@@ -48,7 +48,8 @@ def _parse_priors(items: list[str] | None) -> dict[str, Prior]:
     out = {}
     for item in items or []:
         if "=" not in item:
-            raise UserError(f"--prior {item!r}: expected NAME=JSON, e.g. T_C='{{\"dist\": \"HalfNormal\", \"scale\": 2}}'")
+            example = 'T_C=\'{"dist": "HalfNormal", "scale": 2}\''
+            raise UserError(f"--prior {item!r}: expected NAME=JSON, e.g. {example}")
         name, spec = item.split("=", 1)
         try:
             out[name] = Prior.from_dict(json.loads(spec))

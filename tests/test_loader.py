@@ -82,7 +82,8 @@ BAD_CASES = [
     ("speed,torque,series\n60,1,a\ninf,1,b\n", "rpm", ["bench.csv", "row 2", "column 'speed'", "non-finite"]),
     ("", "rpm", ["bench.csv", "empty"]),
     ("speed,torque,series\n", "rpm", ["bench.csv", "no data rows"]),
-    ("speed,torque,series\n60,1.5,a\n7o,2,b\n", "rpm", ["bench.csv", "row 2", "column 'speed'", "'7o' is not a number"]),
+    ("speed,torque,series\n60,1.5,a\n7o,2,b\n", "rpm",
+     ["bench.csv", "row 2", "column 'speed'", "'7o' is not a number"]),
     ("speed,torque,series\n60,1.5\n", "rpm", ["bench.csv", "row 1", "cells"]),
 ]
 

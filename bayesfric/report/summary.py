@@ -112,7 +112,8 @@ def _markdown(out: StudyOutcome, header, rows, figures: list[Path]) -> str:
               f"- provenance: **{ds.attrs.get('provenance')}**; source: {ds.attrs.get('source')}",
               f"- {ds.sizes['obs']} observations; selection: {ds.attrs.get('selection', 'all rows')}; "
               f"content hash {ds.attrs.get('data_hash')}",
-              f"- noise model: {st.noise.kind}" + (f", partial-pooled offsets per `{st.noise.group}`" if st.noise.group else ""),
+              f"- noise model: {st.noise.kind}"
+              + (f", partial-pooled offsets per `{st.noise.group}`" if st.noise.group else ""),
               f"- sampler: {st.sampler}", ""]
     lines += ["## Findings", ""] + [f"- {f}" for f in out.findings] + [""]
     lines += ["## Ranking", "",

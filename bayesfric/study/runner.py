@@ -36,7 +36,8 @@ def validate_against_data(study: Study, ds) -> None:
     coords = {k for k, v in ds.coords.items()}
     inputs = {k for k, v in ds.coords.items() if v.attrs.get("role") == "input"}
     if study.noise.group and study.noise.group not in coords:
-        raise StudyError(f"{where}: noise.group: {study.noise.group!r} is not a group of the data ({', '.join(sorted(coords))})")
+        raise StudyError(f"{where}: noise.group: {study.noise.group!r} is not a group of the data "
+                         f"({', '.join(sorted(coords))})")
     if study.grouped and study.grouped not in coords:
         raise StudyError(f"{where}: compare.grouped: {study.grouped!r} is not a coordinate of the data")
     for i, b in enumerate(study.blocked):
@@ -116,7 +117,8 @@ def _run_law(study: Study, spec, ds, folder: Path, schemes, settings: dict, seed
         agreement = compare.compare_estimators(bridge, smc)
         out.evidence_disagreement = agreement.difference
         if not agreement.agree:
-            out.flags.append(f"evidence estimators disagree by {agreement.difference:.2f} nat (> {agreement.threshold})")
+            out.flags.append(f"evidence estimators disagree by {agreement.difference:.2f} nat "
+                             f"(> {agreement.threshold})")
         lap("evidence")
     out.prior_implausible = compare.prior_predictive_check(program, seed=seed).implausible
     pit = compare.loo_pit_check(dt, seed=seed)
@@ -124,9 +126,9 @@ def _run_law(study: Study, spec, ds, folder: Path, schemes, settings: dict, seed
     if not pit.within_band:
         out.flags.append(f"LOO-PIT outside the {pit.ci_prob:.0%} band (KS p = {pit.ks_pvalue:.3f}): miscalibrated")
     sens = compare.prior_sensitivity(dt)
-    flagged = [str(i) for i, d in zip(sens.index, sens["diagnosis"], strict=True) if d != "-"]
-    out.prior_sensitivity = ("no parameter flagged by power-scaling (psense)" if not flagged else
-                             "psense flags " + ", ".join(f"{n} ({d})" for n, d in zip(flagged, sens.loc[flagged, "diagnosis"], strict=True)))
+    flagged = [f"{i} ({d})" for i, d in zip(sens.index, sens["diagnosis"], strict=True) if d != "-"]
+    out.prior_sensitivity = ("psense flags " + ", ".join(flagged) if flagged
+                             else "no parameter flagged by power-scaling (psense)")
     lap("checks")
     out.seconds = time.perf_counter() - start
     print(f"    {law.name}: " + ", ".join(f"{k} {v:.0f} s" for k, v in out.timings.items()), flush=True)
@@ -179,7 +181,8 @@ def _findings(out: StudyOutcome) -> list[str]:
             lines.append(f"Highest log evidence ({key}): **{w}**.")
     failed = [w.name for w in out.laws if not w.reliable]
     if failed:
-        lines.append(f"Fits that FAILED the diagnostics gate (excluded from weights, marked in tables): {', '.join(failed)}.")
+        lines.append("Fits that FAILED the diagnostics gate (excluded from weights, marked in tables): "
+                     f"{', '.join(failed)}.")
     disagree = [w.name for w in out.laws if any("disagree" in f for f in w.flags)]
     if disagree:
         lines.append(f"Evidence estimators disagree by more than 0.5 nat for: {', '.join(disagree)} (not averaged).")
@@ -240,7 +243,8 @@ def _figures(out: StudyOutcome, folder: Path) -> list[Path]:
     fits = {w.name: w.fit for w in out.laws}
     paths = []
     for axis in axes[:2]:
-        held = next((out.heldout[s] for s, b in zip(out.blocked, out.study.blocked, strict=False) if b.axis == axis), None)
+        pairs = zip(out.blocked, out.study.blocked, strict=False)
+        held = next((out.heldout[s] for s, b in pairs if b.axis == axis), None)
         paths.append(plot_predictive(out.data, fits, axis, folder / "figures" / f"predictive_{axis}.png",
                                      heldout=held, title=out.study.title))
     return paths

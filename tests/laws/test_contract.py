@@ -73,7 +73,8 @@ def _dataset(law):
 
 def _prior_draws(law, ds):
     program = build_program(law, ds)
-    draws = Predictive(program.model, num_samples=N_DRAWS)(jax.random.PRNGKey(0), **dict(program.model_kwargs, response=None))
+    predictive = Predictive(program.model, num_samples=N_DRAWS)
+    draws = predictive(jax.random.PRNGKey(0), **dict(program.model_kwargs, response=None))
     return program, {k: draws[k] for k in law.params}
 
 
