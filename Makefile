@@ -22,4 +22,4 @@ lint: venv
 	.venv/bin/python -m ruff check bayesfric tests benchmarks data
 
 bench: venv
-	.venv/bin/python benchmarks/run_all.py
+	.venv/bin/python benchmarks/bench_refit.py
