@@ -12,7 +12,7 @@ from bayesfric.compare.checks import (
     sign_rule,
 )
 from bayesfric.inference import fit
-from bayesfric.laws import REGISTRY, get_law
+from bayesfric.laws import get_law
 from bayesfric.model import Noise, build_program
 from bayesfric.priors import Prior
 
@@ -66,7 +66,6 @@ def test_static_below_kinetic_is_checked_where_the_law_declares_both(viscous_dat
     assert coulomb.static_below_kinetic is None
 
 
-@pytest.mark.skipif("rothe_erde" not in REGISTRY, reason="bearing family not registered")
 def test_load_driven_laws_must_not_give_negative_torque(dataset_factory):
     law = get_law("rothe_erde")
     ds = dataset_factory({"bending_moment": np.linspace(0.0, 6e6, 10)}, np.linspace(1e3, 5e3, 10))

@@ -56,7 +56,6 @@ def test_coulomb_and_coulomb_viscous_are_told_apart():
 
 @pytest.mark.slow
 def test_blocked_extrapolation_cv_recovers_the_viscous_law():
-    pytest.importorskip("bayesfric.compare.refit")
     laws = [get_law("coulomb"), get_law("coulomb_viscous")]
     result = model_recovery(laws, DESIGN, sigma=0.05, response_scale=1.0, replicates=1, seed=0,
                             methods=("blocked_cv",), blocked_axis="velocity",
