@@ -52,11 +52,11 @@ def ranking_rows(out: StudyOutcome) -> tuple[list[str], list[list[str]], list[di
                      "rhat_max": w.verdict.rhat_max, "ess_bulk_min": w.verdict.ess_bulk_min}
         for e in estimators:
             est = w.evidence.get(e)
-            row.append(est.fmt(2) if est else "–")
+            row.append(est.fmt(3) if est else "–")
             rec[f"log_z_{e}"], rec[f"log_z_{e}_error"] = (est.value, est.error) if est else (math.nan, math.nan)
         if len(estimators) > 1:
-            row.append(_num(w.evidence_disagreement))
-            rec["evidence_disagreement"] = w.evidence_disagreement
+            row.append(_num(abs(w.evidence_disagreement), 3))
+            rec["evidence_disagreement"] = abs(w.evidence_disagreement)
         row += [w.loo.fmt(1), _num(w.p_loo, 1), f"{w.n_high_k} (max {_num(w.pareto_k_max)})"]
         rec.update(elpd_loo=w.loo.value, elpd_loo_se=w.loo.error, p_loo=w.p_loo, n_high_k=w.n_high_k,
                    pareto_k_max=w.pareto_k_max)

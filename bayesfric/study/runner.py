@@ -97,7 +97,8 @@ def _run_law(study: Study, spec, ds, folder: Path, schemes, settings: dict, seed
         out.p_loo, out.pareto_k_max, out.n_high_k = loo.p_loo, float(np.max(loo.pareto_k)), loo.n_high_k
         out.high_k_handling = f"PSIS-LOO: {loo.n_high_k} points with Pareto k > {loo.k_threshold:.2f} ({loo.handling})"
         if not loo.reliable:
-            out.flags.append("LOO unreliable: " + loo.handling)
+            why = "the full fit failed the gate" if not loo.fit_passed else loo.handling
+            out.flags.append(f"LOO unreliable ({why})")
         lap("loo")
     for label, folds, blocked in schemes:
         cv = compare.cross_validate(engine, folds, seed=seed)
