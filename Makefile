@@ -22,4 +22,5 @@ lint: venv
 	.venv/bin/python -m ruff check bayesfric tests benchmarks data
 
 bench: venv
+	.venv/bin/python benchmarks/bench_fit.py
 	.venv/bin/python benchmarks/bench_refit.py
