@@ -502,7 +502,23 @@ def coastdown(velocity_law: Law | str, *, inertia: float = DRUM_INERTIA) -> Law:
 # law's adaptive solve agrees between batched and unbatched evaluation only to ~1e-8 (step
 # decisions flip on last-bit differences of exp), short of the registry contract's 1e-9.
 coastdown_coulomb_viscous = coastdown(classical.coulomb_viscous)
-# Competitors for the roll-out study: constant (Coulomb) torque, and a Stribeck rise at low speed
-# (the O-rings' breakaway behaviour, seed 003 §4) that the linear O-ring law cannot follow.
-coastdown_coulomb = coastdown(classical.coulomb)
+# A Stribeck rise at low speed (the O-rings' breakaway behaviour, seed 003 §4) that the linear
+# O-ring law cannot follow. Integrated with diffrax: correct, but the friction's jump at the stop
+# makes the adaptive solve slow under NUTS, so the roll-out study uses closed forms instead.
 coastdown_stribeck = coastdown(classical.stribeck)
+
+
+@law(
+    name="coastdown_coulomb_closed_form",
+    family="drum",
+    inputs=COASTDOWN_INPUTS,
+    response="velocity",
+    source=f"{_COASTDOWN_SOURCE}; friction: {classical.coulomb.source}",
+    params=_coastdown_params(classical.coulomb, DRUM_INERTIA),
+    constants={"J": INERTIA},
+    trajectory=True,
+    notes=_COASTDOWN_NOTES + "Constant torque: a linear ramp ω0 − T_C t/J to the stop.",
+)
+def coastdown_coulomb_closed_form(time, initial_velocity, trajectory_start, T_C, J):
+    """Coast-down under constant (Coulomb) friction, closed form: ω0 − T_C t/J, 0 after the stop."""
+    return coulomb_viscous_coastdown(time, initial_velocity, T_C, 0.0, J)

@@ -251,3 +251,15 @@ def test_knot_law_recovers_the_oring_curve(simulator):
     low, high = np.quantile(curves, [0.05, 0.95], axis=0)
     truth = 0.95 + 9.5e-4 * knots
     assert np.all((low <= truth) & (truth <= high)), (low, truth, high)
+
+
+def test_coulomb_closed_form_coastdown_hand_values():
+    """ω(t) = ω0 − T_C t/J to the stop: ω0 = 10 rad/s, T_C = 0.02 N·m, J = 0.02 kg·m² → 1 rad/s²."""
+    law = get_law("coastdown_coulomb_closed_form")
+    t = np.array([0.0, 1.0, 9.5, 10.0, 100.0])
+    inputs = {"time": t, "initial_velocity": np.full(5, 10.0), "trajectory_start": np.array([1, 0, 0, 0, 0], bool)}
+    omega = np.asarray(law.mean(inputs, {"T_C": 0.02}, {"J": 0.02}))
+    np.testing.assert_allclose(omega, [10.0, 9.0, 0.5, 0.0, 0.0], atol=1e-12)
+    viscous = get_law("coastdown_coulomb_viscous_closed_form")
+    nearly = np.asarray(viscous.mean(inputs, {"T_C": 0.02, "c_v": 1e-12}, {"J": 0.02}))
+    np.testing.assert_allclose(omega, nearly, atol=1e-8)
