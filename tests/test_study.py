@@ -1,0 +1,88 @@
+"""Study files: one-line errors naming the key, nothing written on error; an end-to-end run."""
+
+import csv
+
+import numpy as np
+import pytest
+
+from bayesfric.cli import main
+from bayesfric.datasets.synthetic import simulate
+from bayesfric.laws import get_law
+from bayesfric.study import STUDIES_DIR, StudyError, load_study, run_study
+
+
+@pytest.fixture
+def data_csv(tmp_path):
+    """A small simulated Stribeck data set written as CSV + sidecar."""
+    speeds = np.geomspace(0.005, 4.0, 20)
+    v = np.concatenate([-speeds[::-1], speeds])
+    ds = simulate(get_law("coulomb_viscous"), {"velocity": v}, {"T_C": 5.0, "c_v": 2.0}, sigma=0.2, seed=5)
+    path = tmp_path / "bench.csv"
+    rows = ["speed,torque,series"] + [f"{a:.10g},{b:.10g},{i % 2}" for i, (a, b) in
+                                      enumerate(zip(v, ds["torque"].values, strict=True))]
+    path.write_text("\n".join(rows) + "\n")
+    (tmp_path / "bench.toml").write_text(
+        '[dataset]\nname = "bench"\nprovenance = "simulated"\nsource = "test"\n'
+        '[columns.speed]\nrole = "input"\nquantity = "velocity"\nunit = "rad/s"\n'
+        '[columns.torque]\nrole = "response"\nquantity = "torque"\nunit = "N*m"\n'
+        '[columns.series]\nrole = "group"\n')
+    return path
+
+
+def study_text(laws='[[laws]]\nname = "coulomb"\n[[laws]]\nname = "coulomb_viscous"\n', extra=""):
+    return ('[study]\nname = "tiny"\n[data]\ndataset = "bench.csv"\n'
+            '[sampler]\ndraws = 1000\ntune = 500\nchains = 2\n' + laws +
+            '[compare]\nloo = true\nevidence = false\n'
+            '[[compare.blocked]]\naxis = "velocity"\nthreshold = 1.0\n' + extra)
+
+
+@pytest.mark.parametrize(("laws", "fragment"), [
+    ('[[laws]]\nname = "no_such_law"\n', "laws[0].name: unknown law 'no_such_law'"),
+    ('[[laws]]\nname = "coulomb"\npriors = { nope = { dist = "HalfNormal", scale = 1.0 } }\n',
+     "laws[0].priors.nope: law 'coulomb' has no parameter 'nope'"),
+    ('[[laws]]\nname = "coulomb"\nprior = {}\n', "laws[0]: unknown key 'prior'"),
+    ('[[laws]]\nname = "coulomb"\npriors = { T_C = { dist = "Nope" } }\n', "laws[0].priors.T_C: unknown distribution"),
+])
+def test_config_errors_name_the_key(tmp_path, data_csv, laws, fragment):
+    path = tmp_path / "s.toml"
+    path.write_text(study_text(laws))
+    with pytest.raises(StudyError) as info:
+        load_study(path)
+    assert fragment in str(info.value) and "\n" not in str(info.value)
+
+
+def test_bad_fold_axis_is_one_line_and_writes_nothing(tmp_path, data_csv, capsys):
+    path = tmp_path / "s.toml"
+    path.write_text(study_text().replace('axis = "velocity"', 'axis = "temperature"'))
+    out = tmp_path / "reports"
+    assert main(["study", str(path), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "compare.blocked[0].axis: 'temperature' is not an input" in err and err.count("\n") == 1
+    assert not out.exists() or not any(out.iterdir())
+
+
+def test_shipped_studies_validate():
+    files = sorted(STUDIES_DIR.glob("*.toml"))
+    assert len(files) == 5
+    for f in files:
+        study = load_study(f)
+        assert study.blocked, f"{f.name} asks no extrapolation question"
+
+
+@pytest.mark.slow
+def test_end_to_end_tiny_study(tmp_path, data_csv):
+    path = tmp_path / "s.toml"
+    path.write_text(study_text())
+    folder = run_study(path, out_root=tmp_path / "reports")
+    names = {p.name for p in folder.iterdir()}
+    assert {"summary.md", "report.html", "ranking.csv", "parameters.csv", "fits", "figures"} <= names
+    assert {p.name for p in (folder / "fits").iterdir()} == {"coulomb.nc", "coulomb_viscous.nc"}
+    with (folder / "ranking.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    assert [r["law"] for r in rows][0] == "coulomb_viscous"  # the truth extrapolates best
+    for r in rows:
+        penalties = [float(v) for k, v in r.items() if k.startswith("penalty_per_point")]
+        assert np.isfinite(float(r["elpd_loo"])) and len(penalties) == 1 and np.isfinite(penalties[0])
+    text = (folder / "summary.md").read_text()
+    assert "SIMULATED data" in text and "## Ranking" in text and "stacking LOO" in text
+    assert not [p for p in folder.parent.iterdir() if p.name.startswith(".")]  # no temporary folder left
