@@ -4,6 +4,7 @@ import pytest
 
 import bayesfric  # noqa: F401  (enables x64)
 from bayesfric.datasets.synthetic import make_dataset, simulate
+from bayesfric.inference import release_compiled_code
 
 
 @pytest.fixture
@@ -16,3 +17,14 @@ def dataset_factory():
 def simulator():
     """``simulate(law, inputs, params, sigma=..., seed=...)`` (see bayesfric.datasets.synthetic)."""
     return simulate
+
+
+@pytest.fixture(autouse=True, scope="module")
+def free_compiled_code_per_module():
+    """Free compiled JAX code after each test module (see ``release_compiled_code``).
+
+    Without it the suite passed ``vm.max_map_count`` near its 460th test and XLA aborted
+    mid-compilation (the CI crash of 2026-11-21).
+    """
+    yield
+    release_compiled_code()

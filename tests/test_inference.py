@@ -1,5 +1,7 @@
 """Both backends return the same DataTree contract; the gate; saving; noise models."""
 
+from pathlib import Path
+
 import arviz as az
 import numpy as np
 import pytest
@@ -76,3 +78,22 @@ def test_noise_models_sample(small_ds, noise):
 def test_known_sigma_is_not_sampled(small_ds):
     dt = fit(get_law("coulomb_viscous"), small_ds, noise=Noise(sigma=0.1), draws=100, tune=100, chains=1)
     assert "sigma" not in dt["posterior"].data_vars
+
+
+@pytest.mark.skipif(not Path("/proc/self/maps").exists(), reason="needs Linux /proc")
+def test_release_compiled_code_frees_memory_mappings(simulator):
+    """A fit leaves compiled code mapped; releasing it must bring the mapping count back down."""
+    from bayesfric.inference import release_compiled_code
+
+    def mappings():
+        return len(Path("/proc/self/maps").read_text().splitlines())
+
+    law = get_law("coulomb_viscous")
+    ds = simulator(law, {"velocity": np.linspace(-2, 2, 20)}, {"T_C": 1.0, "c_v": 0.5}, sigma=0.05, seed=0)
+    release_compiled_code()
+    before = mappings()
+    fit(law, ds, draws=50, tune=50, chains=2)
+    grown = mappings()
+    release_compiled_code()
+    assert grown - before > 100  # the fit's compiled code is mapped
+    assert mappings() - before < 0.2 * (grown - before)

@@ -125,7 +125,8 @@ def psis_loo(
     elif engine is None and program is None and ds is None:
         handling = f"{high.size} point(s) not refitted: no data given (PSIS values kept)"
     else:
-        engine = engine or RefitEngine(program or program_from_fit(fit, ds))
+        passed = "diagnostics" in fit.attrs and verdict_of(fit).passed
+        engine = engine or RefitEngine(program or program_from_fit(fit, ds), warm_start=fit if passed else None)
         masks = np.ones((high.size, elpd_i.size), dtype=bool)
         masks[np.arange(high.size), high] = False
         refits = engine.run(masks, seed=seed)

@@ -29,7 +29,7 @@ from numpyro.infer import Predictive
 from bayesfric.compare.checks import plausible_draws
 from bayesfric.compare.evidence import bridge_log_evidence, smc_log_evidence
 from bayesfric.datasets.synthetic import make_dataset, simulate
-from bayesfric.inference import fit
+from bayesfric.inference import fit, release_compiled_code
 from bayesfric.laws.base import Law
 from bayesfric.model import OBS_SITE, Noise, build_program
 from bayesfric.priors import DataScale, Prior
@@ -204,6 +204,7 @@ def model_recovery(
                     scores[m][candidate.name] = _scores(
                         dt, candidate, ds, m, fit_kwargs=fit_kwargs, seed=set_seed, blocked=blocked
                     )
+            release_compiled_code()  # each replicate's fits compile afresh; free them
             chosen = {m: max(scores[m], key=scores[m].get) for m in methods}
             for m in methods:
                 confusion[m][i, names.index(chosen[m])] += 1

@@ -35,8 +35,9 @@ import numpy as np
 import xarray as xr
 from blackjax.adaptation.staged_adaptation import build_schedule
 from blackjax.adaptation.window_adaptation import base as window_adaptation_base
+from jax.flatten_util import ravel_pytree
 from numpyro.infer import init_to_median
-from numpyro.infer.util import constrain_fn, initialize_model, log_likelihood, potential_energy
+from numpyro.infer.util import constrain_fn, initialize_model, log_likelihood, potential_energy, unconstrain_fn
 
 from bayesfric.compare.folds import Folds
 from bayesfric.inference.diagnostics import GATE, Gate, Verdict, check
@@ -125,7 +126,20 @@ class RefitEngine:
     gate : Gate
         Diagnostics thresholds (default: the project gate, unchanged).
     seed : int
-        Seed of the chains' initial points (prior median, as the full fit uses).
+        Seed of the chains' initial points (prior median, as the full fit uses), or of the
+        draws picked as initial points under ``warm_start``.
+    warm_start : xarray.DataTree, optional
+        A full fit of the same program. Each fold's chains then start at draws of that
+        posterior (one per chain, from different chains where possible) with its unconstrained
+        posterior variance as the initial diagonal inverse mass matrix, and warm-up shrinks to
+        ``warm_tune`` steps: a 50-step fast window (step size only), one slow window that
+        re-estimates the mass matrix from the fold's own draws, and a 50-step fast window.
+        The full-fit posterior is close to every fold's (a fold drops a few points, or the
+        outer part of the envelope, which widens it), so the long Stan warm-up from the prior
+        median is wasted work; the fold's posterior still decides the final mass matrix and
+        step size, and the gate still checks every fold. Use only a fit that passed the gate.
+    warm_tune : int
+        Warm-up steps per chain under ``warm_start`` (default 250; at least 120).
 
     Notes
     -----
@@ -145,19 +159,34 @@ class RefitEngine:
         fold_batch: int = 1,
         gate: Gate = GATE,
         seed: int = 0,
+        warm_start: xr.DataTree | None = None,
+        warm_tune: int = 250,
     ):
         self.program = program
-        self.draws, self.tune, self.chains = int(draws), int(tune), int(chains)
+        self.draws, self.chains = int(draws), int(chains)
         self.target_accept, self.max_tree_depth = float(target_accept), int(max_tree_depth)
         self.fold_batch = int(fold_batch)
         self.gate = gate
         self.compilations = 0
-        keys = jax.random.split(jax.random.PRNGKey(seed), self.chains)
-        init, *_ = initialize_model(
-            keys, program.model, init_strategy=init_to_median(num_samples=15),
-            model_kwargs=program.model_kwargs, dynamic_args=True,
-        )
-        self._init_z = init.z
+        self.warm = warm_start is not None
+        if self.warm:
+            if warm_tune < 120:
+                raise ValueError(f"warm_tune must be at least 120 (got {warm_tune})")
+            self.tune = int(warm_tune)
+            self._schedule = np.asarray(build_schedule(self.tune, initial_buffer_size=50, final_buffer_size=50,
+                                                       first_window_size=self.tune - 100), dtype=int)
+            self._init_z, self._init_imm = _warm_start_from(program, warm_start, self.chains, seed)
+        else:
+            self.tune = int(tune)
+            self._schedule = np.asarray(build_schedule(self.tune), dtype=int)
+            keys = jax.random.split(jax.random.PRNGKey(seed), self.chains)
+            init, *_ = initialize_model(
+                keys, program.model, init_strategy=init_to_median(num_samples=15),
+                model_kwargs=program.model_kwargs, dynamic_args=True,
+            )
+            self._init_z = init.z
+            first = jax.tree.map(lambda a: a[0], init.z)
+            self._init_imm = jnp.ones(ravel_pytree(first)[0].size)
         self._sampler = jax.jit(self._sample_batch)
 
     @property
@@ -165,10 +194,11 @@ class RefitEngine:
         """Sampler settings, as stored with results."""
         return dict(draws=self.draws, tune=self.tune, chains=self.chains,
                     target_accept=self.target_accept, max_tree_depth=self.max_tree_depth,
-                    fold_batch=self.fold_batch, sampler="blackjax NUTS, window adaptation")
+                    fold_batch=self.fold_batch, sampler="blackjax NUTS, window adaptation",
+                    warm_start="from the full fit's draws and mass matrix" if self.warm else "no")
 
     # -- the compiled function ------------------------------------------------------------
-    def _sample_batch(self, keys, masks, init_z, inputs, group_index, response):
+    def _sample_batch(self, keys, masks, init_z, init_imm, inputs, group_index, response):
         self.compilations += 1  # runs only while tracing, i.e. once per compilation
         model = self.program.model
         data = dict(inputs=inputs, group_index=group_index, response=response)
@@ -181,7 +211,7 @@ class RefitEngine:
                 return -potential_energy(model, (), kwargs, z)
 
             def one_chain(key, z0):
-                return _nuts_chain(key, z0, logdensity, self.tune, self.draws,
+                return _nuts_chain(key, z0, logdensity, self._schedule, init_imm, self.draws,
                                    self.target_accept, depth)
 
             z, diverging, energy = jax.vmap(one_chain)(fold_keys, init_z)
@@ -218,7 +248,7 @@ class RefitEngine:
         parts = []
         for lo in range(0, padded.shape[0], b):
             out = self._sampler(keys[lo:lo + b], jnp.asarray(padded[lo:lo + b]), self._init_z,
-                                p.inputs, p.group_index, p.response)
+                                self._init_imm, p.inputs, p.group_index, p.response)
             parts.append(jax.tree.map(np.asarray, out))
         joined = jax.tree.map(lambda *xs: np.concatenate(xs)[:n_folds], *parts)
         samples, diverging, energy, lpd = joined
@@ -233,22 +263,51 @@ class RefitEngine:
         return check(dt, gate=self.gate)
 
 
-def _nuts_chain(key, z0, logdensity, tune: int, draws: int, target_accept: float, depth: int):
+def _warm_start_from(program: Program, fit: xr.DataTree, chains: int, seed: int):
+    """Initial points and diagonal inverse mass matrix for the fold chains, from a full fit.
+
+    Picks ``chains`` posterior draws (chain ``c % n_chains``, a random draw of it), maps them
+    to the unconstrained space the sampler works in, and takes the per-coordinate variance of
+    all unconstrained draws as the inverse mass matrix (floored at 1e-8 so a coordinate the
+    data pin down hard keeps a positive scale).
+    """
+    post = fit["posterior"]
+    init, *_ = initialize_model(jax.random.PRNGKey(seed), program.model, model_kwargs=program.model_kwargs)
+    names = list(init.z)
+    missing = [n for n in names if n not in post.data_vars]
+    if missing:
+        raise ValueError(f"warm start: the fit lacks the sampled site(s) {missing}; is it a fit of "
+                         f"{program.law.name!r} with the same noise model?")
+    n_chain, n_draw = post.sizes["chain"], post.sizes["draw"]
+    flat = {n: jnp.asarray(post[n].values).reshape((n_chain * n_draw,) + post[n].shape[2:]) for n in names}
+    unconstrained = jax.vmap(lambda p: unconstrain_fn(program.model, (), program.model_kwargs, p))(flat)
+    rng = np.random.default_rng(seed)
+    picks = np.array([(c % n_chain) * n_draw + rng.integers(n_draw) for c in range(chains)])
+    init_z = jax.tree.map(lambda a: a[picks], unconstrained)
+    rows = jax.vmap(lambda z: ravel_pytree(z)[0])(unconstrained)
+    imm = jnp.maximum(jnp.var(rows, axis=0), 1e-8)
+    return init_z, imm
+
+
+def _nuts_chain(key, z0, logdensity, schedule: np.ndarray, init_imm, draws: int, target_accept: float,
+                depth: int):
     """One NUTS chain with Stan's windowed adaptation, warm-up and sampling in ONE ``scan``.
 
     ``blackjax.window_adaptation`` followed by a sampling loop compiles the NUTS kernel twice
     (once inside each loop); stepping the same kernel through both phases halves compilation.
-    The schedule and adaptation rules are blackjax's (``window_adaptation.base``: dual averaging
-    of the step size, diagonal mass matrix from Welford variance in doubling slow windows).
-    Returns positions, divergence flags and energies of the ``draws`` post-warm-up steps.
+    The adaptation rules are blackjax's (``window_adaptation.base``: dual averaging of the step
+    size, diagonal mass matrix from Welford variance in the slow windows of ``schedule``, a
+    ``(tune, 2)`` array of (stage, window end) from ``build_schedule``), started from the
+    inverse mass matrix ``init_imm``. Returns positions, divergence flags and energies of the
+    ``draws`` post-warm-up steps.
     """
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DeprecationWarning)
         adapt_init, adapt_update, adapt_final = window_adaptation_base(
-            True, target_acceptance_rate=target_accept)
+            True, target_acceptance_rate=target_accept, initial_inverse_mass_matrix=init_imm)
     kernel = blackjax.nuts.build_kernel()
-    with jax.ensure_compile_time_eval():
-        schedule = np.asarray(build_schedule(tune), dtype=int).reshape(-1, 2)
+    tune = schedule.shape[0]
+    schedule = schedule.reshape(-1, 2)
     stage = jnp.concatenate([jnp.asarray(schedule[:, 0]), jnp.zeros(draws, dtype=int)])
     window_end = jnp.concatenate([jnp.asarray(schedule[:, 1], dtype=bool),
                                   jnp.zeros(draws, dtype=bool)])

@@ -16,7 +16,7 @@ import numpy as np
 
 from bayesfric import compare
 from bayesfric.datasets import DataError, load_dataset, resolve, select
-from bayesfric.inference import SAMPLERS, save_fit
+from bayesfric.inference import SAMPLERS, release_compiled_code, save_fit
 from bayesfric.laws import get_law
 from bayesfric.model import build_program
 from bayesfric.report.figures import plot_predictive
@@ -87,8 +87,10 @@ def _run_law(study: Study, spec, ds, folder: Path, schemes, settings: dict, seed
     if not verdict.passed:
         out.flags.append("diagnostics FAILED: " + "; ".join(verdict.problems))
 
+    # folds start from the full fit's draws and mass matrix when it passed the gate (shorter warm-up)
     engine = compare.RefitEngine(program, draws=settings["draws"], tune=min(500, settings["tune"]),
-                                 chains=settings.get("chains", 4), seed=seed)
+                                 chains=settings.get("chains", 4), seed=seed,
+                                 warm_start=dt if verdict.passed else None)
     loo = None
     if study.loo:
         loo = compare.psis_loo(dt, program=program, engine=engine, seed=seed)
@@ -219,6 +221,7 @@ def run_study(path: str | Path, out_root: str | Path = "reports", quick: bool = 
         for spec in study.laws:
             print(f"[{study.name}] fitting {spec.name} ...", flush=True)
             outcomes.append(_run_law(study, spec, ds, work, schemes, settings, seed, quick))
+            release_compiled_code()  # one law's compiled samplers are not reused by the next
         outcome = StudyOutcome(study=study, data=ds, laws=outcomes, schemes=[s[0] for s in schemes],
                                blocked=[s[0] for s in schemes if s[2]],
                                heldout={s[0]: s[1].heldout.any(axis=0) for s in schemes})

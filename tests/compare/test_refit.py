@@ -92,3 +92,52 @@ def test_blocked_cv_prefers_the_true_law_beyond_the_envelope(viscous_data):
         engine = RefitEngine(build_program(get_law(name), viscous_data), fold_batch=1, **SMALL)
         scores[name] = cross_validate(engine, blocked)
     assert scores["coulomb_viscous"].elpd > scores["coulomb"].elpd + 10.0
+
+
+@pytest.fixture(scope="module")
+def full_fit(viscous_data):
+    from bayesfric.inference import fit
+
+    return fit(get_law("coulomb_viscous"), viscous_data, seed=3, **SMALL)
+
+
+def test_warm_start_begins_at_the_full_posterior(viscous_data, full_fit):
+    program = build_program(get_law("coulomb_viscous"), viscous_data)
+    warm = RefitEngine(program, warm_start=full_fit, warm_tune=150, **SMALL)
+    assert warm.tune == 150 and warm.settings["warm_start"] != "no"
+    # the 150-step schedule: fast 50, one slow window of 50 ending in a mass-matrix update, fast 50
+    stages, ends = warm._schedule[:, 0], warm._schedule[:, 1]
+    assert stages.tolist() == [0] * 50 + [1] * 50 + [0] * 50 and ends.sum() == 1 and ends[99]
+    # initial points are posterior draws (T_C and c_v are positive: log-transformed)
+    post = full_fit["posterior"]
+    for name in ("T_C", "c_v"):
+        drawn = np.exp(np.asarray(warm._init_z[name]))
+        assert all(np.isclose(post[name].values, x).any() for x in drawn)
+    # inverse mass matrix = variance of the unconstrained draws (log scale here)
+    expected = sorted(np.var(np.log(post[n].values)) for n in ("T_C", "c_v", "sigma"))
+    np.testing.assert_allclose(sorted(np.asarray(warm._init_imm)), expected, rtol=1e-6)
+
+
+def test_warm_start_gives_the_same_fold_posteriors(engine, viscous_data, full_fit):
+    """Warm and cold starts sample the same fold posterior: means agree within 5 combined MCSE."""
+    import arviz as az
+
+    folds = kfold_masks(viscous_data, k=3, seed=0)
+    warm = RefitEngine(engine.program, warm_start=full_fit, **SMALL)
+    a, b = engine.run(folds.train, seed=0), warm.run(folds.train, seed=0)
+    for name in ("T_C", "c_v"):
+        for k in range(3):
+            xa, xb = a.samples[name][k], b.samples[name][k]  # (chain, draw)
+            tolerance = 5 * np.hypot(float(az.mcse(xa)), float(az.mcse(xb)))
+            assert abs(xa.mean() - xb.mean()) <= tolerance, (name, k, xa.mean(), xb.mean(), tolerance)
+    np.testing.assert_allclose(a.lpd, b.lpd, atol=0.25)  # MC error of a tail point's lpd at ESS ≈ 150
+    assert warm.compilations == 1
+
+
+def test_warm_start_rejects_a_mismatched_fit_or_too_short_warm_up(viscous_data, full_fit):
+    other = build_program(get_law("stribeck"), viscous_data)
+    with pytest.raises(ValueError, match="lacks the sampled site"):
+        RefitEngine(other, warm_start=full_fit, **SMALL)
+    program = build_program(get_law("coulomb_viscous"), viscous_data)
+    with pytest.raises(ValueError, match="warm_tune must be at least 120"):
+        RefitEngine(program, warm_start=full_fit, warm_tune=100, **SMALL)
