@@ -36,6 +36,7 @@ import xarray as xr
 from blackjax.adaptation.staged_adaptation import build_schedule
 from blackjax.adaptation.window_adaptation import base as window_adaptation_base
 from jax.flatten_util import ravel_pytree
+from numpyro import handlers
 from numpyro.infer import init_to_median
 from numpyro.infer.util import constrain_fn, initialize_model, log_likelihood, potential_energy, unconstrain_fn
 
@@ -272,8 +273,10 @@ def _warm_start_from(program: Program, fit: xr.DataTree, chains: int, seed: int)
     data pin down hard keeps a positive scale).
     """
     post = fit["posterior"]
-    init, *_ = initialize_model(jax.random.PRNGKey(seed), program.model, model_kwargs=program.model_kwargs)
-    names = list(init.z)
+    # latent sites from one plain execution of the model (initialize_model would compile)
+    model_trace = handlers.trace(handlers.seed(program.model, seed)).get_trace(**program.model_kwargs)
+    names = [n for n, site in model_trace.items()
+             if site["type"] == "sample" and not site["is_observed"] and not site.get("infer", {}).get("enumerate")]
     missing = [n for n in names if n not in post.data_vars]
     if missing:
         raise ValueError(f"warm start: the fit lacks the sampled site(s) {missing}; is it a fit of "
