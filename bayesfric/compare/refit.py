@@ -63,15 +63,17 @@ def pointwise_lpd(log_lik: np.ndarray) -> np.ndarray:
 def program_from_fit(fit: xr.DataTree, ds: xr.Dataset) -> Program:
     """Rebuild the program of a fit from its provenance attrs (law, priors, noise, constants).
 
-    A known noise sigma is not stored in the attrs; pass the program explicitly for such fits.
+    Fits saved before the known noise sigma was recorded in the ``noise`` attr cannot be rebuilt
+    when they used one; pass the fit's program explicitly for those.
     """
     noise = json.loads(fit.attrs["noise"])
     priors = json.loads(fit.attrs["priors"])
-    if noise["kind"] == "normal" and "sigma" not in priors:
+    sigma = noise.get("sigma")
+    if noise["kind"] == "normal" and "sigma" not in priors and sigma is None:
         raise ValueError(f"fit of {fit.attrs['law']!r} used a known noise sigma, which its attrs "
                          "do not record; pass the fit's program (or engine) explicitly")
     return build_program(get_law(fit.attrs["law"]), ds, priors=priors,
-                         noise=Noise(kind=noise["kind"], group=noise.get("group")),
+                         noise=Noise(kind=noise["kind"], group=noise.get("group"), sigma=sigma),
                          constants=json.loads(fit.attrs["constants"]))
 
 

@@ -6,7 +6,7 @@ import pytest
 
 from bayesfric.compare.folds import blocked_masks
 from bayesfric.compare.loo import extrapolation_penalty, psis_loo
-from bayesfric.compare.refit import CVResult, pointwise_lpd
+from bayesfric.compare.refit import CVResult, pointwise_lpd, program_from_fit
 from bayesfric.datasets.synthetic import make_dataset, simulate
 from bayesfric.inference import fit
 from bayesfric.laws.base import get_law
@@ -66,9 +66,15 @@ def test_loo_without_data_is_finite_and_flags_unrefitted_points(outlier_fit):
     assert result.p_loo == pytest.approx(float((lppd - result.elpd_i).sum()))
 
 
-def test_known_sigma_fit_needs_its_program(outlier_fit, outlier_data):
+def test_a_known_sigma_is_recorded_so_the_program_can_be_rebuilt(outlier_fit, outlier_data):
+    import json
+
+    rebuilt = program_from_fit(outlier_fit, outlier_data)
+    assert rebuilt.noise == NOISE and "sigma" not in rebuilt.priors
+    legacy = outlier_fit.copy()  # a fit written before the sigma was recorded
+    legacy.attrs["noise"] = json.dumps({"kind": "normal", "group": None})
     with pytest.raises(ValueError, match="known noise sigma"):
-        psis_loo(outlier_fit, outlier_data)
+        program_from_fit(legacy, outlier_data)
 
 
 @pytest.mark.slow
