@@ -1,4 +1,5 @@
-"""Both log-evidence estimators against the closed-form evidence of a linear-Gaussian law.
+"""Both log-evidence estimators against exact references: the closed-form evidence of a
+linear-Gaussian law, and quadrature on a grid for a nonlinear law.
 
 ``coulomb_viscous`` (T = sign(v) T_C + c_v v) is linear in (T_C, c_v); with Normal priors on both
 and a known noise sd the marginal likelihood is N(y; X m0, σ² I + X S0 Xᵀ), X = [sign(v), v].
@@ -51,6 +52,54 @@ def test_both_estimators_match_the_analytic_evidence(simulator, seed):
         assert 0 < estimate.error < 0.1, str(estimate)
     assert compare_estimators(bridge, smc).agree
 
+
+
+@pytest.mark.slow
+def test_both_estimators_match_quadrature_on_a_nonlinear_posterior(simulator):
+    """Stribeck law (4 parameters, known sigma): a curved, skewed posterior (T_C–dT_s–v_s ridge).
+
+    Reference: the log joint summed on a 40^4 grid in whitened unconstrained coordinates
+    (posterior mean and Cholesky factor of the draws' covariance), each axis spanning the draws
+    plus 10 sd either side (rectangle rule: spacing ≈ 0.7 sd, exponentially accurate for a
+    smooth integrand). The faces of the box must be ≥ 8 nats below the peak, so the mass
+    outside is far below the 0.1 nat tolerance. Measured at seed 3 (rotated 48^4 grid):
+    quadrature 14.688, bridge +0.009 nat, SMC −0.004 nat (diagonal-mass-matrix SMC +0.029).
+    """
+    import jax
+    import jax.numpy as jnp
+    from scipy.special import logsumexp
+
+    from bayesfric.compare.evidence import _density
+
+    law = get_law("stribeck")
+    speeds = np.geomspace(0.01, 2.0, 15)
+    velocity = np.concatenate([-speeds[::-1], speeds])
+    truth = {"T_C": 2.0, "dT_s": 1.0, "v_s": 0.1, "delta": 0.8}
+    ds = simulator(law, {"velocity": velocity}, truth, sigma=SIGMA, seed=3)
+    noise = Noise(sigma=SIGMA)
+    program = build_program(law, ds, noise=noise)
+    dt = fit(law, ds, noise=noise, seed=0)
+
+    density = _density(program)
+    post = dt["posterior"]
+    x = np.asarray(density.to_unconstrained({k: np.asarray(post[k].values).reshape(-1) for k in density.sites}))
+    centre, chol = x.mean(axis=0), np.linalg.cholesky(np.cov(x.T))
+    z = np.linalg.solve(chol, (x - centre).T).T
+    n = 40
+    axes = [np.linspace(z[:, i].min() - 10, z[:, i].max() + 10, n) for i in range(density.dim)]
+    grid = centre + np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, density.dim) @ chol.T
+    log_joint = jax.jit(jax.vmap(density.log_joint))
+    values = np.concatenate([np.asarray(log_joint(jnp.asarray(grid[i:i + 200_000])))
+                             for i in range(0, len(grid), 200_000)]).reshape([n] * density.dim)
+    faces = max(np.take(values, i, axis=a).max() for a in range(density.dim) for i in (0, -1))
+    assert faces - values.max() < -8, "quadrature box cuts posterior mass"
+    cell = sum(np.log(a[1] - a[0]) for a in axes) + np.log(np.linalg.det(chol))
+    exact = logsumexp(values) + cell
+
+    bridge = bridge_log_evidence(program, dt, seed=0)
+    smc = smc_log_evidence(program, seed=0)
+    for estimate in (bridge, smc):
+        assert abs(estimate.log_z - exact) <= 0.1, (str(estimate), exact)
 
 def test_compare_estimators_flags_but_never_averages():
     a = Evidence(-10.0, 0.02, "bridge")
