@@ -8,7 +8,10 @@ Stan-style window adaptation of step size and diagonal mass matrix, vectorised w
 ``jax.vmap`` over chains and optionally over a fixed-size batch of folds (``fold_batch``; the
 last batch is padded with copies of its first fold so the batch shape, and so the compilation,
 never changes). numpyro's ``MCMC(jit_model_args=True)`` was measured as the alternative and
-was an order of magnitude slower per fold (see ``benchmarks/README.md``).
+was an order of magnitude slower per fold (see ``benchmarks/README.md``). Given a full fit
+(``warm_start=``), every fold starts from its draws and mass matrix with a 250-step warm-up
+instead of Stan's 500 from the prior median: a 10-fold refit then costs 1.7× one full fit,
+compilation included, against 2.2× cold (``benchmarks/bench_refit.py``).
 
 Every fold fit goes through the diagnostics gate of :mod:`bayesfric.inference.diagnostics`
 (R-hat, bulk/tail ESS, divergences, E-BFMI on the fold's own draws, thresholds unchanged). A
