@@ -86,3 +86,27 @@ def test_end_to_end_tiny_study(tmp_path, data_csv):
     text = (folder / "summary.md").read_text()
     assert "SIMULATED data" in text and "## Ranking" in text and "stacking LOO" in text
     assert not [p for p in folder.parent.iterdir() if p.name.startswith(".")]  # no temporary folder left
+
+
+def test_winners_skip_unreliable_results_and_findings_name_them(tmp_path, data_csv):
+    """A law whose blocked fold failed the gate is not ranked, and the findings say it scored higher."""
+    from bayesfric.inference.diagnostics import Verdict
+    from bayesfric.study.outcome import Estimate, LawOutcome, StudyOutcome
+    from bayesfric.study.runner import _findings
+
+    (tmp_path / "tiny.toml").write_text(study_text())
+    study = load_study(tmp_path / "tiny.toml")
+    ok = Verdict(True, 1.0, 1000.0, 1000.0, 0, 1.0, 0.9)
+    label = "train inside, score outside"
+
+    def outcome(name, loo, blocked, blocked_ok):
+        return LawOutcome(law=get_law(name), fit=None, fit_file=tmp_path, verdict=ok, loo=Estimate(loo, 1.0),
+                          cv={label: Estimate(blocked, 1.0)}, cv_reliable={label: blocked_ok})
+
+    out = StudyOutcome(study=study, data=None, schemes=[label], blocked=[label],
+                       laws=[outcome("coulomb", -10.0, -5.0, False), outcome("coulomb_viscous", -2.0, -8.0, True)])
+    assert out.winner("loo") == "coulomb_viscous" and out.passed_over("loo") == []
+    assert out.winner(label) == "coulomb_viscous" and out.passed_over(label) == ["coulomb"]
+    blocked_line = next(line for line in _findings(out) if "blocked CV" in line)
+    assert "**coulomb_viscous**" in blocked_line
+    assert "coulomb scored higher but failed the diagnostics gate" in blocked_line

@@ -98,3 +98,20 @@ class StudyOutcome:
             if math.isfinite(value) and value > best_value:
                 best, best_value = w.name, value
         return best
+
+    def passed_over(self, key: str) -> list[str]:
+        """Laws that score above :meth:`winner` under ``key`` but are not ranked: their fit or a
+        fold of the scheme failed the diagnostics gate (the findings name them)."""
+        winner = self.winner(key)
+        if winner is None:
+            return []
+
+        def score(w) -> float:
+            if key == "loo":
+                return w.loo.value
+            if key in w.cv:
+                return w.cv[key].value
+            return w.evidence.get(key, Estimate()).value
+
+        top = score(next(w for w in self.laws if w.name == winner))
+        return [w.name for w in self.laws if w.name != winner and math.isfinite(score(w)) and score(w) > top]

@@ -54,16 +54,16 @@ def validate_against_data(study: Study, ds) -> None:
                              f"{ds.attrs['response']}")
 
 
-def _fold_schemes(study: Study, ds, seed: int) -> list[tuple[str, object, bool]]:
-    """(label, Folds, is_blocked) for every CV scheme the study asks for."""
+def _fold_schemes(study: Study, ds, seed: int) -> list[tuple[str, object, str]]:
+    """(label, Folds, kind) for every CV scheme the study asks for; kind: kfold, grouped or blocked."""
     schemes = []
     if study.kfold:
-        schemes.append((f"{study.kfold}-fold", compare.kfold_masks(ds, study.kfold, seed=seed), False))
+        schemes.append((f"{study.kfold}-fold", compare.kfold_masks(ds, study.kfold, seed=seed), "kfold"))
     if study.grouped:
-        schemes.append((f"leave-one-{study.grouped}-out", compare.grouped_masks(ds, study.grouped), False))
+        schemes.append((f"leave-one-{study.grouped}-out", compare.grouped_masks(ds, study.grouped), "grouped"))
     for b in study.blocked:
         folds = compare.blocked_masks(ds, b.axis, threshold=b.threshold, quantile=b.quantile, direction=b.direction)
-        schemes.append((b.label or folds.scheme, folds, True))
+        schemes.append((b.label or folds.scheme, folds, "blocked"))
     return schemes
 
 
@@ -87,13 +87,17 @@ def _run_law(study: Study, spec, ds, folder: Path, schemes, settings: dict, seed
     if not verdict.passed:
         out.flags.append("diagnostics FAILED: " + "; ".join(verdict.problems))
 
-    # folds start from the full fit's draws and mass matrix when it passed the gate (shorter warm-up)
-    engine = compare.RefitEngine(program, draws=settings["draws"], tune=min(500, settings["tune"]),
-                                 chains=settings.get("chains", 4), seed=seed,
-                                 warm_start=dt if verdict.passed else None)
+    # Refits that drop a few points (PSIS-LOO's high-k points, random K-fold) start from the full
+    # fit's draws and mass matrix when it passed the gate: a shorter warm-up suffices. Grouped and
+    # blocked folds remove a whole series or region, so their posteriors can differ much from the
+    # full one; they start cold with the full Stan warm-up. Engines compile on first use only.
+    engine_settings = dict(draws=settings["draws"], tune=min(500, settings["tune"]),
+                           chains=settings.get("chains", 4), seed=seed)
+    cold_engine = compare.RefitEngine(program, **engine_settings)
+    near_engine = compare.RefitEngine(program, warm_start=dt, **engine_settings) if verdict.passed else cold_engine
     loo = None
     if study.loo:
-        loo = compare.psis_loo(dt, program=program, engine=engine, seed=seed)
+        loo = compare.psis_loo(dt, program=program, engine=near_engine, seed=seed)
         out.results["loo"] = loo
         out.loo, out.loo_pointwise = Estimate(loo.elpd, loo.se), loo.elpd_i
         out.p_loo, out.pareto_k_max, out.n_high_k = loo.p_loo, float(np.max(loo.pareto_k)), loo.n_high_k
@@ -102,7 +106,8 @@ def _run_law(study: Study, spec, ds, folder: Path, schemes, settings: dict, seed
             why = "the full fit failed the gate" if not loo.fit_passed else loo.handling
             out.flags.append(f"LOO unreliable ({why})")
         lap("loo")
-    for label, folds, blocked in schemes:
+    for label, folds, kind in schemes:
+        engine = near_engine if kind == "kfold" else cold_engine
         cv = compare.cross_validate(engine, folds, seed=seed)
         out.results[label] = cv
         out.cv[label] = Estimate(cv.elpd, cv.se)
@@ -110,7 +115,7 @@ def _run_law(study: Study, spec, ds, folder: Path, schemes, settings: dict, seed
         out.cv_reliable[label] = cv.reliable
         if not cv.reliable:
             out.flags.append(f"{label}: folds {cv.failed_folds} failed the gate")
-        if blocked and loo is not None:
+        if kind == "blocked" and loo is not None:
             out.penalty[label] = compare.extrapolation_penalty(loo, cv).per_point
         lap(f"cv {label}")
     if study.evidence:
@@ -170,14 +175,19 @@ def _assign_weights(out: StudyOutcome) -> None:
 
 def _findings(out: StudyOutcome) -> list[str]:
     lines = []
+    def unranked(key: str) -> str:
+        above = out.passed_over(key)
+        return (f" ({', '.join(above)} scored higher but failed the diagnostics gate, in the fit or a fold, "
+                "so is not ranked)" if above else "")
+
     loo_winner = out.winner("loo")
     if loo_winner:
-        lines.append(f"Best under PSIS-LOO (interpolation): **{loo_winner}**.")
+        lines.append(f"Best under PSIS-LOO (interpolation): **{loo_winner}**{unranked('loo')}.")
     for label in out.blocked:
         w = out.winner(label)
         if w:
             same = "the same law" if w == loo_winner else f"a different law from LOO ({loo_winner})"
-            lines.append(f"Best under blocked CV '{label}' (extrapolation): **{w}** — {same}.")
+            lines.append(f"Best under blocked CV '{label}' (extrapolation): **{w}** — {same}{unranked(label)}.")
     for key in ("bridge", "SMC"):
         w = out.winner(key)
         if w:
@@ -223,7 +233,7 @@ def run_study(path: str | Path, out_root: str | Path = "reports", quick: bool = 
             outcomes.append(_run_law(study, spec, ds, work, schemes, settings, seed, quick))
             release_compiled_code()  # one law's compiled samplers are not reused by the next
         outcome = StudyOutcome(study=study, data=ds, laws=outcomes, schemes=[s[0] for s in schemes],
-                               blocked=[s[0] for s in schemes if s[2]],
+                               blocked=[s[0] for s in schemes if s[2] == "blocked"],
                                heldout={s[0]: s[1].heldout.any(axis=0) for s in schemes})
         outcome.extra["quick"] = quick
         _assign_weights(outcome)
