@@ -140,10 +140,12 @@ class RefitEngine:
         posterior variance as the initial diagonal inverse mass matrix, and warm-up shrinks to
         ``warm_tune`` steps: a 50-step fast window (step size only), one slow window that
         re-estimates the mass matrix from the fold's own draws, and a 50-step fast window.
-        The full-fit posterior is close to every fold's (a fold drops a few points, or the
-        outer part of the envelope, which widens it), so the long Stan warm-up from the prior
-        median is wasted work; the fold's posterior still decides the final mass matrix and
-        step size, and the gate still checks every fold. Use only a fit that passed the gate.
+        Meant for folds that drop a few points (PSIS-LOO refits, random K-fold): their
+        posteriors are close to the full one, so the long Stan warm-up from the prior median is
+        wasted work; the fold's posterior still decides the final mass matrix and step size,
+        and the gate still checks every fold. Folds that remove a whole region or series
+        (blocked, grouped) can move the posterior far from the full fit's; studies start those
+        cold. Use only a fit that passed the gate.
     warm_tune : int
         Warm-up steps per chain under ``warm_start`` (default 250; at least 120).
 
