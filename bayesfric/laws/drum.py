@@ -344,35 +344,34 @@ _COASTDOWN_NOTES = (
 _COASTDOWN_SOURCE = f"{SEED}, §4 (roll-out tests: J dω/dt = −T_f(ω))"
 
 
-@law(
-    name="coastdown_coulomb_viscous_closed_form",
-    family="drum",
-    inputs=COASTDOWN_INPUTS,
-    response="velocity",
-    source=f"{_COASTDOWN_SOURCE}; friction: {classical.coulomb_viscous.source}",
-    params=_coastdown_params(classical.coulomb_viscous, DRUM_INERTIA),
-    constants={"J": INERTIA},
-    trajectory=True,
-    notes=_COASTDOWN_NOTES + "T_C and c_v are separated by the curvature of ω(t) (exponential "
-    "vs. linear decay); runs from several ω0 help. Each row carries its own (t, ω0), so "
-    "trajectory_start is not needed by the closed form.",
+def _closed_form_coastdown(name: str, friction: Law, notes: str):
+    """The ``@law`` declaration shared by the closed-form coast-downs of a steady-state law."""
+    return law(
+        name=name,
+        family="drum",
+        inputs=COASTDOWN_INPUTS,
+        response="velocity",
+        source=f"{_COASTDOWN_SOURCE}; friction: {friction.source}",
+        params=_coastdown_params(friction, DRUM_INERTIA),
+        constants={"J": INERTIA},
+        trajectory=True,
+        notes=_COASTDOWN_NOTES + notes,
+    )
+
+
+@_closed_form_coastdown(
+    "coastdown_coulomb_viscous_closed_form", classical.coulomb_viscous,
+    "T_C and c_v are separated by the curvature of ω(t) (exponential vs. linear decay); runs from "
+    "several ω0 help. Each row carries its own (t, ω0), so trajectory_start is not needed by the "
+    "closed form.",
 )
 def coastdown_coulomb_viscous_closed_form(time, initial_velocity, trajectory_start, T_C, c_v, J):
     """Coast-down under Coulomb + viscous friction, closed form (0 after the stop)."""
     return coulomb_viscous_coastdown(time, initial_velocity, T_C, c_v, J)
 
 
-@law(
-    name="coastdown_oring_closed_form",
-    family="drum",
-    inputs=COASTDOWN_INPUTS,
-    response="velocity",
-    source=f"{_COASTDOWN_SOURCE}; friction: {oring.source}",
-    params=_coastdown_params(oring, DRUM_INERTIA),
-    constants={"J": INERTIA},
-    trajectory=True,
-    notes=_COASTDOWN_NOTES + "k_o and tau_o0 are separated by the curvature of ω(t).",
-)
+@_closed_form_coastdown("coastdown_oring_closed_form", oring,
+                        "k_o and tau_o0 are separated by the curvature of ω(t).")
 def coastdown_oring_closed_form(time, initial_velocity, trajectory_start, k_o, tau_o0, J):
     """Coast-down under O-ring friction τ = k_o ω + τ_o0, closed form (0 after the stop)."""
     return coulomb_viscous_coastdown(time, initial_velocity, tau_o0, k_o, J)
@@ -508,17 +507,8 @@ coastdown_coulomb_viscous = coastdown(classical.coulomb_viscous)
 coastdown_stribeck = coastdown(classical.stribeck)
 
 
-@law(
-    name="coastdown_coulomb_closed_form",
-    family="drum",
-    inputs=COASTDOWN_INPUTS,
-    response="velocity",
-    source=f"{_COASTDOWN_SOURCE}; friction: {classical.coulomb.source}",
-    params=_coastdown_params(classical.coulomb, DRUM_INERTIA),
-    constants={"J": INERTIA},
-    trajectory=True,
-    notes=_COASTDOWN_NOTES + "Constant torque: a linear ramp ω0 − T_C t/J to the stop.",
-)
+@_closed_form_coastdown("coastdown_coulomb_closed_form", classical.coulomb,
+                        "Constant torque: a linear ramp ω0 − T_C t/J to the stop.")
 def coastdown_coulomb_closed_form(time, initial_velocity, trajectory_start, T_C, J):
     """Coast-down under constant (Coulomb) friction, closed form: ω0 − T_C t/J, 0 after the stop."""
     return coulomb_viscous_coastdown(time, initial_velocity, T_C, 0.0, J)
