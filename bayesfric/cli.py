@@ -174,6 +174,9 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``bayesfric`` command."""
     args = build_parser().parse_args(argv)
+    from bayesfric.runtime import configure
+
+    configure()
     try:
         args.func(args)
     except USER_ERRORS as exc:

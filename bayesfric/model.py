@@ -32,6 +32,7 @@ from bayesfric.datasets.loader import OBS_DIM, DataError
 from bayesfric.datasets.views import data_scale, law_inputs, response_values
 from bayesfric.laws.base import Law
 from bayesfric.priors import DataScale, Prior, PriorError
+from bayesfric.runtime import configure
 
 __all__ = ["Noise", "Program", "build_program", "OBS_SITE", "NOISE_PRIORS"]
 
@@ -199,6 +200,7 @@ def build_program(
     DataError
         The dataset lacks an input the law reads, or the group coordinate.
     """
+    configure()  # x64 and the persistent compilation cache, on first use
     noise = noise or Noise()
     declared = law.default_priors() | {k: NOISE_PRIORS[k] for k in noise.sites()}
     for name, spec in (priors or {}).items():

@@ -28,13 +28,13 @@ from pathlib import Path
 
 import numpy as np
 
-import bayesfric  # noqa: F401  (x64)
 from bayesfric.compare.folds import kfold_masks
 from bayesfric.compare.refit import RefitEngine, cross_validate
 from bayesfric.datasets.synthetic import simulate
 from bayesfric.inference import fit
 from bayesfric.laws.base import get_law
 from bayesfric.model import build_program
+from bayesfric.runtime import configure
 
 OUT = Path(__file__).resolve().parents[1] / "reports" / "benchmarks" / "bench_refit.json"
 
@@ -72,6 +72,7 @@ def main() -> None:
     parser.add_argument("--with-numpyro", action="store_true",
                         help="also time numpyro MCMC(jit_model_args=True), one run per fold")
     args = parser.parse_args()
+    configure()  # x64 and the compilation cache, as the CLI does
 
     law = get_law("stribeck")
     speeds = np.geomspace(0.02, 4.0, args.n // 2)

@@ -2,9 +2,11 @@
 
 import pytest
 
-import bayesfric  # noqa: F401  (enables x64)
 from bayesfric.datasets.synthetic import make_dataset, simulate
 from bayesfric.inference import release_compiled_code
+from bayesfric.runtime import configure
+
+configure()  # x64 (and the persistent compilation cache) before any test builds an array
 
 
 @pytest.fixture

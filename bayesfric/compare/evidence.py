@@ -380,13 +380,19 @@ def smc_log_evidence(
     return Evidence(float(np.mean(log_zs)), error, "smc", diagnostics)
 
 
-def compare_estimators(a: Evidence, b: Evidence, threshold: float = 0.5) -> EstimatorAgreement:
-    """Flag two log-evidence estimates of one model differing by more than ``threshold`` nats.
+def compare_estimators(a: Evidence, b: Evidence, *, z: float = 3.0, floor: float = 0.2) -> EstimatorAgreement:
+    """Flag two log-evidence estimates of one model that differ beyond their combined error.
 
-    The estimates are never averaged: a disagreement means at least one of them is biased
-    (a poor bridge proposal, SMC moves that do not mix, a multimodal posterior), and the
-    report should show both.
+    They agree when ``|a − b| ≤ max(z · sqrt(se_a² + se_b²), floor)`` and neither estimator
+    marked itself unreliable (``diagnostics["reliable"] is False``, e.g. importance weights with
+    Pareto-k̂ > 0.7). The floor: each estimator is held to 0.1 nat of exact evidences in the
+    tests, so two sound estimates may differ by up to 0.2 nat through biases that their Monte
+    Carlo errors do not contain. The estimates are never averaged: a disagreement means at least
+    one of them is biased (a poor proposal, a multimodal posterior), the report shows both and
+    the law leaves the evidence ranking.
     """
     difference = a.log_z - b.log_z
-    agree = bool(abs(difference) <= threshold)
+    threshold = max(z * float(np.hypot(a.error, b.error)), floor)
+    reliable = all(e.diagnostics.get("reliable", True) for e in (a, b))
+    agree = bool(abs(difference) <= threshold and reliable)
     return EstimatorAgreement(a, b, float(difference), float(threshold), agree)

@@ -11,6 +11,7 @@ import xarray as xr
 from bayesfric.datasets.loader import OBS_DIM
 from bayesfric.laws.base import TRAJECTORY_START, Law
 from bayesfric.quantities import QUANTITIES
+from bayesfric.runtime import configure
 
 __all__ = ["make_dataset", "simulate"]
 
@@ -74,6 +75,7 @@ def simulate(
     ``sigma`` is absolute (SI) or, with ``relative=True``, a fraction of |mean|. Trajectory
     laws get ``trajectory_start`` computed from ``groups[trajectory]``.
     """
+    configure()  # the law runs in JAX: x64 first
     arrays = {k: np.asarray(v, dtype=float) for k, v in inputs.items()}
     call_inputs = dict(arrays)
     if TRAJECTORY_START in law.inputs:

@@ -6,14 +6,12 @@ import os
 import tempfile
 from pathlib import Path
 
-import matplotlib
+import matplotlib as mpl
+import numpy as np
+import xarray as xr
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import xarray as xr  # noqa: E402
-
-from bayesfric.quantities import QUANTITIES  # noqa: E402
+from bayesfric.quantities import QUANTITIES
 
 __all__ = ["plot_predictive", "provenance_label"]
 
@@ -33,8 +31,7 @@ def _save(fig, path: Path) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(suffix=".png", dir=path.parent)
     os.close(fd)
-    fig.savefig(tmp, dpi=110, bbox_inches="tight")
-    plt.close(fig)
+    fig.savefig(tmp, dpi=110, bbox_inches="tight")  # a bare Figure renders with Agg: no pyplot state
     os.replace(tmp, path)
     return path
 
@@ -58,12 +55,12 @@ def plot_predictive(
     unit = QUANTITIES[axis].unit if axis in QUANTITIES else ""
     y = np.asarray(ds[ds.attrs["response"]].values, dtype=float)
     order = np.argsort(x, kind="stable")
-    fig, (top, bottom) = plt.subplots(2, 1, figsize=(8.5, 7.5), sharex=True,
-                                      gridspec_kw={"height_ratios": [3, 2]})
+    fig = Figure(figsize=(8.5, 7.5))
+    top, bottom = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [3, 2]})
     top.plot(x, y, "o", ms=3, color="0.35", alpha=0.6, label="data")
     if heldout is not None and heldout.any():
         top.plot(x[heldout], y[heldout], "o", ms=4, mfc="none", mec="crimson", label="held out (blocked CV)")
-    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    colours = mpl.rcParams["axes.prop_cycle"].by_key()["color"]
     for i, (name, dt) in enumerate(fits.items()):
         pp = np.asarray(dt["posterior_predictive"]["response"].values)
         pp = pp.reshape(-1, pp.shape[-1])

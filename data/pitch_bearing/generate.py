@@ -77,7 +77,9 @@ def ball_load_sums() -> tuple[np.ndarray, np.ndarray]:
 
     Rope shear force M / 30 m acts as radial force, no axial force (README §2).
     """
-    import bayesfric  # noqa: F401  (x64)
+    from bayesfric.runtime import configure
+
+    configure()  # x64
     from bayesfric.laws.ball_loads import PITCH_BEARING, contact_loads, sum_ball_loads
 
     moment = np.asarray(MOMENTS_MNM, dtype=float) * 1e6

@@ -7,7 +7,6 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-import bayesfric  # noqa: F401  (x64)
 from bayesfric.laws.ball_loads import (
     PITCH_BEARING,
     BearingGeometry,

@@ -5,7 +5,6 @@ import math
 import numpy as np
 import pytest
 
-import bayesfric  # noqa: F401  (x64)
 from bayesfric.inference import fit
 from bayesfric.laws import get_law
 

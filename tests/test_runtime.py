@@ -1,0 +1,70 @@
+"""Process-wide settings: nothing at import; x64 and the persistent compilation cache on first use."""
+
+import json
+import os
+import subprocess
+import sys
+import textwrap
+
+import pytest
+
+from bayesfric.runtime import cache_dir
+
+PROBE = textwrap.dedent("""
+    import collections, json
+    import jax, jax.monitoring
+    events = collections.Counter()
+    jax.monitoring.register_event_listener(lambda name, **kw: events.update([name.split("/")[-1]]))
+    import numpy as np
+    from bayesfric.datasets.synthetic import simulate
+    from bayesfric.inference import fit
+    from bayesfric.laws import get_law
+    law = get_law("coulomb_viscous")
+    ds = simulate(law, {"velocity": np.linspace(-2, 2, 30)}, {"T_C": 1.0, "c_v": 0.5}, sigma=0.1, seed=1)
+    fit(law, ds, draws=100, tune=100, chains=2)
+    print(json.dumps(dict(events)))
+""")
+
+
+def _run(code: str, **env) -> str:
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                         env=os.environ | env, timeout=600)
+    return out.stdout.strip().splitlines()[-1]
+
+
+def test_importing_bayesfric_changes_no_process_setting():
+    code = ("import sys, jax; "
+            "import bayesfric, bayesfric.cli, bayesfric.inference, bayesfric.compare, bayesfric.study, "
+            "bayesfric.report.figures; "
+            "print(jax.config.jax_enable_x64, jax.config.jax_compilation_cache_dir, "
+            "'matplotlib.pyplot' in sys.modules)")
+    assert _run(code) == "False None False"  # pyplot (which picks a GUI backend) is never imported
+
+
+def test_cache_folder_follows_the_environment(monkeypatch, tmp_path):
+    monkeypatch.setenv("BAYESFRIC_CACHE_DIR", str(tmp_path / "c"))
+    monkeypatch.delenv("BAYESFRIC_NO_CACHE", raising=False)
+    assert cache_dir() == tmp_path / "c"
+    monkeypatch.setenv("BAYESFRIC_NO_CACHE", "1")
+    assert cache_dir() is None
+    monkeypatch.delenv("BAYESFRIC_NO_CACHE")
+    monkeypatch.delenv("BAYESFRIC_CACHE_DIR")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    assert cache_dir() == tmp_path / "xdg" / "bayesfric" / "jax"
+
+
+@pytest.mark.slow
+def test_a_second_fit_in_a_new_process_compiles_nothing(tmp_path):
+    """Two processes fit the same law to the same data: the second loads every program from disk."""
+    first = json.loads(_run(PROBE, BAYESFRIC_CACHE_DIR=str(tmp_path)))
+    second = json.loads(_run(PROBE, BAYESFRIC_CACHE_DIR=str(tmp_path)))
+    assert first.get("cache_misses", 0) > 50  # a fit is many small programs, all written
+    assert second.get("cache_misses", 0) == 0, second
+    assert second["cache_hits"] == first["compile_requests_use_cache"]
+
+
+@pytest.mark.slow
+def test_the_off_switch_writes_no_cache(tmp_path):
+    events = json.loads(_run(PROBE, BAYESFRIC_CACHE_DIR=str(tmp_path / "c"), BAYESFRIC_NO_CACHE="1"))
+    assert "cache_hits" not in events and "cache_misses" not in events
+    assert not (tmp_path / "c").exists()
