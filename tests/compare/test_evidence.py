@@ -1,4 +1,4 @@
-"""Both log-evidence estimators against exact references: the closed-form evidence of a
+"""The log-evidence estimators against exact references: the closed-form evidence of a
 linear-Gaussian law, and quadrature on a grid for a nonlinear law.
 
 ``coulomb_viscous`` (T = sign(v) T_C + c_v v) is linear in (T_C, c_v); with Normal priors on both
@@ -16,6 +16,7 @@ from bayesfric.compare.evidence import (
     compare_estimators,
     smc_log_evidence,
 )
+from bayesfric.compare.importance import laplace_is_log_evidence
 from bayesfric.inference import fit
 from bayesfric.laws import get_law
 from bayesfric.model import Noise, build_program
@@ -47,10 +48,12 @@ def test_both_estimators_match_the_analytic_evidence(simulator, seed):
     dt = fit(law, ds, priors=priors, noise=noise, seed=seed, draws=1000, tune=500, chains=2)
     bridge = bridge_log_evidence(program, dt, seed=seed)
     smc = smc_log_evidence(program, seed=seed)
-    for estimate in (bridge, smc):
+    importance = laplace_is_log_evidence(program, seed=seed)
+    for estimate in (bridge, smc, importance):
         assert abs(estimate.log_z - exact) <= 0.1, (str(estimate), exact)
         assert 0 < estimate.error < 0.1, str(estimate)
     assert compare_estimators(bridge, smc).agree
+    assert compare_estimators(bridge, importance).agree  # the default pair of the study runner
 
 
 
@@ -63,7 +66,8 @@ def test_both_estimators_match_quadrature_on_a_nonlinear_posterior(simulator):
     plus 10 sd either side (rectangle rule: spacing ≈ 0.7 sd, exponentially accurate for a
     smooth integrand). The faces of the box must be ≥ 8 nats below the peak, so the mass
     outside is far below the 0.1 nat tolerance. Measured at seed 3 (rotated 48^4 grid):
-    quadrature 14.688, bridge +0.009 nat, SMC −0.004 nat (diagonal-mass-matrix SMC +0.029).
+    quadrature 14.688, bridge +0.009 nat, SMC −0.004 nat (diagonal-mass-matrix SMC +0.029);
+    Laplace-t importance sampling (seeds 0-2, on this data set) −0.020, +0.004, +0.002 nat, k̂ 0.41-0.48.
     """
     import jax
     import jax.numpy as jnp
@@ -98,16 +102,23 @@ def test_both_estimators_match_quadrature_on_a_nonlinear_posterior(simulator):
 
     bridge = bridge_log_evidence(program, dt, seed=0)
     smc = smc_log_evidence(program, seed=0)
-    for estimate in (bridge, smc):
+    importance = laplace_is_log_evidence(program, seed=0)
+    for estimate in (bridge, smc, importance):
         assert abs(estimate.log_z - exact) <= 0.1, (str(estimate), exact)
+    assert importance.diagnostics["reliable"], importance.diagnostics  # Pareto k̂ ≤ 0.7 on this skewed posterior
 
-def test_compare_estimators_flags_but_never_averages():
+def test_compare_estimators_flags_beyond_the_combined_error_and_never_averages():
     a = Evidence(-10.0, 0.02, "bridge")
-    b = Evidence(-10.7, 0.03, "smc")
-    flagged = compare_estimators(a, b, threshold=0.5)
+    b = Evidence(-10.7, 0.03, "laplace-is")
+    flagged = compare_estimators(a, b)
     assert not flagged.agree and flagged.difference == pytest.approx(0.7)
     assert (flagged.a, flagged.b) == (a, b)
-    assert compare_estimators(a, Evidence(-10.3, 0.03, "smc")).agree
+    assert flagged.threshold == pytest.approx(0.2)  # 3 × 0.036 is below the 0.2-nat floor
+    assert compare_estimators(a, Evidence(-10.15, 0.03, "laplace-is")).agree
+    wide = compare_estimators(Evidence(-10.0, 0.3, "bridge"), Evidence(-10.7, 0.3, "laplace-is"))
+    assert wide.agree and wide.threshold == pytest.approx(3 * np.hypot(0.3, 0.3))
+    unreliable = Evidence(-10.0, 0.02, "laplace-is", {"reliable": False, "pareto_k": 0.9})
+    assert not compare_estimators(a, unreliable).agree  # same value, but heavy-tailed weights
 
 
 def test_bridge_rejects_a_fit_without_the_programs_sites(simulator):
