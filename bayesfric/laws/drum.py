@@ -442,8 +442,24 @@ def coastdown(velocity_law: Law | str, *, inertia: float = DRUM_INERTIA) -> Law:
     Returns
     -------
     Law
+        The registered ``coastdown_<law>``; asked again for the same law and inertia, the law
+        registered the first time (a law is declared once).
+
+    Raises
+    ------
+    LawDeclarationError
+        The base law is not a steady-state torque law, or ``coastdown_<law>`` is registered
+        already with another default inertia (set ``J`` through the law's constants instead).
     """
     base = velocity_law if isinstance(velocity_law, Law) else REGISTRY[velocity_law]
+    existing = REGISTRY.get(f"coastdown_{base.name}")
+    if existing is not None:
+        registered_j = existing.constants.get("J")
+        if registered_j is None or registered_j.value != float(inertia):
+            raise LawDeclarationError(
+                f"coastdown_{base.name} is registered already (J = {getattr(registered_j, 'value', None)}); "
+                "set another inertia through the constant J (study: constants = { J = ... })")
+        return existing
     if base.inputs != ("velocity",) or base.response != "torque":
         raise LawDeclarationError(
             f"coastdown needs a steady-state law T_f(velocity) -> torque; {base.name!r} reads "

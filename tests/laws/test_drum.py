@@ -185,6 +185,14 @@ def test_factory_reuses_declarations_and_rescales_priors():
         coastdown("drum_ball_rolling")
 
 
+def test_coastdown_of_a_registered_law_returns_the_one_declaration():
+    """coastdown("stribeck") raised "already registered"; a law is declared once, so it is returned."""
+    assert coastdown("stribeck") is get_law("coastdown_stribeck")
+    assert coastdown(get_law("coulomb_viscous")) is get_law("coastdown_coulomb_viscous")
+    with pytest.raises(LawDeclarationError, match="constant J"):
+        coastdown("stribeck", inertia=0.5)
+
+
 # --- posterior recovery ---------------------------------------------------------------------------
 def _interval(dt, name):
     draws = np.asarray(dt["posterior"][name].values)
