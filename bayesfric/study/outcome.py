@@ -50,6 +50,7 @@ class LawOutcome:
     penalty: dict[str, float] = field(default_factory=dict)  # blocked label -> nats per held-out point
     evidence: dict[str, Estimate] = field(default_factory=dict)  # estimator -> log Z ± MC error
     evidence_disagreement: float = math.nan
+    evidence_agree: bool = True  # False: the two estimators disagree; the law leaves the evidence ranking
     weights: dict[str, float] = field(default_factory=dict)  # method -> weight
     prior_implausible: float = math.nan  # fraction of prior draws with unphysical friction
     loo_pit_pvalue: float = math.nan
@@ -93,8 +94,10 @@ class StudyOutcome:
                 value = w.loo.value
             elif key in w.cv:
                 value = w.cv[key].value if w.cv_reliable.get(key, True) else math.nan
-            else:
+            elif w.evidence_agree:
                 value = w.evidence.get(key, Estimate()).value
+            else:
+                value = math.nan  # estimators disagree: listed in the findings, never ranked
             if math.isfinite(value) and value > best_value:
                 best, best_value = w.name, value
         return best
