@@ -133,7 +133,7 @@ def load_dataset(csv_path: str | Path, meta_path: str | Path | None = None) -> x
         "csv_file": str(csv_path),
     }
     if "trajectory" in ds_meta:
-        _check_trajectories(csv_path, meta_path, coords, ds_meta["trajectory"])
+        _check_trajectories(csv_path, meta_path, columns, coords, ds_meta["trajectory"])
         attrs["trajectory"] = ds_meta["trajectory"]
     return xr.Dataset(data_vars=data_vars, coords=coords, attrs=attrs)
 
@@ -314,10 +314,12 @@ def _check_scales(path: Path, coords: dict, data_vars: dict) -> None:
             )
 
 
-def _check_trajectories(path: Path, meta_path: Path, coords: dict, traj: str) -> None:
+def _check_trajectories(path: Path, meta_path: Path, columns: dict, coords: dict, traj: str) -> None:
     """Each trajectory one contiguous block; with a time input, time strictly increasing within it."""
     if traj not in coords or coords[traj][2].get("role") != "group":
-        raise DataError(f"{meta_path}: [dataset] trajectory = {traj!r} is not a group column")
+        role = columns.get(traj, {}).get("role")
+        what = f"is not a group column (its role is {role!r})" if role else "names no column of the sidecar"
+        raise DataError(f"{meta_path}: [dataset] trajectory = {traj!r} {what}")
     column = coords[traj][2]["column"]
     labels = coords[traj][1].tolist()
     first_row: dict = {}
