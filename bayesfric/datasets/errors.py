@@ -6,12 +6,28 @@ re-export it).
 """
 
 import codecs
+from pathlib import Path
 
-__all__ = ["DataError", "decode_utf8", "decode_position", "shorten"]
+__all__ = ["DataError", "read_file", "decode_utf8", "decode_position", "shorten"]
 
 
 class DataError(ValueError):
     """Bad input data: the message is one line naming file, column and row where they apply."""
+
+
+def read_file(path: Path, what: str = "file") -> bytes:
+    """The bytes of an existing regular file; a folder, a pipe or an unreadable file is a DataError.
+
+    A pipe or device is refused before reading: reading it could block forever or never end.
+    """
+    if path.is_dir():
+        raise DataError(f"{path}: is a folder, not a {what}")
+    if not path.is_file():
+        raise DataError(f"{path}: not a regular file (a pipe or device?); the {what} must be a plain file")
+    try:
+        return path.read_bytes()
+    except OSError as exc:
+        raise DataError(f"{path}: cannot read the {what} ({exc.strerror or exc})") from None
 
 
 def decode_utf8(data: bytes) -> str:

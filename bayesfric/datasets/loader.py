@@ -30,6 +30,7 @@ source and a content hash live in the dataset's attrs.
 Rules (each broken rule raises :class:`DataError` with one line naming file, column and row;
 rows are data rows counted from 1, comment lines ``#...`` and blank lines not counted):
 
+* Files: the CSV and the sidecar are regular files (not folders or pipes).
 * Sidecar: UTF-8 TOML (a BOM is fine); only the keys above (``group = true`` on an input also
   makes it a group); exactly one response. Column names are not empty and have no surrounding
   whitespace.
@@ -62,7 +63,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from bayesfric.datasets.errors import DataError, decode_position, decode_utf8, shorten
+from bayesfric.datasets.errors import DataError, decode_position, decode_utf8, read_file, shorten
 from bayesfric.datasets.sidecar import PROVENANCES, ROLES, read_sidecar
 from bayesfric.quantities import QUANTITIES, UnitError, conversion
 
@@ -142,10 +143,7 @@ def load_dataset(csv_path: str | Path, meta_path: str | Path | None = None) -> x
 def _read_bytes(path: Path) -> bytes:
     if not path.exists():
         raise DataError(f"{path}: file not found")
-    try:
-        return path.read_bytes()
-    except OSError as exc:
-        raise DataError(f"{path}: cannot read the file ({exc.strerror or exc})") from None
+    return read_file(path, "CSV file")
 
 
 def _decode(path: Path, meta_path: Path, data: bytes, encoding: str | None) -> str:
@@ -154,9 +152,12 @@ def _decode(path: Path, meta_path: Path, data: bytes, encoding: str | None) -> s
         try:
             return decode_utf8(data)
         except UnicodeDecodeError as exc:
+            utf16 = data.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE))  # Excel's "Unicode text"
+            example = "(it starts with a UTF-16 byte-order mark)" if utf16 else '(e.g. "latin-1" or "cp1252")'
             raise DataError(
                 f"{path}: not UTF-8 at {decode_position(data, exc)}; if the file was written in another "
-                f"encoding, add encoding = \"...\" (e.g. \"latin-1\" or \"cp1252\") to [dataset] of {meta_path.name}"
+                f"encoding, add encoding = \"{'utf-16' if utf16 else '...'}\" {example} to [dataset] of "
+                f"{meta_path.name}"
             ) from None
     if data.startswith(codecs.BOM_UTF8) and codecs.lookup(encoding).name not in ("utf-8", "utf-8-sig"):
         raise DataError(f"{path}: starts with a UTF-8 byte-order mark, but [dataset] encoding = {encoding!r} "

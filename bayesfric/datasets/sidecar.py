@@ -12,7 +12,7 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
-from bayesfric.datasets.errors import DataError, decode_position, decode_utf8
+from bayesfric.datasets.errors import DataError, decode_position, decode_utf8, read_file
 from bayesfric.quantities import QUANTITIES, RESPONSES
 
 __all__ = ["PROVENANCES", "ROLES", "DATASET_KEYS", "COLUMN_KEYS", "read_sidecar"]
@@ -48,10 +48,7 @@ def read_sidecar(path: Path) -> dict[str, Any]:
     """
     if not path.exists():
         raise DataError(f"{path}: metadata file not found (expected next to the CSV, same name, .toml)")
-    try:
-        data = path.read_bytes()
-    except OSError as exc:
-        raise DataError(f"{path}: cannot read the metadata file ({exc.strerror or exc})") from None
+    data = read_file(path, "metadata file")
     try:
         text = decode_utf8(data)
     except UnicodeDecodeError as exc:
@@ -62,6 +59,8 @@ def read_sidecar(path: Path) -> dict[str, Any]:
         meta = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise DataError(f"{path}: invalid TOML: {exc}") from None
+    except RecursionError:
+        raise DataError(f"{path}: invalid TOML: arrays or tables nested too deeply") from None
     if not isinstance(meta.get("dataset"), dict) or not isinstance(meta.get("columns"), dict):
         raise DataError(f"{path}: needs a [dataset] table and [columns.<name>] tables")
     unknown = sorted(set(meta) - {"dataset", "columns"})

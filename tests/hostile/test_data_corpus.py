@@ -7,6 +7,7 @@ unchanged). The ``fit`` runs fail while loading, before any sampling, so they st
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -36,8 +37,21 @@ role = "group"
 """
 GOOD = "speed,torque,series\n60,1.5,a\n-120,-2.0,b\n"
 HEADER = "speed,torque,series"
-NO_SIDECAR = object()
-CSV_IS_A_FOLDER = object()
+NO_SIDECAR = "<no sidecar>"
+FOLDER = "<a folder>"
+FIFO = "<a named pipe>"
+
+
+def make(path: Path, content: str | bytes) -> None:
+    """Create ``path`` as a folder, a named pipe, or a file with ``content`` (text is UTF-8)."""
+    if content == FOLDER:
+        path.mkdir()
+    elif content == FIFO:
+        os.mkfifo(path)
+    elif isinstance(content, bytes):
+        path.write_bytes(content)
+    else:
+        path.write_text(content, encoding="utf-8")
 
 
 def column(name: str, role: str, quantity: str | None = None, unit: str | None = None) -> str:
@@ -62,22 +76,14 @@ class Case:
     """One bad input: CSV content, sidecar edits and the fragments the message must contain."""
 
     id: str
-    csv: str | bytes | object
+    csv: str | bytes
     mentions: tuple[str, ...]
     edits: tuple[tuple[str, str], ...] = ()
     extra: str = ""
-    meta: str | bytes | object | None = None  # whole sidecar instead of BASE_META + edits + extra
+    meta: str | bytes | None = None  # whole sidecar instead of BASE_META + edits + extra
 
     def write(self, root: Path) -> None:
-        csv = root / "bench.csv"
-        if self.csv is CSV_IS_A_FOLDER:
-            csv.mkdir()
-        elif isinstance(self.csv, bytes):
-            csv.write_bytes(self.csv)
-        else:
-            csv.write_text(self.csv, encoding="utf-8")
-        if self.meta is NO_SIDECAR:
-            return
+        make(root / "bench.csv", self.csv)
         meta = self.meta
         if meta is None:
             meta = BASE_META
@@ -85,8 +91,8 @@ class Case:
                 assert old in meta, (self.id, old)
                 meta = meta.replace(old, new)
             meta += self.extra
-        sidecar = root / "bench.toml"
-        sidecar.write_bytes(meta) if isinstance(meta, bytes) else sidecar.write_text(meta, encoding="utf-8")
+        if meta != NO_SIDECAR:
+            make(root / "bench.toml", meta)
 
 
 CASES = [
@@ -95,6 +101,8 @@ CASES = [
          ("bench.csv", "not UTF-8", "line 3", "byte 39", "0xe9", 'encoding = "', "[dataset]", "bench.toml")),
     Case("csv-latin1-degree-in-header", "speed,torque,series,temp \xb0C\n60,1.5,a,20\n".encode("latin-1"),
          ("bench.csv", "not UTF-8", "line 1", "0xb0", "bench.toml")),
+    Case("csv-utf16-from-excel", "speed\ttorque\tseries\n60\t1.5\ta\n".encode("utf-16"),
+         ("bench.csv", "not UTF-8", "line 1", "byte 0", 'encoding = "utf-16"', "bench.toml")),
     Case("encoding-unknown-codec", GOOD, ("bench.toml", "[dataset] encoding", "'klingon'"),
          edits=(dataset_key('encoding = "klingon"'),)),
     Case("encoding-not-a-text-codec", GOOD, ("bench.toml", "[dataset] encoding", "'rot13'"),
@@ -201,7 +209,13 @@ CASES = [
          extra=column("x", "aux").replace("columns", "column")),
     Case("group-flag-on-response", GOOD, ("bench.toml", "column 'torque'", "group = true"),
          edits=(('role = "response"', 'role = "response"\ngroup = true'),)),
-    Case("csv-is-a-folder", CSV_IS_A_FOLDER, ("bench.csv", "cannot read")),
+    Case("csv-is-a-folder", FOLDER, ("bench.csv", "is a folder")),
+    Case("csv-is-a-named-pipe", FIFO, ("bench.csv", "not a regular file")),
+    Case("sidecar-is-a-folder", GOOD, ("bench.toml", "is a folder"), meta=FOLDER),
+    Case("toml-nested-too-deeply", GOOD, ("bench.toml", "nested too deeply"),
+         extra="deep = " + "[" * 5000 + "]" * 5000 + "\n"),
+    Case("csv-field-too-large", f"{HEADER}\n60,1.5,a\n60,1.5,\"{'x' * 200_000}\"\n",
+         ("bench.csv", "row 2", "unreadable CSV", "field larger")),
 ]
 
 COMMANDS = {
