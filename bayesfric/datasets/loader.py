@@ -182,7 +182,7 @@ def _parse_table(path: Path, text: str) -> tuple[list[str], list[list[str]]]:
                 header = [c.strip() for c in cells]
             elif len(rows) == MAX_ROWS:
                 raise DataError(
-                    f"{path}: more than {MAX_ROWS} data rows (the file has {text.count(chr(10))} lines), the limit "
+                    f"{path}: more than {MAX_ROWS} data rows (the file has {_line_count(text)} lines), the limit "
                     f"per data set (README, 'Bring your own data'); thin it (keep every k-th row), split it into "
                     f"several data sets, or keep only the rows of interest"
                 )
@@ -198,6 +198,11 @@ def _parse_table(path: Path, text: str) -> tuple[list[str], list[list[str]]]:
     if not rows:
         raise DataError(f"{path}: file has a header but no data rows")
     return header, rows
+
+
+def _line_count(text: str) -> int:
+    """Lines of ``text`` without building a list of them (LF, CRLF or old-Mac CR line ends)."""
+    return (text.count("\n") or text.count("\r")) + (not text.endswith(("\n", "\r")))
 
 
 def _column_index(path: Path, meta_path: Path, header: list[str], columns: dict) -> dict[str, int]:

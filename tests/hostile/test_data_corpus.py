@@ -177,7 +177,7 @@ CASES = [
     Case("input-subnormal", f"{HEADER}\n1e-310,1,a\n0,1,b\n", ("bench.csv", "column 'speed'", "below 1e-12")),
     # -- size
     Case("too-many-rows", HEADER + "\n" + "60,1.5,a\n" * (MAX_ROWS + 1),
-         ("bench.csv", f"more than {MAX_ROWS} data rows", "thin", "split")),
+         ("bench.csv", f"more than {MAX_ROWS} data rows", f"{MAX_ROWS + 2} lines", "thin", "split")),
     # -- sidecar
     Case("no-sidecar", GOOD, ("bench.toml", "metadata file not found"), meta=NO_SIDECAR),
     Case("toml-syntax-error", GOOD, ("bench.toml", "invalid TOML", "line 7"),
