@@ -10,6 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from functools import lru_cache
 
+import numpy as np
 import pint
 
 __all__ = [
@@ -35,24 +36,50 @@ class UnitError(ValueError):
 
 @dataclass(frozen=True)
 class Quantity:
-    """One entry of the operating-quantity vocabulary."""
+    """One entry of the operating-quantity vocabulary.
+
+    ``lower`` is the physical lower bound of a value in the canonical unit (``None``: a signed
+    quantity, any finite value); ``lower_inclusive`` says whether the bound itself is allowed. The
+    loader rejects data outside the bound, so each bound is declared here, once.
+    """
 
     name: str
     unit: str  # canonical SI unit, pint syntax
     meaning: str
+    lower: float | None = None
+    lower_inclusive: bool = True
+
+    def bound_text(self) -> str:
+        """The bound as text, e.g. ``"> 0 K"``; empty for an unbounded quantity."""
+        if self.lower is None:
+            return ""
+        return f"{'>=' if self.lower_inclusive else '>'} {self.lower:g} {self.unit}"
+
+    def violations(self, values: np.ndarray) -> np.ndarray:
+        """Boolean mask of ``values`` (canonical unit) outside the physical bound."""
+        values = np.asarray(values, dtype=float)
+        if self.lower is None:
+            return np.zeros(values.shape, dtype=bool)
+        return values < self.lower if self.lower_inclusive else values <= self.lower
 
 
+# Bounds: loads that the laws use as magnitudes (radial force of the drum's ball-load law,
+# preload, axial force) are >= 0; absolute temperature > 0 K; time since the start of a trajectory
+# >= 0. Signed by nature, so unbounded: velocities, angles, displacements, the friction response
+# (torque, force: its sign follows the direction of motion), initial_velocity (its sign is the
+# coast-down direction) and bending_moment (a tilting moment has a direction; the bearing laws
+# read |M| or solve the ball loads for either sign).
 _VOCABULARY = [
     Quantity("velocity", "rad/s", "angular velocity of the moving part (joint, shaft, bearing ring)"),
     Quantity("linear_velocity", "m/s", "sliding velocity of a translational contact"),
     Quantity("bending_moment", "N*m", "tilting / blade-root bending moment on a bearing"),
-    Quantity("axial_force", "N", "axial force on a bearing"),
-    Quantity("radial_force", "N", "radial force on a bearing"),
-    Quantity("preload", "N", "axial preload of a bearing pair"),
-    Quantity("temperature", "K", "lubricant or housing temperature"),
+    Quantity("axial_force", "N", "axial force on a bearing (magnitude)", lower=0.0),
+    Quantity("radial_force", "N", "radial force on a bearing (magnitude)", lower=0.0),
+    Quantity("preload", "N", "axial preload of a bearing pair (magnitude)", lower=0.0),
+    Quantity("temperature", "K", "lubricant or housing temperature (absolute)", lower=0.0, lower_inclusive=False),
     Quantity("angle", "rad", "angular displacement (drive angle, ball position)"),
     Quantity("displacement", "m", "translational displacement"),
-    Quantity("time", "s", "time since the start of a trajectory"),
+    Quantity("time", "s", "time since the start of a trajectory", lower=0.0),
     Quantity("initial_velocity", "rad/s", "angular velocity at t = 0 of a coast-down trajectory"),
     Quantity("torque", "N*m", "friction torque"),
     Quantity("force", "N", "friction force"),

@@ -132,3 +132,89 @@ def test_cli_data_check(tmp_path, capsys):
     assert main(["data", "check", str(csv)]) == 0
     text = capsys.readouterr().out
     assert "rpm -> rad/s" in text and "OK" in text
+
+
+# -- inputs that must load (the hardening must not over-reject) ------------------------------------
+def test_utf8_bom_loads_like_plain_utf8(tmp_path):
+    plain = load_dataset(write(tmp_path, GOOD))
+    (tmp_path / "bench.csv").write_bytes(b"\xef\xbb\xbf" + GOOD.encode())
+    sidecar = tmp_path / "bench.toml"
+    sidecar.write_bytes(b"\xef\xbb\xbf" + sidecar.read_bytes())
+    with_bom = load_dataset(tmp_path / "bench.csv")
+    np.testing.assert_array_equal(with_bom["velocity"].values, plain["velocity"].values)
+    assert list(with_bom["series"].values) == ["a", "b"]
+
+
+@pytest.mark.parametrize("encoding", ["latin-1", "cp1252", "utf-8"])
+def test_declared_encoding_decodes_the_csv(tmp_path, encoding):
+    meta = META.format(speed_unit="rpm", torque_unit="N*m").replace(
+        'source = "unit test"', f'source = "unit test"\nencoding = "{encoding}"')
+    csv = write(tmp_path, "", meta=meta)
+    csv.write_bytes("speed,torque,series\n60,1.5,Prüfstand 20 °C\n".encode(encoding))
+    assert list(load_dataset(csv)["series"].values) == ["Prüfstand 20 °C"]
+
+
+def test_micro_newton_response_and_all_zero_input_load(tmp_path):
+    meta = META.format(speed_unit="rad/s", torque_unit="uN*m")
+    ds = load_dataset(write(tmp_path, "speed,torque,series\n0,1,a\n0,-2,b\n", meta=meta))
+    np.testing.assert_allclose(ds["torque"].values, [1e-6, -2e-6])
+    assert not ds["velocity"].values.any()
+
+
+def test_bounds_are_inclusive_where_declared(tmp_path):
+    meta = META.format(speed_unit="rpm", torque_unit="N*m") + (
+        '[columns.pre]\nrole = "input"\nquantity = "preload"\nunit = "lbf"\n'
+        '[columns.temp]\nrole = "input"\nquantity = "temperature"\nunit = "degC"\n')
+    ds = load_dataset(write(tmp_path, "speed,torque,series,pre,temp\n60,1,a,0,-273.1\n", meta=meta))
+    assert ds["preload"].values[0] == 0.0 and ds["temperature"].values[0] == pytest.approx(0.05)
+
+
+def test_unnamed_header_cells_are_ignored_columns(tmp_path):
+    ds = load_dataset(write(tmp_path, ",speed,torque,series,\n0,60,1.5,a,x\n1,-120,-2.0,b,y\n"))
+    assert ds.sizes["obs"] == 2 and ds["torque"].values.tolist() == [1.5, -2.0]
+
+
+TRAJ_META = """
+[dataset]
+provenance = "measured"
+source = "unit test"
+trajectory = "loop"
+[columns.loop]
+role = "group"
+[columns.angle]
+role = "input"
+quantity = "angle"
+unit = "deg"
+[columns.torque]
+role = "response"
+quantity = "torque"
+unit = "N*m"
+"""
+
+
+def test_trajectory_without_time_may_go_back_and_forth(tmp_path):
+    rows = "loop,angle,torque\n1,0,0.1\n1,2,0.5\n1,-2,-0.5\n1,2,0.4\n2,0,0.1\n2,-1,-0.3\n"
+    ds = load_dataset(write(tmp_path, rows, meta=TRAJ_META))
+    assert ds.attrs["trajectory"] == "loop" and ds.sizes["obs"] == 6
+
+
+def test_trajectory_time_restarts_in_each_block(tmp_path):
+    meta = TRAJ_META + '[columns.t]\nrole = "input"\nquantity = "time"\nunit = "ms"\n'
+    rows = "loop,angle,torque,t\n1,0,0.1,0\n1,2,0.5,10\n2,0,0.1,0\n2,-1,-0.3,5\n"
+    np.testing.assert_allclose(load_dataset(write(tmp_path, rows, meta=meta))["time"].values, [0, 0.01, 0, 0.005])
+
+
+def test_row_limit_is_inclusive(tmp_path):
+    from bayesfric.datasets.loader import MAX_ROWS
+
+    ds = load_dataset(write(tmp_path, "speed,torque,series\n" + "60,1.5,a\n" * MAX_ROWS))
+    assert ds.sizes["obs"] == MAX_ROWS
+
+
+def test_builtin_data_sets_load():
+    from bayesfric.datasets import builtin_names, load_builtin
+
+    names = builtin_names()
+    assert len(names) == 5
+    for name in names:
+        assert load_builtin(name).sizes["obs"] > 100, name

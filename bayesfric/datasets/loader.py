@@ -8,6 +8,7 @@ The sidecar (``FILE.toml`` next to ``FILE.csv`` unless named explicitly) says wh
     provenance = "measured"          # measured | reconstructed | simulated
     source = "lab notebook 12, 2026-03-02"
     trajectory = "run"               # optional: group column whose values delimit ordered trajectories
+    encoding = "latin-1"             # optional: the CSV's text encoding (default UTF-8, BOM or not)
 
     [columns.speed]                  # a CSV header name
     role = "input"                   # input | response | group | aux
@@ -26,31 +27,67 @@ their column, the response a data variable named by its quantity, aux columns da
 Units (canonical SI) and the original column/unit live in each variable's attrs; provenance,
 source and a content hash live in the dataset's attrs.
 
-Every problem raises :class:`DataError` with one line naming file, column and row.
+Rules (each broken rule raises :class:`DataError` with one line naming file, column and row;
+rows are data rows counted from 1, comment lines ``#...`` and blank lines not counted):
+
+* Files: the CSV and the sidecar are regular files (not folders or pipes).
+* Sidecar: UTF-8 TOML (a BOM is fine); only the keys above (``group = true`` on an input also
+  makes it a group); exactly one response. Column names are not empty and have no surrounding
+  whitespace.
+* CSV: UTF-8 with or without BOM, or the codec named by ``[dataset] encoding`` (any text
+  encoding Python knows: ``latin-1``, ``cp1252`` ...). First non-comment line is the header; header
+  names may not repeat (empty header cells are unnamed, ignored columns); every row has as many
+  cells as the header; at most :data:`MAX_ROWS` data rows.
+* Cells: numbers, finite before and after conversion to SI; group cells not empty.
+* Physical bounds, declared once per quantity in :mod:`bayesfric.quantities` (``Quantity.lower``),
+  checked in SI: absolute temperature > 0 K; preload, axial and radial force >= 0 N (magnitudes);
+  time >= 0 s. Signed quantities (velocities, angles, torque, force, bending moment, initial
+  velocity) are unbounded.
+* Scale: the response must not be all zero (nothing to fit), and the largest |value| of the
+  response and of every input that is not all zero must lie in :data:`SCALE_RANGE` (SI), because
+  data-scaled priors are expressed in these scales (:mod:`bayesfric.priors`).
+* Trajectories (``trajectory = "<group column>"``): each trajectory's rows form one contiguous
+  block, and with a ``time`` input, time strictly increases within a trajectory. Without a time
+  input the row order *is* the trajectory order and only contiguity is checked: hysteresis loops
+  go back and forth in angle, so no input need be monotone.
 """
 
 from __future__ import annotations
 
+import codecs
 import csv
 import hashlib
-import math
-import tomllib
+import io
 from pathlib import Path
 
 import numpy as np
 import xarray as xr
 
-from bayesfric.quantities import QUANTITIES, RESPONSES, UnitError, conversion
+from bayesfric.datasets.errors import DataError, decode_position, decode_utf8, read_file, shorten
+from bayesfric.datasets.sidecar import PROVENANCES, ROLES, read_sidecar
+from bayesfric.quantities import QUANTITIES, UnitError, conversion
 
-__all__ = ["DataError", "load_dataset", "PROVENANCES", "ROLES", "OBS_DIM"]
+__all__ = ["DataError", "load_dataset", "PROVENANCES", "ROLES", "OBS_DIM", "MAX_ROWS", "SCALE_RANGE"]
 
 OBS_DIM = "obs"
-PROVENANCES = ("measured", "reconstructed", "simulated")
-ROLES = ("input", "response", "group", "aux")
 
+#: Most data rows per data set. A fit stores posterior_predictive and log_likelihood, each
+#: n_rows x chains x draws float64: at the default 4 chains x 1000 draws that is 2 x 4000 x 8 B =
+#: 64 kB per row, plus 500 prior-predictive draws x 8 B = 4 kB, so about 68 kB per row in memory
+#: and again in the written file (measured: 10^6 rows at fewer draws already took 7.9 GB of memory
+#: and a 7.3 GB file). 20 000 rows -> about 1.4 GB per default fit, which a study multiplies by
+#: its laws and refits; friction data sets have tens to a few thousand rows, so a longer file is
+#: a logger's raw stream that should be thinned, split, or cut to the rows of interest.
+MAX_ROWS = 20_000
 
-class DataError(ValueError):
-    """Bad input data: the message is one line naming file, column and row where they apply."""
+#: Allowed range (SI) of the largest |value| of the response and of every input that is not all
+#: zero. Data-scaled priors use R^a X^b with |a|, |b| <= 2 (:mod:`bayesfric.priors`) and the
+#: likelihood divides by a noise scale of order R; within 1e-12..1e12 every such factor stays
+#: within 1e+-24, far inside float64 (1e-308..1e308), while 1e-300 would square to 0 and 1e300 to
+#: inf. No friction measurement leaves this range (an AFM's lateral force is about 1e-12 N, a
+#: micro-tribometer's 1e-6 N; the largest bearing moments are about 1e8 N*m): outside it, the
+#: unit is wrong.
+SCALE_RANGE = (1e-12, 1e12)
 
 
 def load_dataset(csv_path: str | Path, meta_path: str | Path | None = None) -> xr.Dataset:
@@ -71,154 +108,242 @@ def load_dataset(csv_path: str | Path, meta_path: str | Path | None = None) -> x
     Raises
     ------
     DataError
-        Missing file or column, unknown or wrong-dimension unit, NaN/inf, empty file,
-        non-numeric cell, bad metadata.
+        Any broken rule of the module docstring (missing file or column, bad encoding, unknown
+        or wrong-dimension unit, NaN/inf, empty file, non-numeric cell, out-of-bound value,
+        too many rows, unordered trajectory, bad metadata), in one line.
     """
     csv_path = Path(csv_path)
     meta_path = Path(meta_path) if meta_path is not None else csv_path.with_suffix(".toml")
-    meta = _read_meta(meta_path)
-    header, rows = _read_csv(csv_path)
-    columns = meta["columns"]
+    meta = read_sidecar(meta_path)
+    ds_meta, columns = meta["dataset"], meta["columns"]
+    data = _read_bytes(csv_path)
+    header, rows = _parse_table(csv_path, _decode(csv_path, meta_path, data, ds_meta.get("encoding")))
+    index = _column_index(csv_path, meta_path, header, columns)
+    coords, data_vars = _variables(csv_path, meta_path, columns, {c: [r[i] for r in rows] for c, i in index.items()})
+    response = next(c for c, s in columns.items() if s["role"] == "response")
+    _check_scales(csv_path, coords, data_vars)
 
-    for col in columns:
-        if col not in header:
-            raise DataError(f"{csv_path}: column {col!r} named in {meta_path.name} is missing from the header")
-
-    coords: dict[str, tuple] = {}
-    data_vars: dict[str, tuple] = {}
-    response_name = None
-    for col, spec in columns.items():
-        idx = header.index(col)
-        role = spec["role"]
-        raw = [r[idx] for r in rows]
-        if role == "group":
-            values = _group_values(raw)
-            coords[col] = (OBS_DIM, values, {"role": "group", "column": col})
-            continue
-        quantity = spec.get("quantity")
-        unit = spec.get("unit", "1")
-        numbers = _numeric(raw, csv_path, col)
-        attrs = {"role": role, "column": col, "original_unit": unit}
-        if quantity is not None:
-            try:
-                scale, offset = conversion(unit, quantity)
-            except UnitError as exc:
-                raise DataError(f"{meta_path}: column {col!r}: {exc}") from None
-            numbers = numbers * scale + offset
-            attrs.update(quantity=quantity, units=QUANTITIES[quantity].unit)
-        else:
-            attrs.update(units=unit)
-        name = quantity if role in ("input", "response") else col
-        if role == "input":
-            if name in coords:
-                raise DataError(f"{meta_path}: columns {coords[name][2]['column']!r} and {col!r} are both {name}")
-            coords[name] = (OBS_DIM, numbers, attrs)
-            if spec.get("group"):
-                coords[f"{col}_group"] = (OBS_DIM, numbers, {"role": "group", "column": col})
-        elif role == "response":
-            response_name = name
-            data_vars[name] = (OBS_DIM, numbers, attrs)
-        else:
-            data_vars[col] = (OBS_DIM, numbers, attrs)
-
-    ds_meta = meta["dataset"]
-    content = csv_path.read_bytes() + meta_path.read_bytes()
     attrs = {
         "name": ds_meta.get("name", csv_path.stem),
         "title": ds_meta.get("title", ""),
         "provenance": ds_meta["provenance"],
         "source": ds_meta["source"],
         "description": ds_meta.get("description", ""),
-        "response": response_name,
-        "data_hash": hashlib.sha256(content).hexdigest()[:16],
+        "response": columns[response]["quantity"],
+        "data_hash": hashlib.sha256(data + meta_path.read_bytes()).hexdigest()[:16],
         "csv_file": str(csv_path),
     }
     if "trajectory" in ds_meta:
-        traj = ds_meta["trajectory"]
-        if traj not in coords or coords[traj][2].get("role") != "group":
-            raise DataError(f"{meta_path}: [dataset] trajectory = {traj!r} is not a group column")
-        attrs["trajectory"] = traj
-    ds = xr.Dataset(data_vars=data_vars, coords=coords, attrs=attrs)
-    return ds
+        _check_trajectories(csv_path, meta_path, columns, coords, ds_meta["trajectory"])
+        attrs["trajectory"] = ds_meta["trajectory"]
+    return xr.Dataset(data_vars=data_vars, coords=coords, attrs=attrs)
 
 
-# -- metadata ------------------------------------------------------------------------------------
-def _read_meta(path: Path) -> dict:
-    if not path.exists():
-        raise DataError(f"{path}: metadata file not found (expected next to the CSV, same name, .toml)")
-    try:
-        meta = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise DataError(f"{path}: invalid TOML: {exc}") from None
-    if "dataset" not in meta or "columns" not in meta:
-        raise DataError(f"{path}: needs a [dataset] table and [columns.<name>] tables")
-    ds = meta["dataset"]
-    for key in ("provenance", "source"):
-        if key not in ds:
-            raise DataError(f"{path}: [dataset] is missing {key!r}")
-    if ds["provenance"] not in PROVENANCES:
-        raise DataError(f"{path}: [dataset] provenance {ds['provenance']!r} not one of {PROVENANCES}")
-    n_response = 0
-    for col, spec in meta["columns"].items():
-        where = f"{path}: column {col!r}"
-        if not isinstance(spec, dict) or "role" not in spec:
-            raise DataError(f"{where}: needs a 'role' ({', '.join(ROLES)})")
-        if spec["role"] not in ROLES:
-            raise DataError(f"{where}: role {spec['role']!r} not one of {ROLES}")
-        if spec["role"] in ("input", "response"):
-            q = spec.get("quantity")
-            if q not in QUANTITIES:
-                raise DataError(f"{where}: quantity {q!r} unknown; known: {', '.join(QUANTITIES)}")
-            if "unit" not in spec:
-                raise DataError(f"{where}: needs a 'unit'")
-        if spec["role"] == "response":
-            n_response += 1
-            if spec["quantity"] not in RESPONSES:
-                raise DataError(f"{where}: a response must be one of {RESPONSES}")
-        if spec["role"] == "aux" and "quantity" in spec and "unit" not in spec:
-            raise DataError(f"{where}: needs a 'unit'")
-    if n_response != 1:
-        raise DataError(f"{path}: exactly one column must have role 'response' (found {n_response})")
-    return meta
-
-
-# -- CSV -----------------------------------------------------------------------------------------
-def _read_csv(path: Path) -> tuple[list[str], list[list[str]]]:
+# -- reading and decoding ------------------------------------------------------------------------
+def _read_bytes(path: Path) -> bytes:
     if not path.exists():
         raise DataError(f"{path}: file not found")
-    with path.open(newline="") as fh:
-        lines = [row for row in csv.reader(line for line in fh if not line.startswith("#"))]
-    lines = [r for r in lines if any(c.strip() for c in r)]
-    if not lines:
+    return read_file(path, "CSV file")
+
+
+def _decode(path: Path, meta_path: Path, data: bytes, encoding: str | None) -> str:
+    """The CSV's text: UTF-8 (BOM or not) by default, else the sidecar's ``encoding``."""
+    if encoding is None:
+        try:
+            return decode_utf8(data)
+        except UnicodeDecodeError as exc:
+            utf16 = data.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE))  # Excel's "Unicode text"
+            example = "(it starts with a UTF-16 byte-order mark)" if utf16 else '(e.g. "latin-1" or "cp1252")'
+            raise DataError(
+                f"{path}: not UTF-8 at {decode_position(data, exc)}; if the file was written in another "
+                f"encoding, add encoding = \"{'utf-16' if utf16 else '...'}\" {example} to [dataset] of "
+                f"{meta_path.name}"
+            ) from None
+    if data.startswith(codecs.BOM_UTF8) and codecs.lookup(encoding).name not in ("utf-8", "utf-8-sig"):
+        raise DataError(f"{path}: starts with a UTF-8 byte-order mark, but [dataset] encoding = {encoding!r} "
+                        f"in {meta_path.name}; remove the encoding key")
+    try:
+        return data.decode(encoding).removeprefix("\ufeff")
+    except UnicodeDecodeError as exc:
+        raise DataError(f"{path}: not valid {encoding!r} (the [dataset] encoding of {meta_path.name}) at "
+                        f"{decode_position(data, exc)}") from None
+
+
+def _parse_table(path: Path, text: str) -> tuple[list[str], list[list[str]]]:
+    """Header (cells stripped) and data rows; stops reading at ``MAX_ROWS + 1`` rows."""
+    lines = (line for line in io.StringIO(text, newline="") if not line.startswith("#"))
+    header: list[str] | None = None
+    rows: list[list[str]] = []
+    try:
+        for cells in csv.reader(lines):
+            if not any(c.strip() for c in cells):
+                continue
+            if header is None:
+                header = [c.strip() for c in cells]
+            elif len(rows) == MAX_ROWS:
+                raise DataError(
+                    f"{path}: more than {MAX_ROWS} data rows (the file has {_line_count(text)} lines), the limit "
+                    f"per data set (README, 'Bring your own data'); thin it (keep every k-th row), split it into "
+                    f"several data sets, or keep only the rows of interest"
+                )
+            elif len(cells) != len(header):
+                raise DataError(f"{path}: row {len(rows) + 1}: has {len(cells)} cells, header has {len(header)}")
+            else:
+                rows.append(cells)
+    except csv.Error as exc:
+        where = "header" if header is None else f"row {len(rows) + 1}"
+        raise DataError(f"{path}: {where}: unreadable CSV ({exc})") from None
+    if header is None:
         raise DataError(f"{path}: file is empty")
-    header = [h.strip() for h in lines[0]]
-    rows = lines[1:]
     if not rows:
         raise DataError(f"{path}: file has a header but no data rows")
-    for i, r in enumerate(rows):
-        if len(r) != len(header):
-            raise DataError(f"{path}: row {i + 1}: has {len(r)} cells, header has {len(header)}")
     return header, rows
 
 
-def _numeric(raw: list[str], path: Path, col: str) -> np.ndarray:
+def _line_count(text: str) -> int:
+    """Lines of ``text`` without building a list of them (LF, CRLF or old-Mac CR line ends)."""
+    return (text.count("\n") or text.count("\r")) + (not text.endswith(("\n", "\r")))
+
+
+def _column_index(path: Path, meta_path: Path, header: list[str], columns: dict) -> dict[str, int]:
+    """Position of each sidecar column in the header; repeated header names are an error."""
+    position: dict[str, int] = {}
+    for i, name in enumerate(header):
+        if not name:
+            continue  # an unnamed column (e.g. an exported index) cannot be named in the sidecar
+        if name in position:
+            raise DataError(f"{path}: header: column {shorten(name)} appears twice (columns "
+                            f"{position[name] + 1} and {i + 1} of the header); rename one")
+        position[name] = i
+    for col in columns:
+        if col not in position:
+            shown = ", ".join(shorten(h, 20) for h in header[:12]) + (", ..." if len(header) > 12 else "")
+            empty = [str(i + 1) for i, h in enumerate(header) if not h]
+            note = f"; header cell {', '.join(empty)} empty" if empty else ""
+            raise DataError(f"{path}: column {col!r} named in {meta_path.name} is missing from the header "
+                            f"(header: {shown}{note})")
+    return {col: position[col] for col in columns}
+
+
+# -- columns -------------------------------------------------------------------------------------
+def _variables(path: Path, meta_path: Path, columns: dict, cells: dict[str, list[str]]) -> tuple[dict, dict]:
+    """Coordinates and data variables of the dataset, one or two per sidecar column."""
+    coords: dict[str, tuple] = {}
+    data_vars: dict[str, tuple] = {}
+    for col, spec in columns.items():
+        role = spec["role"]
+        if role == "group":
+            entries = [(col, coords, _group_values(path, col, cells[col]), {"role": "group", "column": col})]
+        else:
+            values, attrs = _numeric_column(path, meta_path, col, spec, cells[col])
+            name = spec["quantity"] if role in ("input", "response") else col
+            entries = [(name, coords if role == "input" else data_vars, values, attrs)]
+            if role == "input" and spec.get("group"):
+                entries.append((f"{col}_group", coords, values, {"role": "group", "column": col}))
+        for name, target, values, attrs in entries:
+            taken = coords.get(name) or data_vars.get(name)
+            if taken is not None:
+                raise DataError(f"{meta_path}: columns {taken[2]['column']!r} and {col!r} both become {name!r} in "
+                                f"the data set (inputs and the response are named by quantity, others by column)")
+            target[name] = (OBS_DIM, values, attrs)
+    return coords, data_vars
+
+
+def _numeric_column(path: Path, meta_path: Path, col: str, spec: dict, raw: list[str]) -> tuple[np.ndarray, dict]:
+    """A numeric column converted to SI and checked against its quantity's physical bound."""
+    unit = spec.get("unit", "1")
+    numbers = _numbers(path, col, raw)
+    attrs = {"role": spec["role"], "column": col, "original_unit": unit}
+    quantity = spec.get("quantity")
+    if quantity is None:
+        return numbers, attrs | {"units": unit}
+    q = QUANTITIES[quantity]
+    try:
+        scale, offset = conversion(unit, quantity)
+    except UnitError as exc:
+        raise DataError(f"{meta_path}: column {col!r}: {exc}") from None
+    with np.errstate(over="ignore", invalid="ignore"):
+        si = numbers * scale + offset
+    bad = ~np.isfinite(si)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise DataError(f"{path}: row {i + 1}: column {col!r}: {raw[i].strip()} {unit} overflows when converted to "
+                        f"{q.unit}")
+    bad = q.violations(si)
+    if bad.any():
+        i = int(np.argmax(bad))
+        value = f"{raw[i].strip()} {unit}" + (f" is {si[i]:.6g} {q.unit}" if (scale, offset) != (1.0, 0.0) else "")
+        raise DataError(f"{path}: row {i + 1}: column {col!r}: {value}; {quantity} must be {q.bound_text()}")
+    return si, attrs | {"quantity": quantity, "units": q.unit}
+
+
+def _numbers(path: Path, col: str, raw: list[str]) -> np.ndarray:
     out = np.empty(len(raw))
     for i, cell in enumerate(raw):
         text = cell.strip()
         try:
             value = float(text)
         except ValueError:
-            raise DataError(f"{path}: row {i + 1}: column {col!r}: {text!r} is not a number") from None
-        if not math.isfinite(value):
-            raise DataError(f"{path}: row {i + 1}: column {col!r}: non-finite value {text!r}")
+            raise DataError(f"{path}: row {i + 1}: column {col!r}: {shorten(text)} is not a number") from None
+        if not np.isfinite(value):
+            raise DataError(f"{path}: row {i + 1}: column {col!r}: non-finite value {shorten(text)}")
         out[i] = value
     return out
 
 
-def _group_values(raw: list[str]) -> np.ndarray:
+def _group_values(path: Path, col: str, raw: list[str]) -> np.ndarray:
+    """Group labels: integers if every label is one (and fits int64), else strings; none empty."""
     stripped = [c.strip() for c in raw]
+    if "" in stripped:
+        raise DataError(f"{path}: row {stripped.index('') + 1}: column {col!r}: empty group label")
     try:
-        ints = [int(c) for c in stripped]
-        return np.asarray(ints)
-    except ValueError:
-        return np.asarray(stripped, dtype=object).astype(str)
+        return np.asarray([int(c) for c in stripped], dtype=np.int64)
+    except (ValueError, OverflowError):
+        return np.asarray(stripped, dtype=str)
+
+
+# -- whole-column checks -------------------------------------------------------------------------
+def _check_scales(path: Path, coords: dict, data_vars: dict) -> None:
+    """Response not all zero; largest |value| of response and non-zero inputs in SCALE_RANGE."""
+    low, high = SCALE_RANGE
+    for _, values, attrs in list(coords.values()) + list(data_vars.values()):
+        if attrs["role"] not in ("input", "response"):
+            continue
+        peak = float(np.max(np.abs(values)))
+        if peak == 0.0 and attrs["role"] == "response":
+            raise DataError(f"{path}: column {attrs['column']!r}: the response is zero in every row; nothing to fit")
+        if peak != 0.0 and not low <= peak <= high:
+            side = f"below {low:g}" if peak < low else f"above {high:g}"
+            raise DataError(
+                f"{path}: column {attrs['column']!r}: largest |value| is {peak:.3g} {attrs['units']}, {side} in SI, "
+                f"too {'small' if peak < low else 'large'} for data-scaled priors ({attrs['role']}); check the unit"
+            )
+
+
+def _check_trajectories(path: Path, meta_path: Path, columns: dict, coords: dict, traj: str) -> None:
+    """Each trajectory one contiguous block; with a time input, time strictly increasing within it."""
+    if traj not in coords or coords[traj][2].get("role") != "group":
+        role = columns.get(traj, {}).get("role")
+        what = f"is not a group column (its role is {role!r})" if role else "names no column of the sidecar"
+        raise DataError(f"{meta_path}: [dataset] trajectory = {traj!r} {what}")
+    column = coords[traj][2]["column"]
+    labels = coords[traj][1].tolist()
+    first_row: dict = {}
+    for i, label in enumerate(labels):
+        if i and label == labels[i - 1]:
+            continue
+        if label in first_row:
+            raise DataError(f"{path}: row {i + 1}: column {column!r}: trajectory {label!r} reappears after other "
+                            f"trajectories (it began at row {first_row[label] + 1}); a trajectory's rows must be "
+                            f"one contiguous block")
+        first_row[label] = i
+    if "time" not in coords:
+        return  # the row order is the trajectory order; angles may go back and forth (hysteresis)
+    time, attrs = coords["time"][1], coords["time"][2]
+    same = np.asarray([a == b for a, b in zip(labels[1:], labels[:-1], strict=True)], dtype=bool)
+    bad = np.flatnonzero(same & (time[1:] <= time[:-1]))
+    if bad.size:
+        i = int(bad[0]) + 1
+        raise DataError(f"{path}: row {i + 1}: column {attrs['column']!r}: time {time[i]:g} s is not after "
+                        f"{time[i - 1]:g} s of row {i} in trajectory {labels[i]!r}; time must strictly increase "
+                        f"within a trajectory")
