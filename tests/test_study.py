@@ -69,6 +69,15 @@ def test_shipped_studies_validate():
         assert study.blocked, f"{f.name} asks no extrapolation question"
 
 
+def test_shipped_studies_pass_every_check_before_writing(tmp_path):
+    """The stricter checks (data, programs, folds, report folder) accept every shipped study."""
+    from bayesfric.study.runner import _prepare
+
+    for f in sorted(STUDIES_DIR.glob("*.toml")):
+        _prepare(f, tmp_path / "reports", quick=False)
+    assert not (tmp_path / "reports").exists()  # checks write nothing
+
+
 @pytest.mark.slow
 def test_end_to_end_tiny_study(tmp_path, data_csv):
     path = tmp_path / "s.toml"

@@ -11,7 +11,7 @@ checks a raw table against it and returns the table with defaults filled; every 
 ``path: [section] key: problem`` (study files) or ``--option: problem`` (the CLI).
 
 >>> parse(Schema((Field("draws", "int", 1000, min=1),)), {"draws": 0})   # doctest: +SKIP
-SchemaError: draws: must be an integer ≥ 1, got integer 0
+SchemaError: [draws]: must be an integer ≥ 1, got integer 0
 """
 
 from __future__ import annotations
