@@ -1,7 +1,9 @@
 """Command-line interface: ``bayesfric laws | fit | data | study | main``.
 
-Every user error (bad data, unknown law, bad prior, bad study file) prints one line to stderr,
-exits with status 2 and writes nothing.
+Every user error (bad data, unknown law, bad prior, bad study file, bad option — argparse's own
+errors included) prints one line ``bayesfric: error: ...`` to stderr, exits with status 2 and
+writes nothing. ``fit`` validates its sampler options against the study schema's ``[sampler]``
+table (:data:`bayesfric.study.config.SAMPLER`) and its ``--out`` path before sampling.
 """
 
 from __future__ import annotations
@@ -9,6 +11,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from typing import NoReturn
 
 from bayesfric.datasets.loader import DataError
 from bayesfric.errors import UserError
@@ -16,7 +19,7 @@ from bayesfric.laws.base import LawDeclarationError
 from bayesfric.priors import Prior, PriorError
 from bayesfric.quantities import UnitError
 
-__all__ = ["main", "UserError"]
+__all__ = ["main", "UserError", "UsageError", "build_parser"]
 
 
 USER_ERRORS = (DataError, PriorError, UnitError, UserError, LawDeclarationError)
@@ -44,47 +47,105 @@ def _cmd_laws(args: argparse.Namespace) -> None:
             print(f"  {w.name}: {w.summary}  [{w.source}; response {w.response}]")
 
 
-def _parse_priors(items: list[str] | None) -> dict[str, Prior]:
+class UsageError(UserError):
+    """A command-line usage error reported by argparse."""
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line errors: ``bayesfric: error: [subcommand: ]message (see --help)``."""
+
+    def error(self, message: str) -> NoReturn:
+        sub = self.prog.removeprefix("bayesfric").strip()
+        hint = f" (see `{self.prog} --help`)"
+        raise UsageError(f"{sub}: {message}{hint}" if sub else f"{message}{hint}")
+
+
+def _parse_priors(items: list[str] | None, known: list[str], law: str) -> dict[str, Prior]:
+    """``--prior NAME=JSON`` options: NAME a parameter of the law or noise model, JSON an object."""
     out = {}
     for item in items or []:
         if "=" not in item:
             example = 'T_C=\'{"dist": "HalfNormal", "scale": 2}\''
             raise UserError(f"--prior {item!r}: expected NAME=JSON, e.g. {example}")
         name, spec = item.split("=", 1)
+        if name not in known:
+            raise UserError(f"--prior {name}: law {law!r} has no parameter {name!r} (parameters: {', '.join(known)})")
         try:
             out[name] = Prior.from_dict(json.loads(spec))
         except json.JSONDecodeError as exc:
             raise UserError(f"--prior {name}: invalid JSON ({exc.msg})") from None
+        except PriorError as exc:
+            raise UserError(f"--prior {name}: {exc}") from None
     return out
 
 
 def _parse_select(items: list[str] | None) -> dict[str, object]:
+    """``--select COORD=VALUE`` options; VALUE is read as an integer, a number or else a string."""
     out: dict[str, object] = {}
     for item in items or []:
         if "=" not in item:
             raise UserError(f"--select {item!r}: expected COORD=VALUE")
         key, value = item.split("=", 1)
-        out[key] = int(value) if value.lstrip("-").isdigit() else value
+        for convert in (int, float, str):
+            try:
+                out[key] = convert(value)
+                break
+            except ValueError:
+                continue
     return out
 
 
-def _cmd_fit(args: argparse.Namespace) -> None:
+def _fit_settings(args: argparse.Namespace) -> dict[str, object]:
+    """Sampler options of ``fit``, validated against the study schema's ``[sampler]`` table."""
+    from bayesfric.study.config import SAMPLER, sampler_settings
+    from bayesfric.study.schema import SchemaError, parse
+
+    options = {"name": args.sampler, "seed": args.seed, "draws": args.draws, "tune": args.tune,
+               "chains": args.chains, "walkers": args.walkers}
+    try:
+        section = parse(SAMPLER, {k: v for k, v in options.items() if v is not None})
+    except SchemaError as exc:
+        option = {"name": "sampler"}.get(str(exc.where[0]), str(exc.where[0])) if exc.where else "sampler"
+        raise UserError(f"--{option}: {exc.problem}") from None
+    return sampler_settings(section)
+
+
+def _load_selected(data: str, items: list[str] | None):
     from bayesfric.datasets import load_dataset, resolve, select
+
+    ds = load_dataset(resolve(data))
+    try:
+        return select(ds, _parse_select(items))
+    except DataError as exc:
+        raise UserError(f"--select {' '.join(items or [])}: {exc}") from None
+
+
+def _cmd_fit(args: argparse.Namespace) -> None:
+    from bayesfric.fsutil import PathError, check_output_file
     from bayesfric.inference import fit, save_fit
     from bayesfric.laws import get_law
-    from bayesfric.model import Noise
+    from bayesfric.model import Noise, build_program
     from bayesfric.report.tables import fit_report
+    from bayesfric.study.config import walkers_problem
 
+    settings = _fit_settings(args)
+    if args.out is not None:
+        try:
+            check_output_file(args.out)
+        except PathError as exc:
+            raise UserError(f"--out {exc}") from None
     try:
         law = get_law(args.law)
     except KeyError as exc:
         raise UserError(exc.args[0]) from None
-    ds = select(load_dataset(resolve(args.data)), _parse_select(args.select))
-    priors = _parse_priors(args.prior)
+    ds = _load_selected(args.data, args.select)
     noise = Noise(kind=args.noise, group=args.group)
-    sizes = {"draws": args.draws, "tune": args.tune}
-    sizes |= {"chains": args.chains} if args.sampler == "nuts" else {"walkers": args.walkers}
-    settings = {k: v for k, v in sizes.items() if v is not None}
+    if args.group is not None and args.group not in ds.coords:
+        raise UserError(f"--group {args.group}: not a coordinate of the data ({', '.join(ds.coords)})")
+    priors = _parse_priors(args.prior, list(law.params) + list(noise.sites()), law.name)
+    program = build_program(law, ds, priors=priors, noise=noise)  # data-scaled priors resolve here
+    if args.sampler == "emcee" and (problem := walkers_problem(program, settings.get("walkers"))):
+        raise UserError(f"--walkers: {problem}")
     dt = fit(law, ds, sampler=args.sampler, priors=priors, noise=noise, seed=args.seed, progress=not args.quiet,
              **settings)
     print(fit_report(dt, law))
@@ -110,20 +171,31 @@ def _cmd_data(args: argparse.Namespace) -> None:
         print("OK: the file is valid")
 
 
+def _check_reports_root(out: str) -> None:
+    from bayesfric.fsutil import PathError, check_output_folder
+
+    try:
+        check_output_folder(out)
+    except PathError as exc:
+        raise UserError(f"--out {exc}") from None
+
+
 def _cmd_study(args: argparse.Namespace) -> None:
     from bayesfric.study import run_study
 
+    _check_reports_root(args.out)
     run_study(args.file, out_root=args.out, quick=args.quick)
 
 
 def _cmd_main(args: argparse.Namespace) -> None:
     from bayesfric.study import run_flagship
 
+    _check_reports_root(args.out)
     run_flagship(out_root=args.out, quick=args.quick)
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="bayesfric", description="Bayesian model comparison of friction laws.")
+    p = _Parser(prog="bayesfric", description="Bayesian model comparison of friction laws.")
     sub = p.add_subparsers(dest="command", required=True)
 
     q = sub.add_parser("laws", help="list the registered friction laws with units, priors and sources")
@@ -136,12 +208,12 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("data", help="CSV file (sidecar FILE.toml next to it) or built-in data set name")
     q.add_argument("law", help="law name (see `bayesfric laws --names`)")
     q.add_argument("--sampler", choices=["nuts", "emcee"], default="nuts")
-    q.add_argument("--out", help="write the fit (NetCDF DataTree) here")
-    q.add_argument("--draws", type=int, default=None, help="draws per chain (emcee: steps before thinning)")
-    q.add_argument("--tune", type=int, default=None, help="warm-up draws / burn-in steps")
-    q.add_argument("--chains", type=int, default=None, help="NUTS chains")
-    q.add_argument("--walkers", type=int, default=None, help="emcee walkers")
-    q.add_argument("--seed", type=int, default=0)
+    q.add_argument("--out", help="write the fit (NetCDF DataTree) to this file (checked before sampling)")
+    q.add_argument("--draws", type=int, default=None, help="draws per chain, ≥ 1 (emcee: steps before thinning)")
+    q.add_argument("--tune", type=int, default=None, help="warm-up draws / burn-in steps, ≥ 0")
+    q.add_argument("--chains", type=int, default=None, help="NUTS chains, ≥ 1")
+    q.add_argument("--walkers", type=int, default=None, help="emcee walkers, ≥ 2 × free parameters")
+    q.add_argument("--seed", type=int, default=0, help="seed, 0 … 2**32 - 1")
     q.add_argument("--noise", choices=["normal", "student_t", "proportional"], default="normal")
     q.add_argument("--group", help="group coordinate for partial-pooled offsets (series, run ...)")
     q.add_argument("--select", action="append", metavar="COORD=VALUE", help="use only these rows")
@@ -150,7 +222,7 @@ def build_parser() -> argparse.ArgumentParser:
     q.set_defaults(func=_cmd_fit)
 
     q = sub.add_parser("data", help="list built-in data sets or check a user's file")
-    dsub = q.add_subparsers(dest="data_cmd", required=True)
+    dsub = q.add_subparsers(dest="data_cmd", required=True, metavar="{list,check}")
     d = dsub.add_parser("list", help="built-in data sets with provenance")
     d.set_defaults(func=_cmd_data)
     d = dsub.add_parser("check", help="validate CSV + TOML metadata and print what was understood")
@@ -172,16 +244,16 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the ``bayesfric`` command."""
-    args = build_parser().parse_args(argv)
+    """Entry point of the ``bayesfric`` command; returns the exit status (2 on a user error)."""
     from bayesfric.runtime import configure
 
-    configure()
+    configure()  # x64 and the persistent compilation cache
     try:
+        args = build_parser().parse_args(argv)
         args.func(args)
     except USER_ERRORS as exc:
         msg = exc.args[0] if exc.args else str(exc)
-        print(f"bayesfric: error: {msg}", file=sys.stderr)
+        print(f"bayesfric: error: {' '.join(str(msg).splitlines())}", file=sys.stderr)  # always one line
         return 2
     except KeyboardInterrupt:
         print("bayesfric: interrupted", file=sys.stderr)

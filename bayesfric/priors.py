@@ -56,6 +56,12 @@ DISTRIBUTIONS: dict[str, tuple[type, tuple[str, ...], tuple[str, ...]]] = {
     "StudentT": (dist.StudentT, ("df", "loc", "scale"), ("loc", "scale")),
 }
 _RATE_ARGS = ("rate",)
+#: Arguments that must be strictly positive in every distribution that takes them.
+_POSITIVE_ARGS = ("scale", "rate", "concentration", "concentration1", "concentration0", "df")
+
+
+def _finite(v: object) -> bool:
+    return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
 
 
 @dataclass(frozen=True)
@@ -110,7 +116,7 @@ class Prior:
     scaled_by: Mapping[str, float]
 
     def __init__(self, dist: str, /, *, scaled_by: Mapping[str, float] | None = None, **args: float):
-        if dist not in DISTRIBUTIONS:
+        if not isinstance(dist, str) or dist not in DISTRIBUTIONS:
             raise PriorError(f"unknown distribution {dist!r}; known: {', '.join(DISTRIBUTIONS)}")
         allowed = DISTRIBUTIONS[dist][1]
         unknown = set(args) - set(allowed)
@@ -120,8 +126,18 @@ class Prior:
                 f"{dist} takes arguments {', '.join(allowed)}; got {', '.join(sorted(args)) or 'none'}"
             )
         for k, v in args.items():
-            if not isinstance(v, int | float) or not math.isfinite(v):
+            if not _finite(v):
                 raise PriorError(f"{dist} argument {k}={v!r} is not a finite number")
+            if k in _POSITIVE_ARGS and not v > 0:
+                raise PriorError(f"{dist} argument {k}={_fmt(v)} must be > 0")
+        if "low" in args and "high" in args and not args["low"] < args["high"]:
+            raise PriorError(f"{dist} arguments low={_fmt(args['low'])}, high={_fmt(args['high'])}: "
+                             "low must be < high")
+        if scaled_by is not None and not isinstance(scaled_by, Mapping):
+            raise PriorError(f"scaled_by must be a table of powers by name, got {scaled_by!r}")
+        for k, v in (scaled_by or {}).items():
+            if not isinstance(k, str) or not _finite(v):
+                raise PriorError(f"scaled_by {k}={v!r}: powers must be finite numbers")
         object.__setattr__(self, "dist", dist)
         object.__setattr__(self, "args", dict(args))
         object.__setattr__(self, "scaled_by", dict(scaled_by or {}))
@@ -145,7 +161,19 @@ class Prior:
 
     @classmethod
     def from_dict(cls, spec: Mapping[str, Any]) -> Prior:
-        """Inverse of :meth:`to_dict`."""
+        """Inverse of :meth:`to_dict`.
+
+        Raises
+        ------
+        PriorError
+            ``spec`` is not a mapping, has no ``dist``, or describes an invalid prior (unknown
+            distribution or argument, a non-finite number, a scale, rate, concentration or
+            ``df`` that is not positive, ``low >= high``).
+        """
+        if not isinstance(spec, Mapping):
+            example = '{"dist": "HalfNormal", "scale": 1.0}'
+            raise PriorError(f"a prior spec must be a table/object such as {example}, "
+                             f"got {type(spec).__name__} {spec!r}")
         spec = dict(spec)
         if "dist" not in spec:
             raise PriorError(f"prior spec {spec!r} has no 'dist' key")

@@ -69,6 +69,15 @@ def test_shipped_studies_validate():
         assert study.blocked, f"{f.name} asks no extrapolation question"
 
 
+def test_shipped_studies_pass_every_check_before_writing(tmp_path):
+    """The stricter checks (data, programs, folds, report folder) accept every shipped study."""
+    from bayesfric.study.runner import _prepare
+
+    for f in sorted(STUDIES_DIR.glob("*.toml")):
+        _prepare(f, tmp_path / "reports", quick=False)
+    assert not (tmp_path / "reports").exists()  # checks write nothing
+
+
 @pytest.mark.slow
 def test_end_to_end_tiny_study(tmp_path, data_csv):
     path = tmp_path / "s.toml"
@@ -110,3 +119,22 @@ def test_winners_skip_unreliable_results_and_findings_name_them(tmp_path, data_c
     blocked_line = next(line for line in _findings(out) if "blocked CV" in line)
     assert "**coulomb_viscous**" in blocked_line
     assert "coulomb scored higher but failed the diagnostics gate" in blocked_line
+
+
+@pytest.mark.parametrize(("sampler", "full", "quick"), [
+    ("draws = 1000\ntune = 500\nchains = 2\n",
+     {"draws": 1000, "tune": 500, "chains": 2, "target_accept": 0.9}, {"draws": 300, "tune": 300, "chains": 2}),
+    ('name = "emcee"\ndraws = 5000\ntune = 2000\nwalkers = 16\nthin = 20\n',
+     {"draws": 5000, "tune": 2000, "walkers": 16, "thin": 20}, {"draws": 1000, "tune": 1000, "thin": 10}),
+    ('name = "emcee"\ndraws = 100\nthin = 2\n', {"draws": 100, "tune": 2500, "thin": 2}, {"tune": 1000}),
+])
+def test_settings_per_sampler_and_quick_lowers_them_after_validation(tmp_path, data_csv, sampler, full, quick):
+    """Each sampler gets its own settings (backend defaults filled); --quick only lowers them, and
+    uses at most QUICK_KFOLD random folds."""
+    from bayesfric.study.runner import QUICK_KFOLD, _run_settings
+
+    text = study_text().replace("draws = 1000\ntune = 500\nchains = 2\n", sampler)
+    (tmp_path / "s.toml").write_text(text.replace("evidence = false\n", "evidence = false\nkfold = 10\n"))
+    study = load_study(tmp_path / "s.toml")
+    assert _run_settings(study, quick=False) == (full, 10)
+    assert _run_settings(study, quick=True) == (full | quick, QUICK_KFOLD)

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import gc
 import os
-import tempfile
+import secrets
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, Literal
@@ -16,6 +16,7 @@ from typing import Any, Literal
 import jax
 import xarray as xr
 
+from bayesfric.fsutil import check_output_file
 from bayesfric.inference.diagnostics import GATE, Gate, Verdict, check, verdict_of
 from bayesfric.inference.ensemble import sample_emcee
 from bayesfric.inference.nuts import sample_nuts
@@ -82,11 +83,26 @@ def fit(
 
 
 def save_fit(dt: xr.DataTree, path: str | Path) -> Path:
-    """Write a fit as NetCDF atomically (temporary file in the same folder, then rename)."""
-    path = Path(path)
+    """Write a fit as NetCDF atomically (temporary file in the same folder, then rename).
+
+    The path is checked first (:func:`bayesfric.fsutil.check_output_file`: not a folder, in a
+    writable place); missing parent folders are created. The file gets the permissions of an
+    ordinary new file (``0o666`` less the umask).
+
+    Raises
+    ------
+    bayesfric.fsutil.PathError
+        ``path`` is a folder, not a regular file, or cannot be written.
+    """
+    path = check_output_file(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
+    while True:
+        tmp = path.parent / f".{path.name}.{secrets.token_hex(4)}.tmp"
+        try:
+            os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))  # mode: 0o666 less umask
+        except FileExistsError:
+            continue
+        break
     try:
         dt.to_netcdf(tmp, engine="h5netcdf")
         os.replace(tmp, path)

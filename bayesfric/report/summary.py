@@ -1,4 +1,9 @@
-"""Write a study's reports: summary.md, ranking.csv, parameters.csv and a self-contained report.html."""
+"""Write a study's reports: summary.md, ranking.csv, parameters.csv and a self-contained report.html.
+
+Every string that comes from the user, the data or a law (titles, questions, labels, findings,
+names, units, sources) is written as literal text: Markdown-escaped in ``summary.md``
+(:func:`md_text`, :func:`md_code`) and HTML-escaped in ``report.html`` (Jinja autoescape).
+"""
 
 from __future__ import annotations
 
@@ -6,7 +11,9 @@ import base64
 import csv
 import io
 import math
+import re
 from pathlib import Path
+from urllib.parse import quote
 
 import jinja2
 
@@ -14,7 +21,47 @@ from bayesfric.report.figures import provenance_label
 from bayesfric.report.tables import format_table, parameter_rows
 from bayesfric.study.outcome import StudyOutcome
 
-__all__ = ["ranking_rows", "write_reports"]
+__all__ = ["ranking_rows", "write_reports", "md_text", "md_code"]
+
+_MD_CONTROL = re.compile(r"[\x00-\x1f\x7f]")
+_MD_SPECIAL = re.compile(r"([\\`*_\[\]<>&|#~])")
+_MD_BLOCK_START = re.compile(r"^(\s*)(\d+(?=[.)])|[-+=])")
+
+
+def md_text(value: object, inline: bool = False) -> str:
+    """``value`` as literal Markdown text on one line.
+
+    Control characters (newlines included) become spaces; the characters that start inline
+    markup, HTML or entities (``\\ ` * _ [ ] < > & | # ~``) are backslash-escaped; unless
+    ``inline`` (a table cell), a leading ``-``, ``+``, ``=`` or ``1.`` that would start a list or
+    heading is escaped too.
+    """
+    text = _MD_SPECIAL.sub(r"\\\1", _MD_CONTROL.sub(" ", str(value)))
+    if inline:
+        return text
+    match = _MD_BLOCK_START.match(text)
+    if match and match.group(2).isdigit():  # "1." or "1)": escape the delimiter
+        end = match.end()
+        return text[:end] + "\\" + text[end:]
+    return _MD_BLOCK_START.sub(r"\1\\\2", text, count=1) if match else text
+
+
+def md_code(value: object) -> str:
+    """``value`` as a Markdown code span (fence longer than any backtick run inside it)."""
+    text = _MD_CONTROL.sub(" ", str(value))
+    fence = "`" * (max((len(r) for r in re.findall(r"`+", text)), default=0) + 1)
+    pad = " " if text.startswith("`") or text.endswith("`") else ""
+    return f"{fence}{pad}{text}{pad}{fence}"
+
+
+def _md_finding(text: str) -> str:
+    """A finding: literal text except its ``**bold**`` markers (the runner's only markup)."""
+    return "**".join(md_text(part, inline=i > 0) for i, part in enumerate(text.split("**")))
+
+
+def _md_table(header: list[str], rows: list[list[str]]) -> str:
+    return format_table([md_text(h, inline=True) for h in header],
+                        [[md_text(c, inline=True) for c in r] for r in rows], markdown=True)
 
 
 def _num(x: float, digits: int = 2) -> str:
@@ -104,36 +151,38 @@ def _write_csv(path: Path, records: list[dict]) -> None:
 def _markdown(out: StudyOutcome, header, rows, figures: list[Path]) -> str:
     st = out.study
     ds = out.data
-    lines = [f"# {st.title}", "", f"> **{provenance_label(ds)}**", ""]
+    md = md_text
+    lines = [f"# {md(st.title)}", "", f"> **{md(provenance_label(ds), inline=True)}**", ""]
     if st.question:
-        lines += [f"**Question.** {st.question}", ""]
+        lines += [f"**Question.** {md(st.question, inline=True)}", ""]
     lines += ["## Data", "",
-              f"- data set: `{ds.attrs.get('name')}` — {ds.attrs.get('title', '')}",
-              f"- provenance: **{ds.attrs.get('provenance')}**; source: {ds.attrs.get('source')}",
-              f"- {ds.sizes['obs']} observations; selection: {ds.attrs.get('selection', 'all rows')}; "
-              f"content hash {ds.attrs.get('data_hash')}",
-              f"- noise model: {st.noise.kind}"
-              + (f", partial-pooled offsets per `{st.noise.group}`" if st.noise.group else ""),
-              f"- sampler: {st.sampler}", ""]
-    lines += ["## Findings", ""] + [f"- {f}" for f in out.findings] + [""]
+              f"- data set: {md_code(ds.attrs.get('name'))} — {md(ds.attrs.get('title', ''), inline=True)}",
+              f"- provenance: **{md(ds.attrs.get('provenance'), inline=True)}**; source: "
+              f"{md(ds.attrs.get('source'), inline=True)}",
+              f"- {ds.sizes['obs']} observations; selection: {md(ds.attrs.get('selection', 'all rows'), inline=True)}; "
+              f"content hash {md(ds.attrs.get('data_hash'), inline=True)}",
+              f"- noise model: {md(st.noise.kind, inline=True)}"
+              + (f", partial-pooled offsets per {md_code(st.noise.group)}" if st.noise.group else ""),
+              f"- sampler: {md(st.sampler, inline=True)}", ""]
+    lines += ["## Findings", ""] + [f"- {_md_finding(f)}" for f in out.findings] + [""]
     lines += ["## Ranking", "",
               "Ordered by the first blocked-extrapolation scheme (elpd on held-out points outside the "
               "training envelope; higher is better). *penalty/pt* = (elpd_LOO − elpd_blocked) per held-out "
               "point, on the same points: how much worse the law predicts outside the tested envelope than "
               "inside it. Weights exclude fits that failed the diagnostics gate"
               + (" (the study asked to include them)" if st.include_failed else "") + ". ⚠ = a fold failed the gate.",
-              "", format_table(header, rows, markdown=True), ""]
+              "", _md_table(header, rows), ""]
     if out.ranking_sensitivity:
-        lines += [f"**Prior sensitivity of the ranking.** {out.ranking_sensitivity}", ""]
+        lines += [f"**Prior sensitivity of the ranking.** {md(out.ranking_sensitivity, inline=True)}", ""]
     lines += ["## Parameters", ""]
     for w in out.laws:
-        lines += [f"### {w.name} — {w.law.summary}", "", f"source: {w.law.source}; diagnostics: {w.verdict}", ""]
+        lines += [f"### {md(w.name)} — {md(w.law.summary, inline=True)}", "",
+                  f"source: {md(w.law.source, inline=True)}; diagnostics: {md(w.verdict, inline=True)}", ""]
         if w.law.notes:
-            lines += [f"*Identifiability:* {w.law.notes}", ""]
+            lines += [f"*Identifiability:* {md(w.law.notes, inline=True)}", ""]
         prow = [[r.name, r.unit, f"{r.mean:.4g}", f"{r.sd:.3g}", f"{r.q05:.4g} … {r.q95:.4g}", f"{r.r_hat:.3f}",
                  f"{r.ess_bulk:.0f}"] for r in parameter_rows(w.fit, w.law)]
-        lines += [format_table(["parameter", "unit", "mean", "sd", "90 % interval", "R-hat", "ESS"], prow,
-                               markdown=True), ""]
+        lines += [_md_table(["parameter", "unit", "mean", "sd", "90 % interval", "R-hat", "ESS"], prow), ""]
         extras = []
         if math.isfinite(w.prior_implausible):
             extras.append(f"prior draws with unphysical friction: {w.prior_implausible:.1%}")
@@ -143,9 +192,9 @@ def _markdown(out: StudyOutcome, header, rows, figures: list[Path]) -> str:
             extras.append(f"prior sensitivity: {w.prior_sensitivity}")
         if w.high_k_handling:
             extras.append(w.high_k_handling)
-        lines += [f"- {e}" for e in extras] + [f"- fit file: `fits/{w.fit_file.name}`", ""]
-    lines += ["## Figures", ""] + [f"![{p.stem}](figures/{p.name})" for p in figures] + [""]
-    lines += [f"*Generated by bayesfric in {out.seconds:.0f} s. Rerun: `bayesfric study {st.path}`.*", ""]
+        lines += [f"- {md(e)}" for e in extras] + [f"- fit file: {md_code('fits/' + w.fit_file.name)}", ""]
+    lines += ["## Figures", ""] + [f"![{md(p.stem, inline=True)}](figures/{quote(p.name)})" for p in figures] + [""]
+    lines += [f"*Generated by bayesfric in {out.seconds:.0f} s. Rerun: {md_code(f'bayesfric study {st.path}')}.*", ""]
     return "\n".join(lines)
 
 

@@ -4,7 +4,7 @@ A study names a data set, candidate laws (with prior overrides and constants), t
 sampler settings, comparison methods and extrapolation folds::
 
     [study]
-    name = "robot_joint"
+    name = "robot_joint"               # report folder reports/<name>/; default: the file name
     title = "Stäubli RX90 joint 1"
     question = "Which law, fitted on 0-0.5 rad/s, predicts the torque above 0.5 rad/s?"
 
@@ -17,10 +17,14 @@ sampler settings, comparison methods and extrapolation folds::
     group = "series"                   # optional partial-pooled offsets
 
     [sampler]
-    draws = 1000
-    tune = 1000
-    chains = 4
-    seed = 0
+    name = "nuts"                      # nuts | emcee
+    draws = 1000                       # ≥ 1 (≥ 40 per chain, after thinning, when evidence = true)
+    tune = 1000                        # ≥ 0
+    chains = 4                         # nuts only, ≥ 1
+    target_accept = 0.9                # nuts only, in (0, 1)
+    # walkers = 32                     # emcee only: ≥ 2 × free parameters (default max(32, 4 × them))
+    # thin = 10                        # emcee only, ≥ 1
+    seed = 0                           # 0 … 2³² − 1
 
     [[laws]]
     name = "armstrong_helouvry"
@@ -28,33 +32,59 @@ sampler settings, comparison methods and extrapolation folds::
 
     [compare]
     loo = true
-    kfold = 10                         # 0 disables
+    kfold = 10                         # 0 disables; else 2 … number of points (or trajectories)
     grouped = "series"                 # optional leave-one-group-out
-    evidence = true                    # bridge sampling + tempered SMC (two estimators)
-    smc_particles = 300                # SMC particles per run (default 300)
-    smc_runs = 3                       # independent SMC runs; their spread gives the MC error
+    evidence = true                    # bridge sampling + Laplace-t importance sampling (two estimators)
+    smc = false                        # also tempered SMC as a reference (opt-in: 3-13x the fit's cost)
+    smc_particles = 300                # SMC particles per run (default 300, at least 20)
+    smc_runs = 3                       # independent SMC runs (≥ 2); their spread gives the MC error
 
     [[compare.blocked]]
     axis = "velocity"                  # any input coordinate of the data
     threshold = 0.5                    # SI units; or quantile = 0.7
     direction = "upper"                # train below, score above; "lower" for high -> low
 
-Every error is a :class:`StudyError` with one line naming the file and the key.
+The schema — allowed keys, kinds, ranges, defaults, and which sampler each sampler setting
+belongs to — is declared once, as the tables :data:`FILE` (with :data:`STUDY`, :data:`DATA`,
+:data:`NOISE`, :data:`SAMPLER`, :data:`LAW`, :data:`COMPARE`, :data:`BLOCKED`) below;
+:func:`bayesfric.study.schema.parse` derives validation, defaults and messages from them. The
+sampler defaults are the backends' own (:data:`bayesfric.inference.SAMPLERS`). The study name
+becomes a folder name, so it must be a plain name (letters, digits, ``-``, ``_``, ``.`` not first,
+at most 64 characters; :func:`bayesfric.fsutil.name_problem`). The ``fit`` command validates its
+sampler options against the same :data:`SAMPLER` table. Checks that need the data (coordinates,
+inputs, number of K-fold folds, emcee walkers against the number of free parameters) are in
+:func:`bayesfric.study.runner.validate_against_data`.
+
+Every error is a :class:`StudyError` with one line naming the file and the key:
+``path: [section] key: problem`` or ``path: laws[i].key: problem``.
 """
 
 from __future__ import annotations
 
+import inspect
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, get_args, get_type_hints
+
+import numpy as np
+from numpyro import handlers
 
 from bayesfric.errors import UserError
+from bayesfric.fsutil import name_problem
+from bayesfric.inference import SAMPLERS
 from bayesfric.laws import get_law
-from bayesfric.model import NOISE_PRIORS, Noise
+from bayesfric.model import Noise, Program
 from bayesfric.priors import Prior, PriorError
+from bayesfric.study.schema import REQUIRED, Field, Schema, SchemaError, parse
 
-__all__ = ["StudyError", "Study", "LawSpec", "BlockedSpec", "load_study"]
+__all__ = [
+    "StudyError", "Study", "LawSpec", "BlockedSpec", "load_study", "FILE", "SAMPLER", "sampler_settings",
+    "walkers_problem", "free_parameter_count", "EVIDENCE_MIN_DRAWS",
+]
+
+#: Bridge sampling splits every chain in halves of at least 20 draws.
+EVIDENCE_MIN_DRAWS = 40
 
 
 class StudyError(UserError):
@@ -88,7 +118,7 @@ class BlockedSpec:
 
 @dataclass
 class Study:
-    """A validated study."""
+    """A validated study (``sampler``: every setting of the chosen sampler, defaults filled)."""
 
     path: Path
     name: str
@@ -103,6 +133,7 @@ class Study:
     kfold: int = 0
     grouped: str | None = None
     evidence: bool = True
+    smc: bool = False  # opt-in reference: tempered SMC costs 3-13x the fit (bench_evidence.py)
     smc_particles: int = 300  # tempered SMC: within ~0.1 nat of bridge sampling at ~1/5 the cost of 1000
     smc_runs: int = 3
     blocked: list[BlockedSpec] = field(default_factory=list)
@@ -110,124 +141,199 @@ class Study:
     raw: dict[str, Any] = field(default_factory=dict)
 
 
-_TOP = {"study", "data", "noise", "sampler", "laws", "compare"}
-_SAMPLER = {"name", "draws", "tune", "chains", "seed", "target_accept"}
-_COMPARE = {"loo", "kfold", "grouped", "evidence", "blocked", "include_failed", "smc_particles", "smc_runs"}
+# -- the schema ----------------------------------------------------------------------------------
+def _backend(key: str):
+    """Default of a sampler setting: the chosen backend's own keyword default."""
+    return lambda section: inspect.signature(SAMPLERS[section["name"]]).parameters[key].default
 
 
-def _check_keys(where: str, table: dict, allowed: set[str]) -> None:
-    for key in table:
-        if key not in allowed:
-            raise StudyError(f"{where}: unknown key {key!r} (allowed: {', '.join(sorted(allowed))})")
+def _known_law(name: str) -> str | None:
+    try:
+        get_law(name)
+    except KeyError as exc:
+        return str(exc.args[0])
+    return None
+
+
+def _kfold(k: int) -> str | None:
+    return None if k == 0 or k >= 2 else f"must be 0 (off) or ≥ 2, got integer {k}"
+
+
+NUTS, EMCEE = ("nuts",), ("emcee",)
+
+STUDY = Schema((
+    Field("name", "name", None, doc="report folder name (default: the study file's name)"),
+    Field("title", "text", None, doc="report title (default: the name)"),
+    Field("question", "text", "", doc="the question the study asks"),
+))
+DATA = Schema((
+    Field("dataset", "str", REQUIRED, doc="built-in data set or CSV path relative to the study file"),
+    Field("select", "table", {}, items="value", doc="rows whose coordinates equal these values"),
+))
+NOISE = Schema((
+    Field("kind", "str", "normal", choices=get_args(get_type_hints(Noise)["kind"]),
+          doc="observation noise model"),
+    Field("group", "str", None, doc="group coordinate of partial-pooled offsets"),
+))
+SAMPLER = Schema((
+    Field("name", "str", "nuts", choices=tuple(SAMPLERS), doc="sampling backend"),
+    Field("seed", "int", 0, min=0, max=2**32 - 1, doc="seed of every random draw"),
+    Field("draws", "int", _backend("draws"), min=1, doc="draws per chain (emcee: steps before thinning)"),
+    Field("tune", "int", _backend("tune"), min=0, doc="warm-up draws (emcee: burn-in steps)"),
+    Field("chains", "int", _backend("chains"), min=1, only=("name", NUTS), doc="NUTS chains"),
+    Field("target_accept", "number", _backend("target_accept"), gt=0, lt=1, only=("name", NUTS),
+          doc="NUTS target acceptance probability"),
+    Field("walkers", "int", _backend("walkers"), min=2, only=("name", EMCEE),
+          doc="emcee walkers: at least 2 × free parameters (default max(32, 4 × free parameters))"),
+    Field("thin", "int", _backend("thin"), min=1, only=("name", EMCEE), doc="emcee thinning"),
+), only_label="sampler")
+LAW = Schema((
+    Field("name", "str", REQUIRED, rule=_known_law, doc="registered law (bayesfric laws --names)"),
+    Field("priors", "table", {}, items="table", doc="prior overrides by parameter name"),
+    Field("constants", "table", {}, items="number", doc="constant overrides by name"),
+))
+BLOCKED = Schema((
+    Field("axis", "str", REQUIRED, doc="input coordinate to block along"),
+    Field("direction", "str", "upper", choices=("upper", "lower"), doc="upper: train below, score above"),
+    Field("threshold", "number", None, doc="cut in SI units"),
+    Field("quantile", "number", None, gt=0, lt=1, doc="cut as a quantile of the axis"),
+    Field("label", "text", "", doc="label in reports"),
+), exactly_one=(("threshold", "quantile"),))
+COMPARE = Schema((
+    Field("loo", "bool", True, doc="PSIS-LOO"),
+    Field("kfold", "int", 0, min=0, rule=_kfold, doc="random K-fold folds (0: off)"),
+    Field("grouped", "str", None, doc="leave-one-group-out coordinate"),
+    Field("evidence", "bool", True, doc="bridge sampling + Laplace-t importance sampling"),
+    Field("smc", "bool", False, doc="tempered SMC reference estimator (opt-in: 3-13x the fit)"),
+    Field("smc_particles", "int", 300, min=20, doc="SMC particles per run"),
+    Field("smc_runs", "int", 3, min=2, doc="independent SMC runs"),
+    Field("include_failed", "bool", False, doc="weight fits that failed the gate"),
+    Field("blocked", "tables", [], schema=BLOCKED, doc="blocked extrapolation folds"),
+))
+FILE = Schema((
+    Field("study", "table", {}, schema=STUDY),
+    Field("data", "table", REQUIRED, schema=DATA),
+    Field("noise", "table", {}, schema=NOISE),
+    Field("sampler", "table", {}, schema=SAMPLER),
+    Field("laws", "tables", REQUIRED, min=1, schema=LAW),
+    Field("compare", "table", {}, schema=COMPARE),
+))
+
+
+# -- sampler helpers shared with the CLI ---------------------------------------------------------
+def sampler_settings(section: dict[str, Any]) -> dict[str, Any]:
+    """Backend keyword arguments of a parsed ``[sampler]`` section (no name, seed or unset values)."""
+    return {k: v for k, v in section.items() if k not in ("name", "seed") and v is not None}
+
+
+def free_parameter_count(program: Program) -> int:
+    """Number of free (sampled, unobserved) scalar parameters of a program."""
+    trace = handlers.trace(handlers.seed(program.model, 0)).get_trace(**program.model_kwargs)
+    return sum(int(np.size(s["value"])) for s in trace.values() if s["type"] == "sample" and not s["is_observed"])
+
+
+def walkers_problem(program: Program, walkers: int | None) -> str | None:
+    """Why ``walkers`` emcee walkers cannot sample ``program`` (None if they can, or if unset)."""
+    if walkers is None:
+        return None
+    ndim = free_parameter_count(program)
+    if walkers < 2 * ndim:
+        return (f"emcee needs at least 2 × {ndim} = {2 * ndim} walkers for the {ndim} free parameters "
+                f"of law {program.law.name!r}, got {walkers}")
+    return None
+
+
+# -- loading ---------------------------------------------------------------------------------------
+def _read(path: Path) -> dict[str, Any]:
+    if not path.is_file():
+        raise StudyError(f"{path}: study file not found" if not path.exists() else f"{path}: not a file")
+    try:
+        return tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise StudyError(f"{path}: invalid TOML: {exc}") from None
+    except UnicodeDecodeError:
+        raise StudyError(f"{path}: not a UTF-8 text file") from None
+    except OSError as exc:
+        raise StudyError(f"{path}: cannot read ({exc.strerror})") from None
+
+
+def _law_spec(path: Path, i: int, entry: dict[str, Any], noise: Noise) -> LawSpec:
+    """Law-specific checks of a parsed ``[[laws]]`` entry: parameter and constant names, priors."""
+    where = f"{path}: laws[{i}]"
+    law = get_law(entry["name"])
+    known = list(law.params) + list(noise.sites())
+    priors = {}
+    for pname, spec in entry["priors"].items():
+        if pname not in known:
+            raise StudyError(f"{where}.priors.{pname}: law {law.name!r} has no parameter {pname!r} "
+                             f"(parameters: {', '.join(law.params)}; noise: {', '.join(noise.sites()) or 'none'})")
+        try:
+            priors[pname] = Prior.from_dict(spec)
+        except PriorError as exc:
+            raise StudyError(f"{where}.priors.{pname}: {exc}") from None
+    for cname in entry["constants"]:
+        if cname not in law.constants:
+            raise StudyError(f"{where}.constants.{cname}: law {law.name!r} has no constant {cname!r} "
+                             f"(constants: {', '.join(law.constants) or 'none'})")
+    return LawSpec(law.name, priors, dict(entry["constants"]))
+
+
+def _check_evidence_draws(path: Path, sampler: dict[str, Any]) -> None:
+    per_chain = sampler["draws"] // sampler.get("thin", 1)
+    if per_chain < EVIDENCE_MIN_DRAWS:
+        thin = f" after thinning by {sampler['thin']}" if "thin" in sampler else ""
+        raise StudyError(f"{path}: [sampler] draws: evidence = true (bridge sampling) needs at least "
+                         f"{EVIDENCE_MIN_DRAWS} draws per chain{thin}, got {per_chain}")
 
 
 def load_study(path: str | Path) -> Study:
     """Parse and validate a study file (data-dependent checks happen in the runner).
 
+    Parameters
+    ----------
+    path : str or Path
+        The study TOML file.
+
+    Returns
+    -------
+    Study
+        With every default filled (sampler settings: those of the chosen sampler).
+
     Raises
     ------
     StudyError
-        Invalid TOML, unknown keys, unknown law, unknown parameter in an override, bad values.
+        Unreadable file, invalid TOML, unknown keys, values of the wrong kind or out of range,
+        settings of another sampler, an invalid name, unknown law, parameter or constant, a bad
+        prior — one line naming the file and the key.
     """
     path = Path(path)
-    if not path.exists():
-        raise StudyError(f"{path}: study file not found")
+    raw = _read(path)
     try:
-        raw = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise StudyError(f"{path}: invalid TOML: {exc}") from None
-    _check_keys(str(path), raw, _TOP)
-    meta = raw.get("study", {})
-    _check_keys(f"{path}: [study]", meta, {"name", "title", "question"})
-    data = raw.get("data")
-    if not data or "dataset" not in data:
-        raise StudyError(f"{path}: [data] dataset is required")
-    _check_keys(f"{path}: [data]", data, {"dataset", "select"})
+        spec = parse(FILE, raw)
+    except SchemaError as exc:
+        raise StudyError(f"{path}: {exc}") from None
+    meta, data, compare = spec["study"], spec["data"], spec["compare"]
+    name = meta["name"] if meta["name"] is not None else path.stem
+    if meta["name"] is None and (problem := name_problem(name)):
+        raise StudyError(f"{path}: [study] name: not given, and the file name cannot serve: {problem}")
     dataset = data["dataset"]
     if dataset.endswith(".csv"):
         dataset = str((path.parent / dataset).resolve())
-
-    noise_raw = raw.get("noise", {})
-    _check_keys(f"{path}: [noise]", noise_raw, {"kind", "group"})
-    try:
-        noise = Noise(kind=noise_raw.get("kind", "normal"), group=noise_raw.get("group"))
-    except ValueError as exc:
-        raise StudyError(f"{path}: [noise] kind: {exc}") from None
-
-    sampler = raw.get("sampler", {})
-    _check_keys(f"{path}: [sampler]", sampler, _SAMPLER)
-    if sampler.get("name", "nuts") not in ("nuts", "emcee"):
-        raise StudyError(f"{path}: [sampler] name {sampler['name']!r} must be 'nuts' or 'emcee'")
-
-    laws = []
-    if not raw.get("laws"):
-        raise StudyError(f"{path}: at least one [[laws]] entry is required")
-    for i, entry in enumerate(raw["laws"]):
-        where = f"{path}: laws[{i}]"
-        _check_keys(where, entry, {"name", "priors", "constants"})
-        if "name" not in entry:
-            raise StudyError(f"{where}: 'name' is required")
-        try:
-            law = get_law(entry["name"])
-        except KeyError as exc:
-            raise StudyError(f"{where}.name: {exc.args[0]}") from None
-        known = set(law.params) | set(NOISE_PRIORS)
-        priors = {}
-        for pname, spec in entry.get("priors", {}).items():
-            if pname not in known:
-                raise StudyError(
-                    f"{where}.priors.{pname}: law {law.name!r} has no parameter {pname!r} "
-                    f"(parameters: {', '.join(law.params)}; noise: {', '.join(NOISE_PRIORS)})"
-                )
-            try:
-                priors[pname] = Prior.from_dict(spec)
-            except (PriorError, TypeError) as exc:
-                raise StudyError(f"{where}.priors.{pname}: {exc}") from None
-        constants = entry.get("constants", {})
-        for cname in constants:
-            if cname not in law.constants:
-                raise StudyError(f"{where}.constants.{cname}: law {law.name!r} has no constant {cname!r}")
-        laws.append(LawSpec(law.name, priors, {k: float(v) for k, v in constants.items()}))
+    noise = Noise(kind=spec["noise"]["kind"], group=spec["noise"]["group"])
+    laws = [_law_spec(path, i, entry, noise) for i, entry in enumerate(spec["laws"])]
     names = [w.name for w in laws]
-    if len(set(names)) != len(names):
-        raise StudyError(f"{path}: laws: a law is listed twice")
-
-    compare = raw.get("compare", {})
-    _check_keys(f"{path}: [compare]", compare, _COMPARE)
-    blocked = []
-    for i, b in enumerate(compare.get("blocked", [])):
-        where = f"{path}: compare.blocked[{i}]"
-        _check_keys(where, b, {"axis", "direction", "threshold", "quantile", "label"})
-        if "axis" not in b:
-            raise StudyError(f"{where}: 'axis' is required")
-        if ("threshold" in b) == ("quantile" in b):
-            raise StudyError(f"{where}: give exactly one of 'threshold' or 'quantile'")
-        if b.get("direction", "upper") not in ("upper", "lower"):
-            raise StudyError(f"{where}.direction: must be 'upper' or 'lower'")
-        if "quantile" in b and not 0 < b["quantile"] < 1:
-            raise StudyError(f"{where}.quantile: must lie in (0, 1)")
-        blocked.append(BlockedSpec(b["axis"], b.get("direction", "upper"), b.get("threshold"),
-                                   b.get("quantile"), b.get("label", "")))
-    kfold = int(compare.get("kfold", 0))
-    if kfold == 1 or kfold < 0:
-        raise StudyError(f"{path}: compare.kfold: must be 0 (off) or ≥ 2")
+    for i, law_name in enumerate(names):
+        if law_name in names[:i]:
+            raise StudyError(f"{path}: laws[{i}].name: law {law_name!r} is listed twice")
+    if compare["evidence"]:
+        _check_evidence_draws(path, spec["sampler"])
+    blocked = [BlockedSpec(b["axis"], b["direction"], b["threshold"], b["quantile"], b["label"])
+               for b in compare["blocked"]]
     return Study(
-        path=path,
-        name=meta.get("name", path.stem),
-        title=meta.get("title", path.stem),
-        question=meta.get("question", ""),
-        dataset=dataset,
-        select=data.get("select", {}),
-        noise=noise,
-        sampler={"name": "nuts", **sampler},
-        laws=laws,
-        loo=bool(compare.get("loo", True)),
-        kfold=kfold,
-        grouped=compare.get("grouped"),
-        evidence=bool(compare.get("evidence", True)),
-        smc_particles=int(compare.get("smc_particles", 300)),
-        smc_runs=int(compare.get("smc_runs", 3)),
-        blocked=blocked,
-        include_failed=bool(compare.get("include_failed", False)),
-        raw=raw,
+        path=path, name=name, title=meta["title"] if meta["title"] is not None else name,
+        question=meta["question"], dataset=dataset, select=data["select"], noise=noise,
+        sampler=spec["sampler"], laws=laws, loo=compare["loo"], kfold=compare["kfold"],
+        grouped=compare["grouped"], evidence=compare["evidence"], smc=compare["smc"],
+        smc_particles=compare["smc_particles"],
+        smc_runs=compare["smc_runs"], blocked=blocked, include_failed=compare["include_failed"], raw=raw,
     )

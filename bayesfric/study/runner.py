@@ -1,49 +1,72 @@
 """Run a study: fit every candidate law, compare them every way the study asks, write the reports.
 
-Output goes to ``<out_root>/<study>/`` atomically: everything is written into a temporary sibling
-folder that replaces the old report folder only when the whole study succeeded, so a failed or
-interrupted run never leaves a half-written report.
+Output goes to ``<out_root>/<study>/`` atomically: everything is written into a marked hidden
+work folder ``<out_root>/.<study>.<token>`` that replaces the old report folder only when the
+whole study succeeded, so a failed or interrupted run never leaves a half-written report. Every
+check of the study, its paths and its data runs before anything is written; an existing
+``<out_root>/<study>`` is replaced only if bayesfric created it for this study; work folders of
+killed runs are removed by the next run of the study (:mod:`bayesfric.fsutil`).
 """
 
 from __future__ import annotations
 
-import shutil
-import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
-from bayesfric import compare
+from bayesfric import compare, fsutil
 from bayesfric.datasets import DataError, load_dataset, resolve, select
 from bayesfric.inference import SAMPLERS, release_compiled_code, save_fit
 from bayesfric.laws import get_law
 from bayesfric.model import build_program
+from bayesfric.priors import PriorError
 from bayesfric.report.figures import plot_predictive
 from bayesfric.report.summary import write_reports
-from bayesfric.study.config import Study, StudyError, load_study
+from bayesfric.study.config import Study, StudyError, load_study, sampler_settings, walkers_problem
 from bayesfric.study.outcome import Estimate, LawOutcome, StudyOutcome
 
 __all__ = ["run_study", "validate_against_data"]
 
-#: ``--quick`` settings: a smoke test of the whole pipeline, not for decisions (reports say so).
-QUICK = {"draws": 300, "tune": 300, "chains": 2}
+#: ``--quick`` caps per sampler (a setting is lowered to its cap, never raised) and the cap on
+#: K-fold folds: a smoke test of the whole pipeline, not for decisions (reports say so).
+QUICK = {"nuts": {"draws": 300, "tune": 300, "chains": 2}, "emcee": {"draws": 1000, "tune": 1000, "thin": 10}}
+QUICK_KFOLD = 4
+#: Result keys of a law outcome that a CV scheme label must not shadow.
+_RESERVED_LABELS = ("loo", "bridge", "SMC")
 
 
 def validate_against_data(study: Study, ds) -> None:
-    """Data-dependent checks of a study: every key that names data must exist in it."""
+    """Data-dependent checks of a study, before anything is written.
+
+    Every key that names data must exist in it; every law must read inputs the data has and
+    predict its response; every law's program must build (priors scaled by inputs the data
+    has); random K-fold needs at most as many folds as points (or trajectories); emcee needs
+    at least 2 walkers per free parameter.
+
+    Raises
+    ------
+    StudyError
+        One line naming the study file and the key.
+    """
     where = str(study.path)
     coords = {k for k, v in ds.coords.items()}
     inputs = {k for k, v in ds.coords.items() if v.attrs.get("role") == "input"}
     if study.noise.group and study.noise.group not in coords:
-        raise StudyError(f"{where}: noise.group: {study.noise.group!r} is not a group of the data "
+        raise StudyError(f"{where}: [noise] group: {study.noise.group!r} is not a group of the data "
                          f"({', '.join(sorted(coords))})")
     if study.grouped and study.grouped not in coords:
-        raise StudyError(f"{where}: compare.grouped: {study.grouped!r} is not a coordinate of the data")
+        raise StudyError(f"{where}: [compare] grouped: {study.grouped!r} is not a coordinate of the data "
+                         f"({', '.join(sorted(coords))})")
     for i, b in enumerate(study.blocked):
         if b.axis not in inputs:
             raise StudyError(f"{where}: compare.blocked[{i}].axis: {b.axis!r} is not an input of the data "
                              f"(inputs: {', '.join(sorted(inputs))})")
+    if study.kfold:
+        try:
+            compare.kfold_masks(ds, study.kfold)
+        except ValueError as exc:
+            raise StudyError(f"{where}: [compare] kfold: {exc}") from None
     for i, spec in enumerate(study.laws):
         law = get_law(spec.name)
         missing = [q for q in law.operating_inputs if q not in inputs]
@@ -52,18 +75,44 @@ def validate_against_data(study: Study, ds) -> None:
         if law.response != ds.attrs["response"]:
             raise StudyError(f"{where}: laws[{i}] ({spec.name}) predicts {law.response}, the data has "
                              f"{ds.attrs['response']}")
+        try:
+            program = build_program(law, ds, priors=spec.priors, noise=study.noise, constants=spec.constants)
+        except (PriorError, DataError) as exc:
+            raise StudyError(f"{where}: laws[{i}] ({spec.name}): {exc}") from None
+        if study.sampler["name"] == "emcee" and (problem := walkers_problem(program, study.sampler["walkers"])):
+            raise StudyError(f"{where}: [sampler] walkers: {problem}")
 
 
-def _fold_schemes(study: Study, ds, seed: int) -> list[tuple[str, object, str]]:
-    """(label, Folds, kind) for every CV scheme the study asks for; kind: kfold, grouped or blocked."""
+def _fold_schemes(study: Study, ds, seed: int, kfold: int) -> list[tuple[str, object, str]]:
+    """(label, Folds, kind) for every CV scheme the study asks for; kind: kfold, grouped or blocked.
+
+    ``kfold`` is the number of random folds to use (the study's, or fewer under ``--quick``).
+    A scheme the data cannot support (one group level, a cut with no point on one side) is a
+    :class:`StudyError` naming its key (raised before anything is written).
+    """
+    where = str(study.path)
     schemes = []
-    if study.kfold:
-        schemes.append((f"{study.kfold}-fold", compare.kfold_masks(ds, study.kfold, seed=seed), "kfold"))
+    if kfold:
+        schemes.append((f"{kfold}-fold", compare.kfold_masks(ds, kfold, seed=seed), "kfold"))
     if study.grouped:
-        schemes.append((f"leave-one-{study.grouped}-out", compare.grouped_masks(ds, study.grouped), "grouped"))
-    for b in study.blocked:
-        folds = compare.blocked_masks(ds, b.axis, threshold=b.threshold, quantile=b.quantile, direction=b.direction)
+        try:
+            folds = compare.grouped_masks(ds, study.grouped)
+        except (DataError, ValueError) as exc:
+            raise StudyError(f"{where}: [compare] grouped: {exc}") from None
+        schemes.append((f"leave-one-{study.grouped}-out", folds, "grouped"))
+    for i, b in enumerate(study.blocked):
+        try:
+            folds = compare.blocked_masks(ds, b.axis, threshold=b.threshold, quantile=b.quantile,
+                                          direction=b.direction)
+        except (DataError, ValueError) as exc:
+            raise StudyError(f"{where}: compare.blocked[{i}]: {exc}") from None
         schemes.append((b.label or folds.scheme, folds, "blocked"))
+    labels = [label for label, _, _ in schemes]
+    first = len(schemes) - len(study.blocked)
+    for i in range(first, len(schemes)):
+        if labels[i] in labels[:i] or labels[i] in _RESERVED_LABELS:
+            raise StudyError(f"{where}: compare.blocked[{i - first}].label: {labels[i]!r} names another result "
+                             "already; give each blocked fold its own label")
     return schemes
 
 
@@ -136,7 +185,7 @@ def _run_law(study: Study, spec, ds, folder: Path, schemes, settings: dict, seed
             out.flags.append(f"evidence estimators disagree by {abs(agreement.difference):.2f} nat ({why}); "
                              "not ranked by evidence")
         lap("evidence")
-        if getattr(study, "smc", False):
+        if study.smc:
             smc = compare.smc_log_evidence(program, seed=seed, particles=study.smc_particles, runs=study.smc_runs)
             out.evidence["SMC"] = Estimate(smc.log_z, smc.error)
             lap("SMC reference")
@@ -213,32 +262,77 @@ def _findings(out: StudyOutcome) -> list[str]:
         lines.append("Evidence estimators disagree beyond their combined error for: "
                      f"{', '.join(disagree)} (left out of the evidence ranking, never averaged).")
     if out.extra.get("quick"):
-        lines.append("QUICK MODE: reduced draws — a pipeline smoke test, not a basis for decisions.")
+        quick = out.extra["quick"]
+        used = ", ".join(f"{k}={v}" for k, v in quick["settings"].items() if k in ("draws", "tune", "chains", "thin"))
+        asked, folds = quick["kfold"]
+        kfold = f"; random K-fold with {folds} folds (the study asks {asked})" if asked else ""
+        lines.append(f"QUICK MODE: sampler {used}{kfold} — a pipeline smoke test, not a basis for decisions.")
     return lines
+
+
+def _run_settings(study: Study, quick: bool) -> tuple[dict, int]:
+    """Backend settings and number of K-fold folds of this run: the study's (validated), or
+    under ``--quick`` lowered to the :data:`QUICK` caps and at most :data:`QUICK_KFOLD` folds."""
+    settings = sampler_settings(study.sampler)
+    if not quick:
+        return settings, study.kfold
+    caps = QUICK[study.sampler["name"]]
+    return settings | {k: min(settings[k], cap) for k, cap in caps.items() if k in settings}, \
+        min(study.kfold, QUICK_KFOLD)
+
+
+def _prepare(path: str | Path, out_root: str | Path, quick: bool):
+    """Every check of a run, before anything is written: study, report folder, data, folds."""
+    study = load_study(path)
+    fsutil.check_output_folder(out_root)  # a root problem is not the study's: reported as the path's
+    try:
+        final = fsutil.report_folder(out_root, study.name)
+    except fsutil.PathError as exc:
+        raise StudyError(f"{study.path}: [study] name: {exc}") from None
+    try:
+        ds = load_dataset(resolve(study.dataset))
+    except DataError as exc:
+        raise StudyError(f"{study.path}: [data] dataset: {exc}") from None
+    try:
+        ds = select(ds, study.select)
+    except DataError as exc:
+        raise StudyError(f"{study.path}: [data] select: {exc}") from None
+    validate_against_data(study, ds)
+    settings, kfold = _run_settings(study, quick)
+    schemes = _fold_schemes(study, ds, study.sampler["seed"], kfold)
+    return study, final, ds, settings, kfold, schemes
 
 
 def run_study(path: str | Path, out_root: str | Path = "reports", quick: bool = False) -> Path:
     """Run the study file at ``path`` and write ``<out_root>/<study name>/``.
 
-    Returns the report folder. Raises :class:`StudyError` / :class:`DataError` (one line) on
-    bad input before anything is written.
+    Parameters
+    ----------
+    path : str or Path
+        Study TOML file.
+    out_root : str or Path
+        Reports root folder (created if missing).
+    quick : bool
+        Smoke test: fewer draws and folds (:data:`QUICK`, :data:`QUICK_KFOLD`), applied after
+        the study's own settings were validated; the report says so.
+
+    Returns
+    -------
+    Path
+        The report folder.
+
+    Raises
+    ------
+    StudyError, DataError
+        One line, on bad input, before anything is written.
     """
     start = time.perf_counter()
-    study = load_study(path)
-    try:
-        ds = select(load_dataset(resolve(study.dataset)), study.select)
-    except DataError as exc:
-        raise StudyError(f"{study.path}: data: {exc}") from None
-    validate_against_data(study, ds)
-    seed = int(study.sampler.get("seed", 0))
-    settings = {k: study.sampler[k] for k in ("draws", "tune", "chains", "target_accept") if k in study.sampler}
-    settings = {"draws": 1000, "tune": 1000, "chains": 4} | settings | (QUICK if quick else {})
-    schemes = _fold_schemes(study, ds, seed)
-
-    out_root = Path(out_root)
-    out_root.mkdir(parents=True, exist_ok=True)
-    final = out_root / study.name
-    work = Path(tempfile.mkdtemp(prefix=f".{study.name}.", dir=out_root))
+    study, final, ds, settings, kfold, schemes = _prepare(path, out_root, quick)
+    seed = study.sampler["seed"]
+    root = final.parent
+    for stale in fsutil.clean_stale_work(root, study.name):
+        print(f"[{study.name}] removed the work folder of an interrupted run: {stale}", flush=True)
+    work = fsutil.create_work_folder(root, study.name)
     try:
         outcomes = []
         for spec in study.laws:
@@ -248,17 +342,19 @@ def run_study(path: str | Path, out_root: str | Path = "reports", quick: bool = 
         outcome = StudyOutcome(study=study, data=ds, laws=outcomes, schemes=[s[0] for s in schemes],
                                blocked=[s[0] for s in schemes if s[2] == "blocked"],
                                heldout={s[0]: s[1].heldout.any(axis=0) for s in schemes})
-        outcome.extra["quick"] = quick
+        if quick:
+            outcome.extra["quick"] = {"settings": settings, "kfold": (study.kfold, kfold)}
         _assign_weights(outcome)
         outcome.seconds = time.perf_counter() - start
         outcome.findings = _findings(outcome) + outcome.findings
         figures = _figures(outcome, work)
         write_reports(outcome, work, figures)
-        if final.exists():
-            shutil.rmtree(final)
-        work.rename(final)
+        try:
+            fsutil.install_folder(work, final, study.name)
+        except fsutil.PathError as exc:
+            raise StudyError(f"{study.path}: [study] name: {exc}") from None
     except BaseException:
-        shutil.rmtree(work, ignore_errors=True)
+        fsutil.remove_work_folder(work, study.name)
         raise
     print(f"[{study.name}] report written to {final} ({time.perf_counter() - start:.0f} s)")
     return final
