@@ -97,6 +97,42 @@ def test_end_to_end_tiny_study(tmp_path, data_csv):
     assert not [p for p in folder.parent.iterdir() if p.name.startswith(".")]  # no temporary folder left
 
 
+def test_evidence_pair_end_to_end(tmp_path, data_csv):
+    """A study with evidence on writes both estimators; on this easy posterior they agree."""
+    path = tmp_path / "s.toml"
+    text = study_text(laws='[[laws]]\nname = "coulomb_viscous"\n')
+    path.write_text(text.replace("evidence = false", "evidence = true"))
+    folder = run_study(path, out_root=tmp_path / "reports")
+    with (folder / "ranking.csv").open() as fh:
+        (row,) = list(csv.DictReader(fh))
+    bridge, importance = float(row["log_z_bridge"]), float(row["log_z_importance"])
+    combined = np.hypot(float(row["log_z_bridge_error"]), float(row["log_z_importance_error"]))
+    assert np.isfinite(bridge) and abs(bridge - importance) <= max(3 * combined, 0.2)
+    assert "log_z_SMC" not in row  # tempered SMC is opt-in
+    assert "Highest log evidence (importance): **coulomb\\_viscous**" in (folder / "summary.md").read_text()
+
+
+def test_evidence_disagreement_keeps_a_law_out_of_the_evidence_ranking(tmp_path, data_csv):
+    from bayesfric.inference.diagnostics import Verdict
+    from bayesfric.study.outcome import Estimate, LawOutcome, StudyOutcome
+    from bayesfric.study.runner import _findings
+
+    (tmp_path / "tiny.toml").write_text(study_text())
+    study = load_study(tmp_path / "tiny.toml")
+    ok = Verdict(True, 1.0, 1000.0, 1000.0, 0, 1.0, 0.9)
+
+    def outcome(name, log_z, agree):
+        return LawOutcome(law=get_law(name), fit=None, fit_file=tmp_path, verdict=ok, loo=Estimate(-5.0, 1.0),
+                          evidence={"bridge": Estimate(log_z, 0.01), "importance": Estimate(log_z + 3, 0.01)},
+                          evidence_agree=agree)
+
+    out = StudyOutcome(study=study, data=None, schemes=[], blocked=[],
+                       laws=[outcome("coulomb", -1.0, False), outcome("coulomb_viscous", -4.0, True)])
+    assert out.winner("bridge") == out.winner("importance") == "coulomb_viscous"
+    line = next(x for x in _findings(out) if "disagree" in x)
+    assert "coulomb" in line and "coulomb_viscous" not in line and "left out of the evidence ranking" in line
+
+
 def test_winners_skip_unreliable_results_and_findings_name_them(tmp_path, data_csv):
     """A law whose blocked fold failed the gate is not ranked, and the findings say it scored higher."""
     from bayesfric.inference.diagnostics import Verdict
