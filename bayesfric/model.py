@@ -30,13 +30,13 @@ import xarray as xr
 
 from bayesfric.datasets.loader import OBS_DIM, DataError
 from bayesfric.datasets.views import data_scale, law_inputs, response_values
+from bayesfric.density import OBS_SITE, Density, build_density
 from bayesfric.laws.base import Law
 from bayesfric.priors import DataScale, Prior, PriorError
 from bayesfric.runtime import configure
 
 __all__ = ["Noise", "Program", "build_program", "OBS_SITE", "NOISE_PRIORS"]
 
-OBS_SITE = "response"
 
 #: Default priors of the noise-model parameters (data-scaled where they carry the response unit).
 NOISE_PRIORS: dict[str, Prior] = {
@@ -102,6 +102,16 @@ class Program:
     response: np.ndarray
     group_index: np.ndarray | None
     group_labels: list[Any] = field(default_factory=list)
+    _densities: dict[int, Density] = field(default_factory=dict, repr=False, compare=False)
+
+    def density(self, seed: int = 0) -> Density:
+        """The program's one log density (:mod:`bayesfric.density`), built once per seed.
+
+        ``seed`` only sets the prior draws behind the prior-median starting point ``x0``.
+        """
+        if seed not in self._densities:
+            self._densities[seed] = build_density(self, seed)
+        return self._densities[seed]
 
     @property
     def n_obs(self) -> int:

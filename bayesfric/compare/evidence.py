@@ -31,14 +31,11 @@ import jax.numpy as jnp
 import numpy as np
 import xarray as xr
 from blackjax.smc import adaptive_tempered, extend_params, resampling
-from jax.flatten_util import ravel_pytree
-from numpyro.handlers import substitute, trace
 from numpyro.infer import Predictive
-from numpyro.infer.util import initialize_model, unconstrain_fn
 from scipy.special import logsumexp
 from scipy.stats import multivariate_normal
 
-from bayesfric.model import OBS_SITE, Program
+from bayesfric.model import Program
 
 __all__ = [
     "Evidence",
@@ -76,45 +73,6 @@ class EstimatorAgreement:
         verdict = "agree" if self.agree else "DISAGREE"
         return (f"{self.a.method} vs {self.b.method}: difference {self.difference:+.3f} nat "
                 f"({verdict} at {self.threshold} nat)")
-
-
-# -- the program's unconstrained log density ------------------------------------------------------
-@dataclass
-class _Density:
-    """Unconstrained log joint and log likelihood of a program, flattened to vectors."""
-
-    program: Program
-    sites: list[str]
-    unravel: Any
-    dim: int
-    log_joint: Any  # x -> log p(y, θ(x)) + log|J|  (minus numpyro's potential)
-    log_lik: Any  # x -> log p(y | θ(x))
-
-    def to_unconstrained(self, constrained: dict[str, Any]) -> jax.Array:
-        """Constrained draws, shaped (n, ...) per site, to unconstrained vectors (n, dim)."""
-        kwargs = self.program.model_kwargs
-        draws = {k: jnp.asarray(constrained[k]) for k in self.sites}
-        model = self.program.model
-        flat = jax.vmap(lambda p: ravel_pytree(unconstrain_fn(model, (), kwargs, p))[0])
-        return flat(draws)
-
-
-def _density(program: Program, seed: int = 0) -> _Density:
-    kwargs = program.model_kwargs
-    init, potential_fn, postprocess_fn, _ = initialize_model(
-        jax.random.PRNGKey(seed), program.model, model_kwargs=kwargs, dynamic_args=False
-    )
-    flat0, unravel = ravel_pytree(init.z)
-
-    def log_joint(x):
-        return -potential_fn(unravel(x))
-
-    def log_lik(x):
-        params = postprocess_fn(unravel(x))
-        site = trace(substitute(program.model, data=params)).get_trace(**kwargs)[OBS_SITE]
-        return jnp.sum(site["fn"].log_prob(site["value"]))
-
-    return _Density(program, list(init.z), unravel, int(flat0.size), log_joint, log_lik)
 
 
 def _finite(x: np.ndarray) -> np.ndarray:
@@ -162,7 +120,7 @@ def bridge_log_evidence(
     gets the autocorrelation factor of f2 from an AR spectral density at zero, here it is the
     arviz ESS of f2 over the chains (the same quantity, N / integrated autocorrelation time).
     """
-    density = _density(program, seed)
+    density = program.density(seed)
     post = dt["posterior"].to_dataset()
     missing = [s for s in density.sites if s not in post]
     if missing:
@@ -306,11 +264,11 @@ def smc_log_evidence(
         raise ValueError("smc_log_evidence needs runs >= 2 to estimate its error")
     if mass_matrix not in ("dense", "diagonal"):
         raise ValueError(f"mass_matrix must be 'dense' or 'diagonal', not {mass_matrix!r}")
-    density = _density(program, seed)
+    density = program.density(seed)
     kwargs = dict(program.model_kwargs, response=None)
 
-    def log_prior(x):
-        return density.log_joint(x) - density.log_lik(x)
+    def log_likelihood(x):
+        return jnp.sum(density.log_likelihood(x))
 
     def prior_particles(key):
         predictive = Predictive(program.model, num_samples=particles, return_sites=density.sites)
@@ -328,7 +286,7 @@ def smc_log_evidence(
         kernel_text = f"HMC, {integration_steps} leapfrog steps"
     else:
         raise ValueError(f"kernel must be 'nuts' or 'hmc', not {kernel!r}")
-    smc_kernel = adaptive_tempered.build_kernel(log_prior, density.log_lik, step_fn, init_fn,
+    smc_kernel = adaptive_tempered.build_kernel(density.log_prior, log_likelihood, step_fn, init_fn,
                                                 resampling.systematic, target_ess)
 
     def move_parameters(x, log_weights, step):

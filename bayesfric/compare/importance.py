@@ -34,13 +34,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import xarray as xr
-from jax.flatten_util import ravel_pytree
 from numpyro.infer import Predictive
 from scipy.optimize import minimize
 from scipy.special import logsumexp
 from scipy.stats import multivariate_t
 
-from bayesfric.compare.evidence import Evidence, _density, _finite
+from bayesfric.compare.evidence import Evidence, _finite
 from bayesfric.model import Program
 
 __all__ = ["laplace_is_log_evidence", "K_HAT_LIMIT"]
@@ -131,12 +130,12 @@ def laplace_is_log_evidence(
         the reliability flag, the mode's log density, evaluations and wall time.
     """
     start = time.perf_counter()
-    density = _density(program, seed)
+    density = program.density(seed)
     neg = jax.jit(jax.value_and_grad(lambda x: -density.log_joint(x)))
     grad = jax.jit(jax.grad(lambda x: -density.log_joint(x)))
     log_joint = jax.jit(jax.vmap(density.log_joint))
 
-    x_median = np.asarray(ravel_pytree(_median_point(program, density, seed))[0])
+    x_median = np.asarray(density.x0)
     key = jax.random.PRNGKey(seed)
     extra = np.zeros((0, density.dim))
     if starts > 1:
@@ -190,14 +189,3 @@ def _weighted_moments(x: np.ndarray, log_w: np.ndarray) -> tuple[np.ndarray, np.
     centred = x - mean
     cov = (centred * w[:, None]).T @ centred
     return mean, 0.5 * (cov + cov.T)
-
-
-def _median_point(program: Program, density, seed: int) -> dict:
-    """The prior-median starting point (numpyro's ``init_to_median``) as unconstrained sites."""
-    from numpyro.infer import init_to_median
-    from numpyro.infer.util import initialize_model
-
-    init, *_ = initialize_model(jax.random.PRNGKey(seed), program.model,
-                                init_strategy=init_to_median(num_samples=15),
-                                model_kwargs=program.model_kwargs, dynamic_args=False)
-    return {k: init.z[k] for k in density.sites}

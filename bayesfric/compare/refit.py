@@ -38,15 +38,12 @@ import numpy as np
 import xarray as xr
 from blackjax.adaptation.staged_adaptation import build_schedule
 from blackjax.adaptation.window_adaptation import base as window_adaptation_base
-from jax.flatten_util import ravel_pytree
-from numpyro import handlers
-from numpyro.infer import init_to_median
-from numpyro.infer.util import constrain_fn, initialize_model, log_likelihood, potential_energy, unconstrain_fn
 
 from bayesfric.compare.folds import Folds
+from bayesfric.density import build_density
 from bayesfric.inference.diagnostics import GATE, Gate, Verdict, check
 from bayesfric.laws.base import get_law
-from bayesfric.model import OBS_SITE, Noise, Program, build_program
+from bayesfric.model import Noise, Program, build_program
 
 __all__ = [
     "RefitEngine", "FoldFits", "CVResult", "cross_validate", "pointwise_lpd", "program_from_fit",
@@ -176,6 +173,7 @@ class RefitEngine:
         self.fold_batch = int(fold_batch)
         self.gate = gate
         self.compilations = 0
+        self._density = program.density(seed)
         self.warm = warm_start is not None
         if self.warm:
             if warm_tune < 120:
@@ -187,14 +185,9 @@ class RefitEngine:
         else:
             self.tune = int(tune)
             self._schedule = np.asarray(build_schedule(self.tune), dtype=int)
-            keys = jax.random.split(jax.random.PRNGKey(seed), self.chains)
-            init, *_ = initialize_model(
-                keys, program.model, init_strategy=init_to_median(num_samples=15),
-                model_kwargs=program.model_kwargs, dynamic_args=True,
-            )
-            self._init_z = init.z
-            first = jax.tree.map(lambda a: a[0], init.z)
-            self._init_imm = jnp.ones(ravel_pytree(first)[0].size)
+            # prior-median starts (numpyro's init_to_median), from different prior draws per chain
+            self._init_z = jnp.stack([build_density(program, seed * 7919 + c).x0 for c in range(self.chains)])
+            self._init_imm = jnp.ones(self._density.dim)
         self._sampler = jax.jit(self._sample_batch)
 
     @property
@@ -208,25 +201,22 @@ class RefitEngine:
     # -- the compiled function ------------------------------------------------------------
     def _sample_batch(self, keys, masks, init_z, init_imm, inputs, group_index, response):
         self.compilations += 1  # runs only while tracing, i.e. once per compilation
-        model = self.program.model
+        density = self._density  # the program's one log density, data passed as arguments
         data = dict(inputs=inputs, group_index=group_index, response=response)
         depth = self.max_tree_depth
 
         def one_fold(fold_keys, mask):
-            kwargs = dict(data, mask=mask)
+            def logdensity(x):
+                return density.log_joint(x, mask, data)
 
-            def logdensity(z):
-                return -potential_energy(model, (), kwargs, z)
-
-            def one_chain(key, z0):
-                return _nuts_chain(key, z0, logdensity, self._schedule, init_imm, self.draws,
+            def one_chain(key, x0):
+                return _nuts_chain(key, x0, logdensity, self._schedule, init_imm, self.draws,
                                    self.target_accept, depth)
 
-            z, diverging, energy = jax.vmap(one_chain)(fold_keys, init_z)
-            constrained = constrain_fn(model, (), kwargs, z, return_deterministic=True,
-                                       batch_ndims=2)
+            x, diverging, energy = jax.vmap(one_chain)(fold_keys, init_z)
+            constrained = jax.vmap(jax.vmap(lambda v: density.constrain(v, data)))(x)
             flat = {k: v.reshape((-1,) + v.shape[2:]) for k, v in constrained.items()}
-            ll = log_likelihood(model, flat, parallel=True, **data)[OBS_SITE]
+            ll = jax.vmap(lambda c: density.pointwise(c, data))(flat)
             lpd = jax.scipy.special.logsumexp(ll, axis=0) - jnp.log(ll.shape[0])
             return constrained, diverging, energy, lpd
 
@@ -279,24 +269,19 @@ def _warm_start_from(program: Program, fit: xr.DataTree, chains: int, seed: int)
     all unconstrained draws as the inverse mass matrix (floored at 1e-8 so a coordinate the
     data pin down hard keeps a positive scale).
     """
+    density = program.density(seed)
     post = fit["posterior"]
-    # latent sites from one plain execution of the model (initialize_model would compile)
-    model_trace = handlers.trace(handlers.seed(program.model, seed)).get_trace(**program.model_kwargs)
-    names = [n for n, site in model_trace.items()
-             if site["type"] == "sample" and not site["is_observed"] and not site.get("infer", {}).get("enumerate")]
-    missing = [n for n in names if n not in post.data_vars]
+    missing = [n for n in density.sites if n not in post.data_vars]
     if missing:
         raise ValueError(f"warm start: the fit lacks the sampled site(s) {missing}; is it a fit of "
                          f"{program.law.name!r} with the same noise model?")
     n_chain, n_draw = post.sizes["chain"], post.sizes["draw"]
-    flat = {n: jnp.asarray(post[n].values).reshape((n_chain * n_draw,) + post[n].shape[2:]) for n in names}
-    unconstrained = jax.vmap(lambda p: unconstrain_fn(program.model, (), program.model_kwargs, p))(flat)
+    flat = {n: np.asarray(post[n].values).reshape((n_chain * n_draw,) + post[n].shape[2:]) for n in density.sites}
+    unconstrained = density.to_unconstrained(flat)
     rng = np.random.default_rng(seed)
     picks = np.array([(c % n_chain) * n_draw + rng.integers(n_draw) for c in range(chains)])
-    init_z = jax.tree.map(lambda a: a[picks], unconstrained)
-    rows = jax.vmap(lambda z: ravel_pytree(z)[0])(unconstrained)
-    imm = jnp.maximum(jnp.var(rows, axis=0), 1e-8)
-    return init_z, imm
+    imm = jnp.maximum(jnp.var(unconstrained, axis=0), 1e-8)
+    return unconstrained[picks], imm
 
 
 def _nuts_chain(key, z0, logdensity, schedule: np.ndarray, init_imm, draws: int, target_accept: float,

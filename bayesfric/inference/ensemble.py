@@ -8,8 +8,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import xarray as xr
-from jax.flatten_util import ravel_pytree
-from numpyro.infer.util import initialize_model
 from scipy.optimize import minimize
 
 from bayesfric.inference.datatree import assemble
@@ -18,9 +16,9 @@ from bayesfric.model import Program
 __all__ = ["sample_emcee"]
 
 
-def _map_point(potential_fn, unravel, x0: np.ndarray) -> np.ndarray:
-    """Posterior mode in unconstrained space (L-BFGS on the jitted potential and its gradient)."""
-    value_and_grad = jax.jit(jax.value_and_grad(lambda v: potential_fn(unravel(v))))
+def _map_point(log_joint, x0: np.ndarray) -> np.ndarray:
+    """Posterior mode in unconstrained space (L-BFGS on the jitted log density and its gradient)."""
+    value_and_grad = jax.jit(jax.value_and_grad(lambda v: -log_joint(v)))
 
     def fun(x):
         value, grad = value_and_grad(jnp.asarray(x))
@@ -49,24 +47,17 @@ def sample_emcee(
     from the prior, walkers stranded in secondary modes keep R-hat high for thousands of steps.
     Defaults: ``walkers = max(32, 4 * ndim)``.
     """
-    rng_key = jax.random.PRNGKey(seed)
-    init, potential_fn, postprocess_fn, _ = initialize_model(
-        rng_key, program.model, model_kwargs=program.model_kwargs, dynamic_args=False
-    )
-    flat0, unravel = ravel_pytree(init.z)
-    ndim = flat0.size
+    density = program.density(seed)
+    ndim = density.dim
     n_walkers = walkers or max(32, 4 * ndim)
-
-    @jax.jit
-    def log_prob_batch(x):
-        return jax.vmap(lambda v: -potential_fn(unravel(v)))(x)
+    log_prob_batch = jax.jit(jax.vmap(density.log_joint))
 
     def log_prob(x):
         lp = np.asarray(log_prob_batch(jnp.asarray(x)))
         return np.where(np.isfinite(lp), lp, -np.inf)
 
     rng = np.random.default_rng(seed)
-    centre = _map_point(potential_fn, unravel, np.asarray(flat0))
+    centre = _map_point(density.log_joint, np.asarray(density.x0))
     p0 = centre + 1e-3 * rng.standard_normal((n_walkers, ndim))
     moves = [(emcee.moves.DEMove(), 0.8), (emcee.moves.DESnookerMove(), 0.2)]
     sampler = emcee.EnsembleSampler(n_walkers, ndim, log_prob, vectorize=True, moves=moves)
@@ -77,8 +68,7 @@ def sample_emcee(
     chain = sampler.get_chain(thin=thin)  # (steps, walkers, ndim)
     chain = np.swapaxes(chain, 0, 1)  # (walkers, steps, ndim)
     w, s, _ = chain.shape
-    unconstrained = jax.vmap(unravel)(jnp.asarray(chain.reshape(w * s, ndim)))
-    constrained = jax.vmap(postprocess_fn)(unconstrained)
+    constrained = jax.vmap(density.constrain)(jnp.asarray(chain.reshape(w * s, ndim)))
     samples = {k: np.asarray(v).reshape((w, s) + np.shape(v)[1:]) for k, v in constrained.items()}
     lp = np.swapaxes(sampler.get_log_prob(thin=thin), 0, 1)
     stats = {

@@ -73,8 +73,6 @@ def test_both_estimators_match_quadrature_on_a_nonlinear_posterior(simulator):
     import jax.numpy as jnp
     from scipy.special import logsumexp
 
-    from bayesfric.compare.evidence import _density
-
     law = get_law("stribeck")
     speeds = np.geomspace(0.01, 2.0, 15)
     velocity = np.concatenate([-speeds[::-1], speeds])
@@ -84,7 +82,7 @@ def test_both_estimators_match_quadrature_on_a_nonlinear_posterior(simulator):
     program = build_program(law, ds, noise=noise)
     dt = fit(law, ds, noise=noise, seed=0)
 
-    density = _density(program)
+    density = program.density()
     post = dt["posterior"]
     x = np.asarray(density.to_unconstrained({k: np.asarray(post[k].values).reshape(-1) for k in density.sites}))
     centre, chol = x.mean(axis=0), np.linalg.cholesky(np.cov(x.T))

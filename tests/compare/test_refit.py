@@ -110,8 +110,9 @@ def test_warm_start_begins_at_the_full_posterior(viscous_data, full_fit):
     assert stages.tolist() == [0] * 50 + [1] * 50 + [0] * 50 and ends.sum() == 1 and ends[99]
     # initial points are posterior draws (T_C and c_v are positive: log-transformed)
     post = full_fit["posterior"]
+    starts = [program.density().unravel(x) for x in warm._init_z]  # flat vectors of the one density
     for name in ("T_C", "c_v"):
-        drawn = np.exp(np.asarray(warm._init_z[name]))
+        drawn = np.exp([np.asarray(z[name]) for z in starts])
         assert all(np.isclose(post[name].values, x).any() for x in drawn)
     # inverse mass matrix = variance of the unconstrained draws (log scale here)
     expected = sorted(np.var(np.log(post[n].values)) for n in ("T_C", "c_v", "sigma"))
