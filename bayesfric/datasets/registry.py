@@ -6,12 +6,13 @@ from pathlib import Path
 
 import xarray as xr
 
+from bayesfric.builtin import builtin_folder
 from bayesfric.datasets.loader import DataError, load_dataset
 
 __all__ = ["DATA_ROOT", "builtin_names", "load_builtin", "resolve", "describe"]
 
-#: The repository's data folder (bayesfric is installed editable from the repository).
-DATA_ROOT = Path(__file__).resolve().parents[2] / "data"
+#: The built-in data sets: ``data/`` of the repository, shipped as package data (bayesfric.builtin).
+DATA_ROOT = builtin_folder("bayesfric.builtin_data", "data")
 
 
 def builtin_names() -> list[str]:

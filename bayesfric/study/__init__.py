@@ -5,13 +5,14 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
+from bayesfric.builtin import builtin_folder
 from bayesfric.study.config import Study, StudyError, load_study
 from bayesfric.study.runner import run_study
 
 __all__ = ["Study", "StudyError", "load_study", "run_study", "run_flagship", "STUDIES_DIR"]
 
-#: The seed studies shipped with the repository.
-STUDIES_DIR = Path(__file__).resolve().parents[2] / "studies"
+#: The seed studies: ``studies/`` of the repository, shipped as package data (bayesfric.builtin).
+STUDIES_DIR = builtin_folder("bayesfric.builtin_studies", "studies")
 
 
 def run_flagship(out_root: str | Path = "reports", quick: bool = False) -> list[Path]:
