@@ -141,9 +141,10 @@ def pymc_child(args: argparse.Namespace) -> None:
     t4 = time.perf_counter()
     posterior = trace["posterior"]
     np.savez(args.out, **{k: np.asarray(v.values) for k, v in posterior.data_vars.items()})
-    divergent = int(np.asarray(trace["sample_stats"]["diverging"]).sum())
+    stats = trace["sample_stats"]
     print(json.dumps({"import": t1 - t0, "model": t2 - t1, "compile": t3 - t2, "sample": t4 - t3,
-                      "divergent": divergent}))
+                      "divergent": int(np.asarray(stats["diverging"]).sum()),
+                      "n_steps_mean": float(np.asarray(stats["n_steps"]).mean())}))
 
 
 # --- the parent: specs, timed subprocesses, summary ----------------------------------------------
@@ -197,8 +198,9 @@ def run_one(side: str, law: str, seed: int, caches: Path, spec: Path, out: Path,
         env["NUMBA_CACHE_DIR"] = str(caches / "numba")
         cmd = [sys.executable, str(Path(__file__).resolve()), "--child", "pymc", "--spec", str(spec),
                "--seed", str(seed), "--out", str(out), *sampling]
+    load1 = os.getloadavg()[0]
     seconds, stdout = timed(cmd, env, out.with_suffix(".log"))
-    row = {"side": side, "law": law, "seed": seed, "seconds": seconds, "posterior": str(out)}
+    row = {"side": side, "law": law, "seed": seed, "seconds": seconds, "load1_at_start": load1, "posterior": str(out)}
     if side == "pymc":
         row["phases"] = json.loads(stdout.strip().splitlines()[-1])
     return row
@@ -249,7 +251,8 @@ def run_pair(repeat: int, law: str, spec: Path, work: Path, args: argparse.Names
             out = work / f"r{repeat}_{law}_{side}_{kind}.{'nc' if side == 'bayesfric' else 'npz'}"
             row = dict(run_one(side, law, seed, caches[side], spec, out, args), repeat=repeat, kind=kind)
             rows.append(row)
-            print(f"repeat {repeat} {law:20s} {side:9s} {kind}: {row['seconds']:6.1f} s", flush=True)
+            print(f"repeat {repeat} {law:20s} {side:9s} {kind}: {row['seconds']:6.1f} s "
+                  f"(load {row['load1_at_start']:.1f})", flush=True)
     return rows
 
 
