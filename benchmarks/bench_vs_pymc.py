@@ -304,6 +304,7 @@ def print_summary(summary: dict, agree: dict) -> None:
 
 
 def versions() -> dict[str, str]:
+    """Installed versions of both stacks."""
     from importlib.metadata import version
 
     return {p: version(p) for p in ("bayesfric", "jax", "numpyro", "pymc", "pytensor", "nutpie", "numba")}
