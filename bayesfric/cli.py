@@ -1,4 +1,4 @@
-"""Command-line interface: ``bayesfric laws | fit | data | study | main``.
+"""Command-line interface: ``bayesfric laws | fit | data | study | size | main``.
 
 Every user error (bad data, unknown law, bad prior, bad study file, bad option — argparse's own
 errors included) prints one line ``bayesfric: error: ...`` to stderr, exits with status 2 and
@@ -187,6 +187,87 @@ def _cmd_study(args: argparse.Namespace) -> None:
     run_study(args.file, out_root=args.out, quick=args.quick)
 
 
+def _size_question(args: argparse.Namespace):
+    """The question given with ``--at`` (None without it); options that need ``--at`` checked."""
+    from bayesfric.sizing import CLI_KEYS, make_question, parse_at
+
+    if args.at is None:
+        for option, value in (("--confidence", args.confidence), ("--capacity", args.capacity),
+                              ("--energy-rotation", args.energy_rotation)):
+            if value is not None:
+                raise UserError(f"{option}: applies only with --at (a study's [[sizing]] questions carry their own)")
+        return None
+    confidence = 0.99 if args.confidence is None else args.confidence
+    return make_question(parse_at(args.at), confidence, capacity=args.capacity, energy_rotation=args.energy_rotation,
+                         keys=CLI_KEYS)
+
+
+def _size_study(args: argparse.Namespace, question):
+    from pathlib import Path
+
+    from bayesfric import sizing
+    from bayesfric.fsutil import is_marked
+    from bayesfric.study import load_study
+    from bayesfric.study.runner import load_study_data, sizing_questions
+
+    study = load_study(args.target)
+    ds = load_study_data(study)
+    if question is None and not study.sizing:
+        raise UserError(f"{study.path}: the study asks no sizing question: add a [[sizing]] entry or give --at")
+    questions = sizing_questions(study, ds, [question] if question is not None else None, cli=question is not None)
+    folder = Path(args.reports) / study.name
+    if not is_marked(folder, study.name):
+        raise UserError(f"{study.path}: no report of study {study.name!r} in {args.reports}: run "
+                        f"`bayesfric study {args.target} --out {args.reports}` first")
+    record = sizing.read_record(folder)
+    laws = sizing.sources(record, folder, [spec.name for spec in study.laws], data_hash=ds.attrs.get("data_hash"))
+    return sizing.size_study(questions, ds, laws, record, study_name=study.name, seed=study.sampler["seed"], fan=False)
+
+
+def _size_fit(args: argparse.Namespace, question):
+    from pathlib import Path
+
+    from bayesfric import sizing
+    from bayesfric.inference import load_fit
+    from bayesfric.laws import get_law
+
+    path = Path(args.target)
+    if question is None:
+        raise UserError('--at: required with a fit, e.g. --at "velocity=2 rad/s"')
+    if not path.is_file():
+        raise UserError(f"{path}: fit file not found" if not path.exists() else f"{path}: not a file")
+    try:
+        fit = load_fit(path)
+    except Exception:  # h5py/netCDF raise many types for a file that is not a fit
+        raise UserError(f"{path}: not a readable fit (a NetCDF file written by `bayesfric fit --out`)") from None
+    if not {"law", "noise", "priors", "constants"} <= set(fit.attrs) or not {"posterior", "constant_data"} <= set(
+            fit.children):
+        raise UserError(f"{path}: not a bayesfric fit (no law, noise model or posterior recorded)")
+    try:
+        law = get_law(str(fit.attrs["law"]))
+    except KeyError as exc:
+        raise UserError(f"{path}: {exc.args[0]}") from None
+    if law.trajectory:
+        raise UserError(f"{path}: law {law.name!r} is a trajectory (stateful) law: its friction depends on the "
+                        "path, so it cannot be sized at an operating point")
+    question = sizing.check_question(question, law.operating_inputs, law.operating_inputs, law.response,
+                                     keys=sizing.CLI_KEYS, inputs_of=f"law {law.name!r}")
+    return sizing.size_fit(fit, question, name=path.name)
+
+
+def _cmd_size(args: argparse.Namespace) -> None:
+    from bayesfric.report.sizing import text_report
+
+    question = _size_question(args)
+    if args.target.endswith(".toml"):
+        result = _size_study(args, question)
+    elif args.target.endswith(".nc"):
+        result = _size_fit(args, question)
+    else:
+        raise UserError(f"{args.target}: give a study file (.toml) or a fit (.nc)")
+    print(text_report(result))
+
+
 def _cmd_main(args: argparse.Namespace) -> None:
     from bayesfric.study import run_flagship
 
@@ -235,6 +316,19 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--out", default="reports", help="reports root folder")
     q.add_argument("--quick", action="store_true", help="fewer draws and folds (smoke test, not for decisions)")
     q.set_defaults(func=_cmd_study)
+
+    q = sub.add_parser("size", help="actuator sizing: predictive friction at untested operating points, "
+                                     "from a study's stored fits or one fit")
+    q.add_argument("target", help="study TOML file (its report must exist) or fit file (.nc)")
+    q.add_argument("--at", help='operating point, e.g. "bending_moment=8 MN*m, velocity=1.04 rpm" '
+                                '(a range: "velocity=0.5..6 rad/s"); required with a fit')
+    q.add_argument("--confidence", type=float, default=None, help="size for this quantile of |T|, in (0, 1) "
+                                                                    "(default 0.99; with --at)")
+    q.add_argument("--capacity", help='available drive torque or force, e.g. "40 kN*m" (with --at)')
+    q.add_argument("--energy-rotation", help='friction energy of one rotation through this angle, e.g. "90 deg" '
+                                             "(with --at; torque)")
+    q.add_argument("--reports", default="reports", help="reports root folder of the study (default reports)")
+    q.set_defaults(func=_cmd_size)
 
     q = sub.add_parser("main", help="the main job: run every study in studies/ and write reports/")
     q.add_argument("--out", default="reports", help="reports root folder")

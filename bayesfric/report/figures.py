@@ -1,9 +1,11 @@
-"""Figures of a study: data with each law's posterior predictive, and residuals along an axis."""
+"""Figures of a study: data with each law's posterior predictive, residuals along an axis, and the
+sizing fan (predictive bands beyond the tested envelope)."""
 
 from __future__ import annotations
 
 import os
 import tempfile
+import textwrap
 from pathlib import Path
 
 import matplotlib as mpl
@@ -13,7 +15,7 @@ from matplotlib.figure import Figure
 
 from bayesfric.quantities import QUANTITIES
 
-__all__ = ["plot_predictive", "provenance_label"]
+__all__ = ["plot_predictive", "plot_sizing_fan", "provenance_label"]
 
 
 def provenance_label(ds: xr.Dataset) -> str:
@@ -79,4 +81,56 @@ def plot_predictive(
     bottom.set_xlabel(f"{axis} [{unit}]")
     top.legend(fontsize=7, ncol=2)
     top.set_title((title + "\n" if title else "") + provenance_label(ds), fontsize=8)
+    return _save(fig, path)
+
+
+def plot_sizing_fan(result, answer, path: Path, *, title: str = "") -> Path:
+    """The extrapolation fan of a sizing question (:class:`bayesfric.sizing.Answer`).
+
+    Friction magnitude ``|T|`` against the question's operating input (its range, else the input
+    it extrapolates most along; other inputs at the question's values): the tested region
+    shaded; per law its curve (median of the mean function) and 5–95 % band with observation
+    noise, excluded laws dotted for reference; the model average's curve, band and required
+    capacity at the question's confidence (dashed); the available capacity (horizontal line) and
+    the asked point(s). Units are those the question and data use.
+    """
+    fan = answer.fan
+    question = answer.question
+    value = question.at[fan.axis]
+    x = value.display(fan.x)
+    scale = result.response_scale
+    fig = Figure(figsize=(10, 5.5))
+    ax = fig.subplots()
+    lo, hi = value.display(np.array(fan.tested))
+    ax.axvspan(min(lo, hi), max(lo, hi), color="0.9", lw=0, label="tested range")
+    colours = mpl.rcParams["axes.prop_cycle"].by_key()["color"]
+    for i, (name, band) in enumerate(fan.laws.items()):
+        c = colours[i % len(colours)]
+        if name in fan.excluded:
+            ax.plot(x, band["curve"] / scale, ":", lw=1.0, color=c, label=f"{name} (excluded)")
+            continue
+        weight = next((a.weight for a in answer.laws if a.name == name), 0.0)
+        ax.plot(x, band["curve"] / scale, "-", lw=1.1, color=c, label=f"{name} (w = {weight:.2f})")
+        ax.fill_between(x, band["lo"] / scale, band["hi"] / scale, color=c, alpha=0.10, lw=0)
+    if fan.average is not None:
+        ax.fill_between(x, fan.average["lo"] / scale, fan.average["hi"] / scale, facecolor="none",
+                        edgecolor="k", hatch="///", lw=0.6, label="model average, 5–95 % with noise")
+        ax.plot(x, fan.average["curve"] / scale, "k-", lw=2.0, label="model average, curve")
+        ax.plot(x, fan.average["required"] / scale, "k--", lw=1.4,
+                label=f"required capacity ({question.confidence:g} quantile)")
+    if question.capacity is not None:
+        ax.axhline(question.capacity.lo / scale, color="crimson", lw=1.5, label=f"capacity {question.capacity.text}")
+    asked = value.display(np.array([value.lo, value.hi]))
+    if value.is_range:
+        ax.axvspan(asked[0], asked[1], color="tab:orange", alpha=0.08, lw=0, label="asked range")
+    else:
+        ax.axvline(asked[0], color="tab:orange", lw=1.2, ls=":", label="asked point")
+    others = ", ".join(f"{k} = {v.text}" for k, v in question.at.items() if k != fan.axis)
+    ax.set_xlabel(f"{fan.axis} [{value.unit}]" + (f"   ({others})" if others else ""))
+    ax.set_ylabel(f"|{result.response}| [{result.response_unit}]")
+    ax.set_ylim(bottom=0)
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    head = f"sizing: {question.label}"
+    label = "\n".join(textwrap.wrap(result.provenance, 120))
+    ax.set_title((title + "\n" if title else "") + head + "\n" + label, fontsize=8)
     return _save(fig, path)

@@ -44,19 +44,37 @@ sampler settings, comparison methods and extrapolation folds::
     threshold = 0.5                    # SI units; or quantile = 0.7
     direction = "upper"                # train below, score above; "lower" for high -> low
 
+    [[sizing]]                         # optional, repeatable: actuator sizing questions
+    label = "top speed, cold joint"    # label in reports (default: the point)
+    at = { velocity = "0.5..6 rad/s" } # every input the laws read, in any unit of its quantity
+    confidence = 0.99                  # in (0, 1): size for this quantile of |T| (default 0.99)
+    capacity = "40 N*m"                # optional: available drive torque (or force): P(|T| > it)
+    # energy_rotation = "90 deg"       # optional (torque data): friction energy of one rotation
+
+Sizing (``bayesfric size``, :mod:`bayesfric.sizing`): each ``at`` value is a string with its
+unit, ``"8 MN*m"``, ``"1.04 rpm"``, ``"5 degC"``, or a range ``"<low>..<high> <unit>"`` (smaller
+first) sized at :data:`bayesfric.sizing.RANGE_POINTS` evenly spaced points; at most one input per
+question may be a range (the fan figure's axis). The keys are input quantities of the data, and
+every input that a candidate law reads must be given: no input is silently held at a default (a
+law that does not read an input ignores it). Values outside a quantity's physical bound, units
+of another dimension, a capacity that is not of the data's response quantity, and an energy for
+force data are errors. Trajectory (stateful) laws cannot be sized at a point: a study with
+``[[sizing]]`` may not list one.
+
 The schema — allowed keys, kinds, ranges, defaults, and which sampler each sampler setting
 belongs to — is declared once, as the tables :data:`FILE` (with :data:`STUDY`, :data:`DATA`,
-:data:`NOISE`, :data:`SAMPLER`, :data:`LAW`, :data:`COMPARE`, :data:`BLOCKED`) below;
+:data:`NOISE`, :data:`SAMPLER`, :data:`LAW`, :data:`COMPARE`, :data:`BLOCKED`, :data:`SIZING`) below;
 :func:`bayesfric.study.schema.parse` derives validation, defaults and messages from them. The
 sampler defaults are the backends' own (:data:`bayesfric.inference.SAMPLERS`). The study name
 becomes a folder name, so it must be a plain name (letters, digits, ``-``, ``_``, ``.`` not first,
 at most 64 characters; :func:`bayesfric.fsutil.name_problem`). The ``fit`` command validates its
 sampler options against the same :data:`SAMPLER` table. Checks that need the data (coordinates,
-inputs, number of K-fold folds, emcee walkers against the number of free parameters) are in
-:func:`bayesfric.study.runner.validate_against_data`.
+inputs, number of K-fold folds, emcee walkers against the number of free parameters, sizing
+inputs against the data and the laws) are in :func:`bayesfric.study.runner.validate_against_data`.
 
 Every error is a :class:`StudyError` with one line naming the file and the key:
-``path: [section] key: problem`` or ``path: laws[i].key: problem``.
+``path: [section] key: problem``, ``path: laws[i].key: problem`` or
+``path: sizing[i].at.velocity: problem``.
 """
 
 from __future__ import annotations
@@ -76,10 +94,11 @@ from bayesfric.inference import SAMPLERS
 from bayesfric.laws import get_law
 from bayesfric.model import Noise, Program
 from bayesfric.priors import Prior, PriorError
+from bayesfric.sizing.points import SizingError, SizingQuestion, make_question
 from bayesfric.study.schema import REQUIRED, Field, Schema, SchemaError, parse
 
 __all__ = [
-    "StudyError", "Study", "LawSpec", "BlockedSpec", "load_study", "FILE", "SAMPLER", "sampler_settings",
+    "StudyError", "Study", "LawSpec", "BlockedSpec", "load_study", "FILE", "SAMPLER", "SIZING", "sampler_settings",
     "walkers_problem", "free_parameter_count", "EVIDENCE_MIN_DRAWS",
 ]
 
@@ -138,6 +157,7 @@ class Study:
     smc_runs: int = 3
     blocked: list[BlockedSpec] = field(default_factory=list)
     include_failed: bool = False
+    sizing: list[SizingQuestion] = field(default_factory=list)
     raw: dict[str, Any] = field(default_factory=dict)
 
 
@@ -210,6 +230,14 @@ COMPARE = Schema((
     Field("include_failed", "bool", False, doc="weight fits that failed the gate"),
     Field("blocked", "tables", [], schema=BLOCKED, doc="blocked extrapolation folds"),
 ))
+SIZING = Schema((
+    Field("label", "text", "", doc="label in reports (default: the point)"),
+    Field("at", "table", REQUIRED, items="value",
+          doc='input -> "<value> <unit>" or "<low>..<high> <unit>"; every input the laws read'),
+    Field("confidence", "number", 0.99, gt=0, lt=1, doc="size for this quantile of |T| with noise"),
+    Field("capacity", "str", None, doc="available drive torque or force, with its unit"),
+    Field("energy_rotation", "str", None, doc="angle of one rotation whose friction energy is asked (torque)"),
+))
 FILE = Schema((
     Field("study", "table", {}, schema=STUDY),
     Field("data", "table", REQUIRED, schema=DATA),
@@ -217,6 +245,7 @@ FILE = Schema((
     Field("sampler", "table", {}, schema=SAMPLER),
     Field("laws", "tables", REQUIRED, min=1, schema=LAW),
     Field("compare", "table", {}, schema=COMPARE),
+    Field("sizing", "tables", [], schema=SIZING, doc="actuator sizing questions"),
 ))
 
 
@@ -278,6 +307,15 @@ def _law_spec(path: Path, i: int, entry: dict[str, Any], noise: Noise) -> LawSpe
     return LawSpec(law.name, priors, dict(entry["constants"]))
 
 
+def _sizing_question(path: Path, i: int, entry: dict[str, Any]) -> SizingQuestion:
+    """Data-independent checks of a parsed ``[[sizing]]`` entry: values, units, ranges, bounds."""
+    try:
+        return make_question(entry["at"], entry["confidence"], label=entry["label"], capacity=entry["capacity"],
+                             energy_rotation=entry["energy_rotation"])
+    except SizingError as exc:
+        raise StudyError(f"{path}: sizing[{i}].{exc}") from None
+
+
 def _check_evidence_draws(path: Path, sampler: dict[str, Any]) -> None:
     per_chain = sampler["draws"] // sampler.get("thin", 1)
     if per_chain < EVIDENCE_MIN_DRAWS:
@@ -329,11 +367,13 @@ def load_study(path: str | Path) -> Study:
         _check_evidence_draws(path, spec["sampler"])
     blocked = [BlockedSpec(b["axis"], b["direction"], b["threshold"], b["quantile"], b["label"])
                for b in compare["blocked"]]
+    sizing = [_sizing_question(path, i, entry) for i, entry in enumerate(spec["sizing"])]
     return Study(
         path=path, name=name, title=meta["title"] if meta["title"] is not None else name,
         question=meta["question"], dataset=dataset, select=data["select"], noise=noise,
         sampler=spec["sampler"], laws=laws, loo=compare["loo"], kfold=compare["kfold"],
         grouped=compare["grouped"], evidence=compare["evidence"], smc=compare["smc"],
         smc_particles=compare["smc_particles"],
-        smc_runs=compare["smc_runs"], blocked=blocked, include_failed=compare["include_failed"], raw=raw,
+        smc_runs=compare["smc_runs"], blocked=blocked, include_failed=compare["include_failed"], sizing=sizing,
+        raw=raw,
     )

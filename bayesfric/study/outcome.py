@@ -52,6 +52,7 @@ class LawOutcome:
     evidence_disagreement: float = math.nan
     evidence_agree: bool = True  # False: the two estimators disagree; the law leaves the evidence ranking
     weights: dict[str, float] = field(default_factory=dict)  # method -> weight
+    weight_exclusions: dict[str, str] = field(default_factory=dict)  # method -> why the weighting left it out
     prior_implausible: float = math.nan  # fraction of prior draws with unphysical friction
     loo_pit_pvalue: float = math.nan
     prior_sensitivity: str = ""
@@ -83,6 +84,7 @@ class StudyOutcome:
     ranking_sensitivity: str = ""
     seconds: float = 0.0
     extra: dict[str, Any] = field(default_factory=dict)
+    sizing: Any = None  # bayesfric.sizing.SizingResult when the study asks sizing questions
 
     def winner(self, key: str) -> str | None:
         """Best reliable law by ``"loo"``, a CV scheme label, or an evidence estimator."""

@@ -15,18 +15,18 @@ from pathlib import Path
 
 import numpy as np
 
-from bayesfric import compare, fsutil
+from bayesfric import compare, fsutil, sizing
 from bayesfric.datasets import DataError, load_dataset, resolve, select
 from bayesfric.inference import SAMPLERS, release_compiled_code, save_fit
 from bayesfric.laws import get_law
 from bayesfric.model import build_program
 from bayesfric.priors import PriorError
-from bayesfric.report.figures import plot_predictive
+from bayesfric.report.figures import plot_predictive, plot_sizing_fan
 from bayesfric.report.summary import write_reports
 from bayesfric.study.config import Study, StudyError, load_study, sampler_settings, walkers_problem
 from bayesfric.study.outcome import Estimate, LawOutcome, StudyOutcome
 
-__all__ = ["run_study", "validate_against_data"]
+__all__ = ["run_study", "validate_against_data", "sizing_questions", "load_study_data"]
 
 #: ``--quick`` caps per sampler (a setting is lowered to its cap, never raised) and the cap on
 #: K-fold folds: a smoke test of the whole pipeline, not for decisions (reports say so).
@@ -81,6 +81,54 @@ def validate_against_data(study: Study, ds) -> None:
             raise StudyError(f"{where}: laws[{i}] ({spec.name}): {exc}") from None
         if study.sampler["name"] == "emcee" and (problem := walkers_problem(program, study.sampler["walkers"])):
             raise StudyError(f"{where}: [sampler] walkers: {problem}")
+    sizing_questions(study, ds)
+
+
+def sizing_questions(study: Study, ds, questions: list[sizing.SizingQuestion] | None = None,
+                     cli: bool = False) -> list[sizing.SizingQuestion]:
+    """The study's ``[[sizing]]`` questions (or ``questions``) checked against the data and the laws.
+
+    Every input named must be an input of the data, every input a candidate law reads must be
+    given, a capacity must be of the data's response quantity, and no candidate law may be a
+    trajectory law. Returns the questions with their capacity parsed.
+
+    Raises
+    ------
+    StudyError
+        One line naming the study file and the key (``sizing[i].at.velocity``), or with ``cli``
+        the option (``--at velocity``) of a question given on the command line.
+    """
+    where = str(study.path)
+    questions = study.sizing if questions is None else questions
+    if not questions:
+        return []
+    inputs = [k for k, v in ds.coords.items() if v.attrs.get("role") == "input"]
+    laws = [get_law(spec.name) for spec in study.laws]
+    for i, law in enumerate(laws):
+        if law.trajectory:
+            raise StudyError(f"{where}: laws[{i}] ({law.name}): a trajectory (stateful) law cannot be sized at an "
+                             "operating point; remove it or the [[sizing]] questions")
+    required = list(dict.fromkeys(q for law in laws for q in law.operating_inputs))
+    checked = []
+    for i, question in enumerate(questions):
+        try:
+            checked.append(sizing.check_question(question, inputs, required, ds.attrs["response"],
+                                                 keys=sizing.CLI_KEYS if cli else None))
+        except sizing.SizingError as exc:
+            raise StudyError(str(exc) if cli else f"{where}: sizing[{i}].{exc}") from None
+    return checked
+
+
+def load_study_data(study: Study):
+    """The study's data set with its row selection; problems name the study file and key."""
+    try:
+        ds = load_dataset(resolve(study.dataset))
+    except DataError as exc:
+        raise StudyError(f"{study.path}: [data] dataset: {exc}") from None
+    try:
+        return select(ds, study.select)
+    except DataError as exc:
+        raise StudyError(f"{study.path}: [data] select: {exc}") from None
 
 
 def _fold_schemes(study: Study, ds, seed: int, kfold: int) -> list[tuple[str, object, str]]:
@@ -223,6 +271,8 @@ def _assign_weights(out: StudyOutcome) -> None:
             continue
         for w in out.laws:
             w.weights[label] = weights.weights.get(w.name, 0.0 if w.name in weights.excluded else float("nan"))
+            if w.name in weights.excluded:
+                w.weight_exclusions[label] = weights.excluded[w.name]
     if out.study.loo and len(fits) > 1:
         reliable = {w.name: w.fit for w in out.laws if w.reliable or out.study.include_failed}
         if len(reliable) > 1:
@@ -289,18 +339,11 @@ def _prepare(path: str | Path, out_root: str | Path, quick: bool):
         final = fsutil.report_folder(out_root, study.name)
     except fsutil.PathError as exc:
         raise StudyError(f"{study.path}: [study] name: {exc}") from None
-    try:
-        ds = load_dataset(resolve(study.dataset))
-    except DataError as exc:
-        raise StudyError(f"{study.path}: [data] dataset: {exc}") from None
-    try:
-        ds = select(ds, study.select)
-    except DataError as exc:
-        raise StudyError(f"{study.path}: [data] select: {exc}") from None
+    ds = load_study_data(study)
     validate_against_data(study, ds)
     settings, kfold = _run_settings(study, quick)
     schemes = _fold_schemes(study, ds, study.sampler["seed"], kfold)
-    return study, final, ds, settings, kfold, schemes
+    return study, final, ds, settings, kfold, schemes, sizing_questions(study, ds)
 
 
 def run_study(path: str | Path, out_root: str | Path = "reports", quick: bool = False) -> Path:
@@ -327,7 +370,7 @@ def run_study(path: str | Path, out_root: str | Path = "reports", quick: bool = 
         One line, on bad input, before anything is written.
     """
     start = time.perf_counter()
-    study, final, ds, settings, kfold, schemes = _prepare(path, out_root, quick)
+    study, final, ds, settings, kfold, schemes, questions = _prepare(path, out_root, quick)
     seed = study.sampler["seed"]
     root = final.parent
     for stale in fsutil.clean_stale_work(root, study.name):
@@ -345,6 +388,14 @@ def run_study(path: str | Path, out_root: str | Path = "reports", quick: bool = 
         if quick:
             outcome.extra["quick"] = {"settings": settings, "kfold": (study.kfold, kfold)}
         _assign_weights(outcome)
+        # What `bayesfric size` needs to answer sizing questions later without refitting.
+        record = sizing.weights_record(outcome)
+        sizing.write_record(work, record)
+        if questions:
+            print(f"[{study.name}] sizing {len(questions)} question(s) ...", flush=True)
+            law_sources = sizing.sources(record, work, [w.name for w in outcome.laws],
+                                         fits={w.name: w.fit for w in outcome.laws})
+            outcome.sizing = sizing.size_study(questions, ds, law_sources, record, study_name=study.name, seed=seed)
         outcome.seconds = time.perf_counter() - start
         outcome.findings = _findings(outcome) + outcome.findings
         figures = _figures(outcome, work)
@@ -370,4 +421,9 @@ def _figures(out: StudyOutcome, folder: Path) -> list[Path]:
         held = next((out.heldout[s] for s, b in pairs if b.axis == axis), None)
         paths.append(plot_predictive(out.data, fits, axis, folder / "figures" / f"predictive_{axis}.png",
                                      heldout=held, title=out.study.title))
+    if out.sizing is not None:
+        for i, answer in enumerate(out.sizing.answers):
+            if answer.fan is not None:
+                paths.append(plot_sizing_fan(out.sizing, answer, folder / "figures" / f"sizing_{i + 1}.png",
+                                             title=out.study.title))
     return paths

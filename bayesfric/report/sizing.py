@@ -1,0 +1,279 @@
+"""Renderings of a :class:`bayesfric.sizing.SizingResult`: ``sizing.csv`` records, the sizing
+section of ``summary.md`` and ``report.html``, and the text ``bayesfric size`` prints.
+
+Nothing here computes a sizing number: every value comes from the result; this module only
+picks rows, converts SI to the units the question and data use, and formats.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from bayesfric.quantities import QUANTITIES
+from bayesfric.report.tables import format_table
+from bayesfric.sizing import EXTRAPOLATION_WARN, LEVELS, RANGE_POINTS, Answer, SizingResult
+
+__all__ = ["Section", "sections", "records", "text_report", "RANGE_ROWS"]
+
+#: Points of a range shown in the along-the-range table (sizing.csv has every point).
+RANGE_ROWS = 6
+
+_MEAN_FN = "mean function (parameter uncertainty only)"
+_NOISY = "with observation noise (what the drive meets)"
+
+
+@dataclass
+class Section:
+    """One question, ready to render: a heading, lines of text, warnings and tables."""
+
+    title: str
+    lines: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    tables: list[tuple[str, list[str], list[list[str]]]] = field(default_factory=list)  # caption, header, rows
+    figure: str | None = None  # the fan figure: file name (Markdown) or base64 PNG (HTML), when one was drawn
+
+
+def _g(x: float, digits: int = 4) -> str:
+    return f"{x:.{digits}g}" if isinstance(x, float | int | np.floating) and math.isfinite(x) else "–"
+
+
+def _w(x: float) -> str:
+    return f"{x:.3f}" if isinstance(x, float | int) and math.isfinite(x) else "–"
+
+
+def _pct(level: float) -> str:
+    return f"{level * 100:g} %"
+
+
+def _energy_unit(joules: float) -> tuple[str, float]:
+    for unit, scale in (("MJ", 1e6), ("kJ", 1e3)):
+        if abs(joules) >= scale:
+            return unit, scale
+    return "J", 1.0
+
+
+def _point_text(answer: Answer, j: int) -> str:
+    return ", ".join(f"{k} = {_g(float(v.display(answer.grid[k][j])))} {v.unit}" for k, v in answer.question.at.items())
+
+
+def _distance_text(answer: Answer, j: int) -> str:
+    parts = []
+    for k, v in answer.question.at.items():
+        if k not in answer.distance:
+            continue
+        lo, hi = (float(x) for x in v.display(np.array(answer.tested[k])))
+        d = float(answer.distance[k][j])
+        where = "inside" if d == 0 else ("above" if answer.grid[k][j] > answer.tested[k][1] else "below")
+        parts.append(f"{k} {_g(d, 3)} ({where} the tested {_g(min(lo, hi))}–{_g(max(lo, hi))} {v.unit})")
+    return "; ".join(parts)
+
+
+def _p_text(p: float, se: float, bound: float) -> str:
+    if not math.isfinite(p):
+        return "–"
+    if math.isfinite(bound):
+        return f"< {bound:.2g} (no draw exceeds)" if p == 0 else f"> {1 - bound:.4g} (every draw exceeds)"
+    return f"{p:.3g} ± {se:.2g}"
+
+
+def _law_table(result: SizingResult, answer: Answer, j: int) -> tuple[str, list[str], list[list[str]]]:
+    scale, unit, c = result.response_scale, result.response_unit, answer.question.confidence
+    header = ["law", "weight (blocked)", "used", "weight (LOO)",
+              *(f"mean fn {_pct(q)}" for q in LEVELS), *(f"with noise {_pct(q)}" for q in LEVELS),
+              f"required @ {c:g}"]
+    capacity = answer.question.capacity
+    if capacity is not None:
+        header.append(f"P(|{result.response}| > {capacity.text})")
+    rows = []
+
+    def row(name, w_raw, w_used, w_loo, mean_fn, noisy, required, p=None):
+        cells = [name, _w(w_raw), _w(w_used), _w(w_loo)]
+        cells += [_g(float(mean_fn.q(q)[j]) / scale) for q in LEVELS]
+        cells += [_g(float(noisy.q(q)[j]) / scale) for q in LEVELS]
+        cells.append(_g(float(required[j]) / scale))
+        if capacity is not None:
+            cells.append(_p_text(*(float(x[j]) for x in p)) if p is not None else "–")
+        return cells
+
+    for a in answer.used:
+        rows.append(row(a.name, a.weight_raw, a.weight, a.weight_loo, a.mean_fn, a.noisy, a.required,
+                        (a.p_exceed, a.p_se, a.p_bound)))
+    for a in answer.laws:  # for reference, marked: never in the average
+        if a.excluded is not None:
+            rows.append(row(f"{a.name} (EXCLUDED)", a.weight_raw, math.nan, a.weight_loo, a.mean_fn, a.noisy,
+                            a.required, (a.p_exceed, a.p_se, a.p_bound)))
+    for mix, name in ((answer.average, "MODEL AVERAGE"), (answer.average_loo, "average by LOO weights")):
+        if mix is not None and (len(answer.laws) > 1):
+            rows.append(row(name, math.nan, 1.0 if name == "MODEL AVERAGE" else math.nan, math.nan, mix.mean_fn,
+                            mix.noisy, mix.required, (mix.p_exceed, mix.p_se, mix.p_bound)))
+    caption = (f"|{result.response}| [{unit}] at {_point_text(answer, j)}: quantiles of the {_MEAN_FN} and "
+               f"{_NOISY}; required capacity = the {c:g} quantile with noise")
+    return caption, header, rows
+
+
+def _split_table(result: SizingResult, answer: Answer, j: int) -> tuple[str, list[str], list[list[str]]] | None:
+    mix = answer.average
+    if mix is None:
+        return None
+    scale, unit = result.response_scale, result.response_unit
+    total = float(mix.var_total[j])
+    rows = []
+    for name, var in (("parameter (within-law)", mix.var_param), ("observation noise", mix.var_noise),
+                      ("between-law disagreement", mix.var_between)):
+        v = float(var[j])
+        rows.append([name, _g(v / scale**2), _g(math.sqrt(v) / scale if v >= 0 else math.nan),
+                     f"{v / total:.1%}" if total > 0 and math.isfinite(total) else "–"])
+    rows.append(["total", _g(total / scale**2), _g(math.sqrt(total) / scale if total >= 0 else math.nan), "100 %"])
+    caption = (f"variance split of the model average at {_point_text(answer, j)} (law of total variance, weights "
+               f"as used)")
+    return caption, ["component", f"variance [{unit}²]", f"sd [{unit}]", "share"], rows
+
+
+def _energy_table(result: SizingResult, answer: Answer, j: int) -> tuple[str, list[str], list[list[str]]] | None:
+    rotation = answer.question.energy_rotation
+    if rotation is None:
+        return None
+    c = answer.question.confidence
+    spreads = [(a.name, a.mean_fn, a.noisy) for a in answer.used]
+    if answer.average is not None and len(answer.laws) > 1:
+        spreads.append(("MODEL AVERAGE", answer.average.mean_fn, answer.average.noisy))
+    spreads += [(f"{a.name} (EXCLUDED)", a.mean_fn, a.noisy) for a in answer.laws if a.excluded is not None]
+    top = max((float(answer.energy(n, c)[j]) for _, _, n in spreads), default=1.0)
+    unit, scale = _energy_unit(top)
+    header = ["law", *(f"mean fn {_pct(q)}" for q in LEVELS), *(f"with noise {_pct(q)}" for q in LEVELS),
+              f"required @ {c:g}"]
+    rows = [[name, *(_g(float(answer.energy(m, q)[j]) / scale) for q in LEVELS),
+             *(_g(float(answer.energy(n, q)[j]) / scale) for q in LEVELS), _g(float(answer.energy(n, c)[j]) / scale)]
+            for name, m, n in spreads]
+    caption = (f"friction energy of one {rotation.text} rotation [{unit}] at {_point_text(answer, j)}: "
+               f"E = |{result.response}| · θ per draw (torque assumed independent of the angle; with noise, the "
+               "scatter is taken to last the whole rotation)")
+    return caption, header, rows
+
+
+def _range_table(result: SizingResult, answer: Answer) -> tuple[str, list[str], list[list[str]]] | None:
+    axis = answer.question.axis
+    mix = answer.average
+    if axis is None or mix is None:
+        return None
+    value = answer.question.at[axis]
+    scale, c = result.response_scale, answer.question.confidence
+    picks = sorted(set(np.linspace(0, answer.n_points - 1, RANGE_ROWS).round().astype(int)) | {answer.governing})
+    header = [f"{axis} [{value.unit}]", "extrapolation distance", "median with noise", f"required @ {c:g}"]
+    capacity = answer.question.capacity
+    if capacity is not None:
+        header.append(f"P(|{result.response}| > {capacity.text})")
+    rows = []
+    for j in picks:
+        med, req = float(mix.noisy.q(0.5)[j]), float(mix.required[j])
+        p = _p_text(float(mix.p_exceed[j]), float(mix.p_se[j]), float(mix.p_bound[j]))
+        cells = [_g(float(value.display(answer.grid[axis][j]))), _g(float(answer.distance[axis][j]), 3),
+                 _g(med / scale), _g(req / scale)]
+        if capacity is not None:
+            cells.append(p)
+        rows.append(cells)
+    caption = (f"model average along {axis} {value.text} [{result.response_unit}] ({RANGE_POINTS} points sized; "
+               "every point in sizing.csv)")
+    return caption, header, rows
+
+
+def sections(result: SizingResult, figures: dict[int, str] | None = None) -> list[Section]:
+    """One :class:`Section` per question (``figures``: question index -> fan figure file name)."""
+    out = []
+    for i, answer in enumerate(result.answers):
+        q = answer.question
+        j = answer.governing
+        sec = Section(f"Sizing {i + 1}: {q.label}", figure=(figures or {}).get(i))
+        extra = f"; available capacity {q.capacity.text}" if q.capacity is not None else ""
+        sec.lines.append(f"Asked: {q.describe()}; confidence {q.confidence:g}{extra}.")
+        if q.axis and answer.used:
+            sec.lines.append(f"The range of {q.axis} is sized at {answer.n_points} points; the tables give the "
+                             f"governing point {_point_text(answer, j)} (largest required capacity).")
+        sec.lines.append(f"Extrapolation distance (tested ranges beyond the data; warning above "
+                         f"{EXTRAPOLATION_WARN:g}): {_distance_text(answer, j)}.")
+        if q.axis and answer.n_points > 1:
+            worst = {k: float(np.max(d)) for k, d in answer.distance.items()}
+            sec.lines.append("Largest over the range: " + "; ".join(f"{k} {_g(d, 3)}" for k, d in worst.items()) + ".")
+        if result.basis == "single fit":
+            sec.lines.append("One fit: no model average.")
+        elif answer.average is not None:
+            sec.lines.append(f"Model average: weights '{result.basis}' (stacking on the first blocked extrapolation "
+                             "scheme when the study has one), renormalised over the laws sizing uses ('used'); "
+                             f"'{result.basis_loo or 'no LOO'}' weights shown beside and as a second average.")
+        else:
+            sec.warnings.append(f"no model average: {answer.no_average}")
+        excluded = [f"{a.name} ({a.excluded})" for a in answer.laws if a.excluded is not None]
+        if excluded:
+            sec.lines.append("Excluded from sizing, never averaged (rows marked EXCLUDED, for reference only): "
+                             + "; ".join(excluded) + ".")
+        notes = [f"{a.name}: {a.weight_note}" for a in answer.used if a.weight_note]
+        if notes:
+            sec.lines.append("Left out of the weighting (weight 0): " + "; ".join(notes) + ".")
+        sec.warnings += answer.warnings
+        sec.tables.append(_law_table(result, answer, j))
+        for table in (_split_table(result, answer, j), _energy_table(result, answer, j), _range_table(result, answer)):
+            if table is not None:
+                sec.tables.append(table)
+        out.append(sec)
+    return out
+
+
+def text_report(result: SizingResult) -> str:
+    """What ``bayesfric size`` prints."""
+    lines = [f"sizing from {result.source}", result.provenance,
+             "magnitudes |T|: friction opposes motion, so the drive must overcome |T| in either direction", ""]
+    for sec in sections(result):
+        lines += [sec.title, "=" * min(len(sec.title), 100)]
+        lines += sec.lines + [f"WARNING: {w}" for w in sec.warnings] + [""]
+        for caption, header, rows in sec.tables:
+            lines += [caption, format_table(header, rows), ""]
+    return "\n".join(lines)
+
+
+def records(result: SizingResult) -> list[dict]:
+    """``sizing.csv``: one row per question, point and law (plus the averages), SI units."""
+    out = []
+    for i, answer in enumerate(result.answers):
+        q = answer.question
+        levels = answer.energy_levels
+        for j in range(answer.n_points):
+            base: dict = {"question": i + 1, "label": q.label, "point": j + 1, "confidence": q.confidence}
+            for k, v in q.at.items():
+                base[k] = float(answer.grid[k][j])
+                base[f"{k} [{v.unit}]"] = float(v.display(answer.grid[k][j]))
+                base[f"distance[{k}]"] = float(answer.distance[k][j]) if k in answer.distance else math.nan
+            base["unit"] = QUANTITIES[result.response].unit
+            base["capacity"] = q.capacity.lo if q.capacity is not None else math.nan
+            base["governing"] = j == answer.governing
+            rows = [(a.name, "law", a.excluded, a.weight_raw, a.weight, a.weight_loo, a.mean_fn, a.noisy, a.required,
+                     a.p_exceed, a.p_se, a.p_bound, a.var_param, a.var_noise, None) for a in answer.laws]
+            for mix, role in ((answer.average, "average"), (answer.average_loo, "average LOO")):
+                if mix is not None:
+                    rows.append((mix.basis, role, None, math.nan, math.nan, math.nan, mix.mean_fn, mix.noisy,
+                                 mix.required, mix.p_exceed, mix.p_se, mix.p_bound, mix.var_param, mix.var_noise,
+                                 mix.var_between))
+            for name, role, excluded, w_raw, w_used, w_loo, mean_fn, noisy, required, p, se, bound, vp, vn, vb in rows:
+                rec = dict(base, role=role, law=name, included=excluded is None, excluded_reason=excluded or "",
+                           weight_stacking_blocked=w_raw, weight_used=w_used, weight_stacking_loo=w_loo)
+                for level in levels:
+                    rec[f"mean_fn_q{level * 100:g}"] = float(mean_fn.q(level)[j])
+                for level in levels:
+                    rec[f"noisy_q{level * 100:g}"] = float(noisy.q(level)[j])
+                rec["required"] = float(required[j])
+                rec["p_exceed"], rec["p_exceed_se"] = float(p[j]), float(se[j])
+                rec["p_exceed_bound"] = float(bound[j]) if bound is not None else math.nan
+                rec["var_param"], rec["var_noise"] = float(vp[j]), float(vn[j])
+                rec["var_between"] = float(vb[j]) if vb is not None else math.nan
+                if q.energy_rotation is not None:
+                    rec["energy_rotation_rad"] = q.energy_rotation.lo
+                    for level in levels:
+                        rec[f"energy_mean_fn_q{level * 100:g}_J"] = float(answer.energy(mean_fn, level)[j])
+                    for level in levels:
+                        rec[f"energy_noisy_q{level * 100:g}_J"] = float(answer.energy(noisy, level)[j])
+                rec["warnings"] = "; ".join(answer.warnings)
+                out.append(rec)
+    return out
+

@@ -1,0 +1,98 @@
+"""Actuator sizing: what torque (or force) must a drive deliver at an operating point nobody
+tested, and how sure are we? Computed once from a study's stored fits and weights (or one fit)
+into a :class:`SizingResult`; ``summary.md``, ``report.html``, ``sizing.csv``, the fan figure and
+``bayesfric size`` render it (:mod:`bayesfric.report.sizing`).
+
+* :mod:`bayesfric.sizing.points` — questions: values with units, ranges, checks against the data;
+* :mod:`bayesfric.sizing.compute` — predictive draws, quantiles, required capacity, exceedance
+  probability, model average, variance split, extrapolation distance, energy of a rotation;
+* :mod:`bayesfric.sizing.store` — ``weights.json``: what a study run stores so sizing never refits.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import xarray as xr
+
+from bayesfric.quantities import QUANTITIES, conversion
+from bayesfric.sizing.compute import (
+    EXTRAPOLATION_WARN,
+    FAN_POINTS,
+    LEVELS,
+    Answer,
+    LawSource,
+    Mixture,
+    SizingResult,
+    answer,
+    answer_question,
+    extrapolation_distance,
+    predict,
+    tested_ranges,
+    variance_split,
+    weighted_quantiles,
+)
+from bayesfric.sizing.points import (
+    CLI_KEYS,
+    RANGE_POINTS,
+    SizingError,
+    SizingQuestion,
+    Value,
+    check_question,
+    make_question,
+    parse_at,
+    parse_capacity,
+    parse_value,
+)
+from bayesfric.sizing.store import RECORD, exclusion, read_record, sources, weights_record, write_record
+
+__all__ = [
+    "CLI_KEYS", "EXTRAPOLATION_WARN", "FAN_POINTS", "LEVELS", "RANGE_POINTS", "RECORD", "Answer", "LawSource",
+    "Mixture",
+    "SizingError", "SizingQuestion", "SizingResult", "Value", "answer", "answer_question", "check_question",
+    "exclusion", "extrapolation_distance", "make_question", "parse_at", "parse_capacity", "parse_value", "predict",
+    "read_record", "sources", "tested_ranges", "variance_split", "weighted_quantiles", "weights_record",
+    "write_record", "size_study", "size_fit", "provenance_of_fit",
+]
+
+
+def _response_display(response: str, unit: str | None) -> tuple[str, float]:
+    unit = unit or QUANTITIES[response].unit
+    scale, _ = conversion(unit, response)
+    return unit, scale
+
+
+def size_study(questions: Sequence[SizingQuestion], ds: xr.Dataset, law_sources: Sequence[LawSource],
+               record: dict, *, study_name: str, seed: int = 0, fan: bool = True) -> SizingResult:
+    """Answer a study's questions from its laws' fits and stored weights (``record``)."""
+    from bayesfric.report.figures import provenance_label
+
+    response = ds.attrs["response"]
+    unit, scale = _response_display(response, ds[response].attrs.get("original_unit"))
+    inputs = [k for k, v in ds.coords.items() if v.attrs.get("role") == "input"]
+    return answer(questions, law_sources, tested_ranges(ds, inputs), response=response, response_unit=unit,
+                  response_scale=scale, provenance=provenance_label(ds),
+                  basis=record.get("average_by") or "", basis_loo=record.get("shown_beside") or "",
+                  source=f"study {study_name}", seed=seed, fan=fan)
+
+
+def provenance_of_fit(fit: xr.DataTree) -> str:
+    """The provenance label of the data a fit was made from (its attrs)."""
+    from bayesfric.report.figures import provenance_label
+
+    attrs = {"provenance": fit.attrs.get("data_provenance", "?"), "source": fit.attrs.get("data_source", "")}
+    return provenance_label(xr.Dataset(attrs=attrs))
+
+
+def size_fit(fit: xr.DataTree, question: SizingQuestion, *, name: str, seed: int = 0) -> SizingResult:
+    """Answer one question for one fit (weight 1; the tested range is the fit's own data)."""
+    from bayesfric.laws import get_law
+
+    law = get_law(fit.attrs["law"])
+    data = fit["constant_data"].to_dataset()
+    unit = question.capacity.unit if question.capacity is not None else None
+    unit, scale = _response_display(law.response, unit)
+    return answer([question], [LawSource(law.name, fit, 1.0)], tested_ranges(data, law.operating_inputs),
+                  response=law.response, response_unit=unit, response_scale=scale,
+                  provenance=provenance_of_fit(fit), basis="single fit", basis_loo="", source=f"fit {name}",
+                  seed=seed, fan=False)

@@ -1,0 +1,492 @@
+"""Actuator sizing from stored fits: predictive torque (or force) at operating points nobody
+tested, the capacity a drive needs at a confidence level, and how much the answer leans on
+extrapolation. Pure computation: fits + weights in, a :class:`SizingResult` out; the reports,
+``sizing.csv``, the fan figure and the CLI only render it.
+
+Per law and point
+    The fit's program is rebuilt on the query points (:func:`bayesfric.compare.program_from_fit`
+    on an in-memory dataset) and the law's **mean function** is evaluated per posterior draw
+    (``jax.vmap``): its spread is *parameter uncertainty*. With partial-pooled group offsets a
+    new, unseen unit (series, blade, run) is sized: one offset per draw from N(0, group_sd),
+    multiplying the mean function at every point of the question (``mu · exp(b)``, as in the
+    model). **With noise** adds one draw of the fit's observation noise per posterior draw:
+    normal ``sigma``; student_t ``sigma``, ``nu``; proportional
+    ``sqrt((sigma_rel · mu)² + sigma_floor²)``.
+
+Magnitudes
+    Friction opposes motion, so the drive must overcome ``|T|`` whichever the direction: every
+    quantile, the required capacity and ``P(|T| > capacity)`` are of the magnitude. The
+    **required capacity** at confidence ``c`` is the ``c``-quantile of ``|T|`` with noise. The
+    Monte Carlo error of ``P`` is binomial, ``sqrt(p (1 − p) / S_eff)`` with ``S_eff`` the
+    effective sample size of the exceedance indicator over the fit's chains (arviz ``ess``,
+    "mean"); when no draw (or every draw) exceeds, the error is 0 and the one-sided 95 % bound
+    ``3 / S`` (rule of three) is given instead.
+
+Model average
+    Laws are mixed by the stacking weights of the first *blocked extrapolation* scheme (the
+    question a sizing asks is an extrapolation), renormalised over the laws sizing may use;
+    LOO stacking weights are shown beside them and give a second average for comparison.
+    Laws that failed the diagnostics gate or whose evidence estimators disagree are
+    *excluded* and listed with the reason, never mixed in. The mixture is evaluated exactly
+    rather than by resampling: its quantiles invert the weighted empirical CDF of all laws'
+    draws (each draw of law k weighs ``w_k / S_k``), ``P`` is ``Σ w_k p_k`` with error
+    ``sqrt(Σ w_k² se_k²)``. The variance of ``|T|`` splits by the law of total variance into
+    *parameter* ``Σ w_k Var_k(|mu|)``, *noise* ``Σ w_k E_k[noise variance]`` and *between-law*
+    ``Σ w_k (E_k|mu| − Σ_j w_j E_j|mu|)²``. The noise variance is the noise model's (exact for
+    ``T`` away from zero); a Student-t draw with ``nu ≤ 2`` has infinite variance: such draws
+    are left out of the noise term and the result says what fraction that was.
+
+Extrapolation distance
+    Per input: 0 inside the tested ``[lo, hi]``, ``(x − hi) / (hi − lo)`` above and
+    ``(lo − x) / (hi − lo)`` below (a single tested value: 0 there, infinite elsewhere); a
+    warning when any distance exceeds :data:`EXTRAPOLATION_WARN`.
+
+Energy (pitch drives, seed 000 §1)
+    The friction energy of one rotation through ``θ`` at constant load and speed is
+    ``E = ∫ |T| dθ = |T| · θ`` per draw, *assuming the torque does not depend on the angle*; its
+    quantiles are those of ``|T|`` times ``θ`` (in J). With noise, the scatter is taken to last
+    the whole rotation (conservative: it does if it is a block offset, averages out if it is
+    fast vibration).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import zlib
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import arviz as az
+import jax
+import jax.numpy as jnp
+import numpy as np
+import xarray as xr
+
+from bayesfric.datasets.synthetic import make_dataset
+from bayesfric.inference.diagnostics import verdict_of
+from bayesfric.laws import get_law
+from bayesfric.sizing.points import SizingError, SizingQuestion
+
+__all__ = [
+    "EXTRAPOLATION_WARN", "FAN_POINTS", "LEVELS", "LawSource", "Draws", "Spread", "LawAnswer", "Mixture",
+    "Fan", "Answer", "SizingResult", "extrapolation_distance", "tested_ranges", "predict", "weighted_quantiles",
+    "mixture", "variance_split", "answer_question", "answer",
+]
+
+#: A point more than this many tested ranges beyond the data (along any input) carries a warning.
+EXTRAPOLATION_WARN = 0.5
+#: Points along the fan figure's axis.
+FAN_POINTS = 61
+#: Quantile levels reported besides the question's confidence level.
+LEVELS = (0.05, 0.5, 0.95)
+
+
+@dataclass(frozen=True)
+class LawSource:
+    """What sizing needs of one law: its fit, its weights and why it is excluded (None: used).
+
+    ``weight``: stacking weight of the first blocked extrapolation scheme (NaN: not computed);
+    ``weight_loo``: stacking weight from PSIS-LOO; ``weight_note``: why the weighting gave it 0.
+    """
+
+    name: str
+    fit: xr.DataTree
+    weight: float = math.nan
+    weight_loo: float = math.nan
+    excluded: str | None = None
+    weight_note: str = ""
+
+
+@dataclass
+class Draws:
+    """Predictive draws of one law at ``n`` points, shaped (chain, draw, n)."""
+
+    mu: np.ndarray  # mean function (new-unit offset included), signed
+    y: np.ndarray  # with observation noise, signed
+    noise_var: np.ndarray  # noise-model variance per draw and point (inf: Student-t with nu <= 2)
+
+    @property
+    def n_draws(self) -> int:
+        return int(self.mu.shape[0] * self.mu.shape[1])
+
+
+@dataclass(frozen=True)
+class Spread:
+    """Quantiles (level -> array over points) and mean of a predictive of ``|T|``."""
+
+    quantiles: dict[float, np.ndarray]
+    mean: np.ndarray
+
+    def q(self, level: float) -> np.ndarray:
+        return self.quantiles[level]
+
+
+@dataclass
+class LawAnswer:
+    """One law's answer at every point of a question (arrays over points)."""
+
+    name: str
+    weight: float  # in the average (renormalised over the laws used; 0 if excluded)
+    weight_raw: float  # the study's stacking weight of the first blocked scheme, as computed
+    weight_loo: float  # the study's LOO stacking weight, as computed
+    excluded: str | None
+    weight_note: str
+    mean_fn: Spread  # |mu|: parameter uncertainty only
+    noisy: Spread  # |T| with observation noise
+    required: np.ndarray  # confidence-quantile of |T| with noise
+    p_exceed: np.ndarray  # P(|T| > capacity); NaN without a capacity
+    p_se: np.ndarray  # binomial MC error with S_eff; 0 when p is 0 or 1
+    p_bound: np.ndarray  # 3/S where no draw (p = 0) or every draw (p = 1) exceeds, else NaN
+    ess: np.ndarray  # S_eff of the exceedance indicator (NaN without a capacity)
+    var_param: np.ndarray
+    var_noise: np.ndarray
+    infinite_noise: float  # fraction of draws whose noise variance is infinite (Student-t nu <= 2)
+    n_draws: int
+
+
+@dataclass
+class Mixture:
+    """A model-averaged predictive (arrays over points) with its variance split."""
+
+    basis: str  # which weights
+    weights: dict[str, float]
+    mean_fn: Spread
+    noisy: Spread
+    required: np.ndarray
+    p_exceed: np.ndarray
+    p_se: np.ndarray
+    p_bound: np.ndarray  # Σ w_k 3/S_k where no draw of any law (or every draw) exceeds, else NaN
+    var_param: np.ndarray
+    var_noise: np.ndarray
+    var_between: np.ndarray
+
+    @property
+    def var_total(self) -> np.ndarray:
+        return self.var_param + self.var_noise + self.var_between
+
+
+@dataclass
+class Fan:
+    """Predictive bands along one input (the fan figure), other inputs at the question's values."""
+
+    axis: str
+    x: np.ndarray  # SI
+    tested: tuple[float, float]
+    laws: dict[str, dict[str, np.ndarray]]  # law -> {"curve": median |mu|, "lo", "hi": 5/95 % of |T| with noise}
+    excluded: list[str]  # laws drawn for reference only
+    average: dict[str, np.ndarray] | None  # {"curve", "lo", "hi", "required"} of the blocked-weight average
+
+
+@dataclass
+class Answer:
+    """The answer to one sizing question."""
+
+    question: SizingQuestion
+    grid: dict[str, np.ndarray]  # input -> SI values at every point
+    tested: dict[str, tuple[float, float]]  # input -> tested [lo, hi] (SI)
+    distance: dict[str, np.ndarray]  # input -> extrapolation distance at every point
+    laws: list[LawAnswer]  # every law, excluded ones marked
+    average: Mixture | None
+    average_loo: Mixture | None
+    no_average: str  # why there is no average ("" when there is)
+    governing: int  # point of the largest required capacity (average, else the largest over laws)
+    energy_levels: tuple[float, ...]
+    warnings: list[str] = field(default_factory=list)
+    fan: Fan | None = None
+
+    @property
+    def n_points(self) -> int:
+        return len(next(iter(self.grid.values())))
+
+    @property
+    def used(self) -> list[LawAnswer]:
+        return [w for w in self.laws if w.excluded is None]
+
+    def energy(self, spread: Spread, level: float) -> np.ndarray:
+        """Friction energy (J) of one rotation at a quantile of ``spread`` (|T| · θ, see the module)."""
+        return spread.q(level) * self.question.energy_rotation.lo
+
+
+@dataclass
+class SizingResult:
+    """Every question's answer, with what the renderings need to say where the numbers come from."""
+
+    answers: list[Answer]
+    response: str  # torque | force
+    response_unit: str  # display unit (data's own, or the capacity's)
+    response_scale: float  # SI = scale * display
+    provenance: str  # the data's provenance label
+    basis: str  # averaging weights
+    basis_loo: str
+    source: str  # "study <name>" or "fit <file>"
+
+
+# -- small pieces ----------------------------------------------------------------------------------
+def extrapolation_distance(x, lo: float, hi: float) -> np.ndarray:
+    """How far ``x`` lies beyond the tested ``[lo, hi]``, in tested ranges (0 inside)."""
+    x = np.asarray(x, dtype=float)
+    width = hi - lo
+    if width <= 0:
+        return np.where(x == lo, 0.0, np.inf)
+    return np.where(x > hi, (x - hi) / width, np.where(x < lo, (lo - x) / width, 0.0))
+
+
+def tested_ranges(ds: xr.Dataset, inputs: Sequence[str]) -> dict[str, tuple[float, float]]:
+    """Tested [min, max] (SI) of each input in the data (an xarray Dataset or the fit's constant_data)."""
+    return {k: (float(np.min(ds[k].values)), float(np.max(ds[k].values))) for k in inputs if k in ds}
+
+
+def weighted_quantiles(values: np.ndarray, weights: np.ndarray, levels: Sequence[float]) -> dict[float, np.ndarray]:
+    """Quantiles per column of ``values`` (S, n) under draw ``weights`` (S,): the smallest value
+    whose weighted CDF reaches the level (the inverse of the weighted empirical CDF)."""
+    order = np.argsort(values, axis=0, kind="stable")
+    sorted_values = np.take_along_axis(values, order, axis=0)
+    cdf = np.cumsum(weights[order], axis=0) / weights.sum()
+    out = {}
+    for level in levels:
+        idx = np.minimum((cdf < level - 1e-12).sum(axis=0), values.shape[0] - 1)
+        out[level] = sorted_values[idx, np.arange(values.shape[1])]
+    return out
+
+
+def variance_split(weights: Sequence[float], means: np.ndarray, var_param: np.ndarray,
+                   var_noise: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Law of total variance over a weighted mixture of laws (arrays shaped (laws, n)):
+    parameter ``Σ w Var_param``, noise ``Σ w E[noise var]``, between-law ``Σ w (m − Σ w m)²``."""
+    w = np.asarray(weights, dtype=float)[:, None]
+    w = w / w.sum()
+    grand = (w * means).sum(axis=0)
+    return (w * var_param).sum(axis=0), (w * var_noise).sum(axis=0), (w * (means - grand) ** 2).sum(axis=0)
+
+
+def _levels(confidence: float) -> tuple[float, ...]:
+    return tuple(sorted(set(LEVELS) | {confidence}))
+
+
+# -- prediction ----------------------------------------------------------------------------------
+def predict(fit: xr.DataTree, grid: Mapping[str, np.ndarray], seed: int = 0) -> Draws:
+    """Mean-function and noisy predictive draws of a fit at the points ``grid`` (input -> SI values).
+
+    Raises
+    ------
+    SizingError
+        The fit's law is a trajectory (stateful) law, or ``grid`` lacks an input it reads.
+    """
+    from bayesfric.compare.refit import program_from_fit
+
+    law = get_law(fit.attrs["law"])
+    if law.trajectory:
+        raise SizingError("", f"law {law.name!r} is a trajectory (stateful) law: its friction depends on the "
+                              "path, so it cannot be sized at an operating point")
+    missing = [k for k in law.operating_inputs if k not in grid]
+    if missing:
+        raise SizingError("", f"law {law.name!r} reads {', '.join(missing)}, which the point does not give")
+    n = len(next(iter(grid.values())))
+    noise = json.loads(fit.attrs["noise"])
+    groups = {noise["group"]: np.array(["new unit"] * n)} if noise.get("group") else None
+    query = make_dataset({k: np.asarray(grid[k], dtype=float) for k in law.operating_inputs}, np.zeros(n),
+                         response_quantity=law.response, groups=groups, name="sizing points")
+    program = program_from_fit(fit, query)
+    post = fit["posterior"].to_dataset()
+    chains, draws = post.sizes["chain"], post.sizes["draw"]
+    s = chains * draws
+
+    def flat(name: str) -> np.ndarray:
+        v = np.asarray(post[name].values, dtype=float)
+        return v.reshape((s,) + v.shape[2:])
+
+    params = {k: jnp.asarray(flat(k)) for k in law.params}
+    inputs = {k: jnp.asarray(v) for k, v in program.inputs.items()}
+    mu = np.asarray(jax.vmap(lambda p: law.mean(inputs, p, program.constants))(params), dtype=float)
+    mu = np.broadcast_to(mu, (s, n)).copy()
+    rng = np.random.default_rng([seed, zlib.crc32(law.name.encode())])
+    if noise.get("group"):
+        mu *= np.exp(rng.normal(0.0, 1.0, (s, 1)) * flat("group_sd")[:, None])
+    # One standardised noise draw per posterior draw, shared by the question's points (common
+    # random numbers): each point's distribution is unchanged, and curves along a range are smooth.
+    kind = noise["kind"]
+    if kind == "normal":
+        sd = np.full((s, 1), float(noise["sigma"])) if noise.get("sigma") is not None else flat("sigma")[:, None]
+        sd = np.broadcast_to(sd, (s, n))
+        y, var = mu + sd * rng.normal(size=(s, 1)), sd**2
+    elif kind == "student_t":
+        sigma, nu = flat("sigma")[:, None], flat("nu")[:, None]
+        y = mu + sigma * rng.standard_t(nu)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            var = np.broadcast_to(np.where(nu > 2, sigma**2 * nu / (nu - 2), np.inf), (s, n))
+    else:
+        sd = np.sqrt((flat("sigma_rel")[:, None] * mu) ** 2 + flat("sigma_floor")[:, None] ** 2)
+        y, var = mu + sd * rng.normal(size=(s, 1)), sd**2
+    shape = (chains, draws, n)
+    return Draws(mu.reshape(shape), y.reshape(shape), np.asarray(var, dtype=float).reshape(shape))
+
+
+def _spread(values: np.ndarray, levels: Sequence[float]) -> Spread:
+    flat = values.reshape(-1, values.shape[-1])
+    return Spread({q: np.quantile(flat, q, axis=0) for q in levels}, flat.mean(axis=0))
+
+
+def _exceedance(y_abs: np.ndarray, capacity: float | None) -> tuple[np.ndarray, ...]:
+    """P(|T| > capacity) per point, its MC error, the rule-of-three bound and S_eff."""
+    n = y_abs.shape[-1]
+    if capacity is None:
+        nan = np.full(n, np.nan)
+        return nan, nan, nan, nan
+    s = y_abs.shape[0] * y_abs.shape[1]
+    hit = (y_abs > capacity).astype(float)
+    p = hit.mean(axis=(0, 1))
+    ess = np.full(n, float(s))
+    bound = np.full(n, np.nan)
+    for j in range(n):
+        if 0 < p[j] < 1:
+            e = float(az.ess(hit[:, :, j], method="mean")) if hit.shape[0] > 1 or hit.shape[1] > 3 else float(s)
+            ess[j] = e if math.isfinite(e) and e > 0 else float(s)
+        else:
+            bound[j] = 3.0 / s
+    se = np.sqrt(p * (1 - p) / ess)
+    return p, se, bound, ess
+
+
+def _law_answer(source: LawSource, draws: Draws, question: SizingQuestion, levels,
+                exceedance: bool = True) -> LawAnswer:
+    mu_abs, y_abs = np.abs(draws.mu), np.abs(draws.y)
+    mean_fn, noisy = _spread(mu_abs, levels), _spread(y_abs, levels)
+    capacity = question.capacity.lo if question.capacity is not None and exceedance else None
+    p, se, bound, ess = _exceedance(y_abs, capacity)
+    var = draws.noise_var.reshape(-1, draws.noise_var.shape[-1])
+    finite = np.isfinite(var)
+    infinite = float(1.0 - finite[:, 0].mean()) if var.size else 0.0
+    var_noise = np.where(finite.any(axis=0), np.nanmean(np.where(finite, var, np.nan), axis=0), np.inf)
+    return LawAnswer(
+        name=source.name, weight=0.0, weight_raw=source.weight, weight_loo=source.weight_loo, excluded=source.excluded,
+        weight_note=source.weight_note, mean_fn=mean_fn, noisy=noisy, required=noisy.q(question.confidence),
+        p_exceed=p, p_se=se, p_bound=bound, ess=ess, var_param=mu_abs.reshape(-1, mu_abs.shape[-1]).var(axis=0),
+        var_noise=var_noise, infinite_noise=infinite, n_draws=draws.n_draws,
+    )
+
+
+def mixture(answers: Sequence[LawAnswer], draws: Mapping[str, Draws], weights: Mapping[str, float],
+            confidence: float, levels: Sequence[float], basis: str) -> Mixture:
+    """The model average of ``answers`` under ``weights`` (law -> weight > 0; see the module)."""
+    names = [a.name for a in answers if weights.get(a.name, 0.0) > 0]
+    total = sum(weights[k] for k in names)
+    w = {k: weights[k] / total for k in names}
+    picked = [a for a in answers if a.name in w]
+    mu = np.concatenate([np.abs(draws[a.name].mu).reshape(-1, draws[a.name].mu.shape[-1]) for a in picked])
+    y = np.concatenate([np.abs(draws[a.name].y).reshape(-1, draws[a.name].y.shape[-1]) for a in picked])
+    per_draw = np.concatenate([np.full(a.n_draws, w[a.name] / a.n_draws) for a in picked])
+    mean_fn = Spread(weighted_quantiles(mu, per_draw, levels), per_draw @ mu)
+    noisy = Spread(weighted_quantiles(y, per_draw, levels), per_draw @ y)
+    ws = np.array([w[a.name] for a in picked])
+    p = sum(w[a.name] * a.p_exceed for a in picked)
+    se = np.sqrt(sum(w[a.name] ** 2 * a.p_se**2 for a in picked))
+    edge = (p == 0) | (p == 1)
+    bound = np.where(edge, sum(w[a.name] * 3.0 / a.n_draws for a in picked), np.nan)
+    param, noise, between = variance_split(ws, np.array([a.mean_fn.mean for a in picked]),
+                                           np.array([a.var_param for a in picked]),
+                                           np.array([a.var_noise for a in picked]))
+    return Mixture(basis, w, mean_fn, noisy, noisy.q(confidence), p, se, bound, param, noise, between)
+
+
+# -- one question --------------------------------------------------------------------------------
+def _fan_axis(question: SizingQuestion, distance: Mapping[str, np.ndarray],
+              tested: Mapping[str, tuple[float, float]]) -> str | None:
+    if question.axis:
+        return question.axis
+    spans = [k for k in question.at if k in tested and tested[k][1] > tested[k][0]]
+    if not spans:
+        return None
+    return max(spans, key=lambda k: float(np.max(distance[k])))
+
+
+def answer_question(question: SizingQuestion, sources: Sequence[LawSource],
+                    tested: Mapping[str, tuple[float, float]], *, seed: int = 0, basis: str = "",
+                    basis_loo: str = "", fan: bool = True) -> Answer:
+    """Answer one question from the laws' fits and weights (see the module docstring).
+
+    ``tested`` gives the tested [lo, hi] (SI) of every input of the question.
+    """
+    levels = _levels(question.confidence)
+    grid = question.grid()
+    distance = {k: extrapolation_distance(grid[k], *tested[k]) for k in grid if k in tested}
+    draws = {s.name: predict(s.fit, grid, seed) for s in sources}
+    answers = [_law_answer(s, draws[s.name], question, levels) for s in sources]
+    used = [a for a in answers if a.excluded is None]
+    warnings = []
+    for k, d in distance.items():
+        worst = float(np.max(d))
+        if worst > EXTRAPOLATION_WARN:
+            warnings.append(f"{k}: up to {worst:.2f} tested ranges beyond the data (more than "
+                            f"{EXTRAPOLATION_WARN:g}): the answer rests on extrapolation")
+    if len(sources) == 1 and "diagnostics" in sources[0].fit.attrs and not verdict_of(sources[0].fit).passed:
+        problems = "; ".join(verdict_of(sources[0].fit).problems)
+        warnings.append(f"the fit of {sources[0].name} FAILED the diagnostics gate ({problems}): "
+                        "its answer is not reliable")
+    for a in used:
+        if a.infinite_noise > 0:
+            warnings.append(f"{a.name}: {a.infinite_noise:.1%} of draws have Student-t nu ≤ 2 (infinite noise "
+                            "variance), left out of its noise variance term")
+    weights = {s.name: s.weight for s in sources if s.excluded is None}
+    weights_loo = {s.name: s.weight_loo for s in sources if s.excluded is None}
+    average = average_loo = None
+    no_average = ""
+    if len(used) == 1 and len(sources) == 1:
+        weights = {used[0].name: 1.0}
+    good = {k: v for k, v in weights.items() if math.isfinite(v) and v > 0}
+    if good:
+        average = mixture(used, draws, good, question.confidence, levels, basis)
+        for a in answers:
+            a.weight = average.weights.get(a.name, 0.0)
+    else:
+        no_average = ("every law is excluded" if not used else
+                      f"no law sizing may use has a positive weight ({basis or 'no weights computed'})")
+    good_loo = {k: v for k, v in weights_loo.items() if math.isfinite(v) and v > 0}
+    if good_loo and len(used) > 1:
+        average_loo = mixture(used, draws, good_loo, question.confidence, levels, basis_loo)
+    if average is not None:
+        governing = int(np.argmax(average.required))
+    elif used:
+        governing = int(np.argmax(np.max([a.required for a in used], axis=0)))
+    else:
+        governing = 0
+    out = Answer(question, grid, dict(tested), distance, answers, average, average_loo, no_average, governing,
+                 levels, warnings)
+    if fan:
+        out.fan = _fan(out, sources, seed)
+    return out
+
+
+def _fan(out: Answer, sources: Sequence[LawSource], seed: int) -> Fan | None:
+    question = out.question
+    axis = _fan_axis(question, out.distance, out.tested)
+    if axis is None:
+        return None
+    lo, hi = out.tested[axis]
+    x = np.linspace(min(lo, question.at[axis].lo), max(hi, question.at[axis].hi), FAN_POINTS)
+    grid = {k: (x if k == axis else np.full(FAN_POINTS, v.lo)) for k, v in question.at.items()}
+    levels = _levels(question.confidence)
+    draws = {s.name: predict(s.fit, grid, seed) for s in sources}
+    bands = {}
+    for s in sources:
+        y = np.abs(draws[s.name].y).reshape(-1, FAN_POINTS)
+        mu = np.abs(draws[s.name].mu).reshape(-1, FAN_POINTS)
+        bands[s.name] = {"curve": np.median(mu, axis=0), "lo": np.quantile(y, LEVELS[0], axis=0),
+                         "hi": np.quantile(y, LEVELS[-1], axis=0)}
+    average = None
+    if out.average is not None:
+        stub = [_law_answer(s, draws[s.name], question, levels, exceedance=False)
+                for s in sources if s.name in out.average.weights]
+        mix = mixture(stub, draws, out.average.weights, question.confidence, levels, out.average.basis)
+        average = {"curve": mix.mean_fn.q(0.5), "lo": mix.noisy.q(LEVELS[0]), "hi": mix.noisy.q(LEVELS[-1]),
+                   "required": mix.required}
+    return Fan(axis, x, (lo, hi), bands, [s.name for s in sources if s.excluded is not None], average)
+
+
+def answer(questions: Sequence[SizingQuestion], sources: Sequence[LawSource],
+           tested: Mapping[str, tuple[float, float]], *, response: str, response_unit: str, response_scale: float,
+           provenance: str, basis: str, basis_loo: str, source: str, seed: int = 0, fan: bool = True) -> SizingResult:
+    """Answer every question (see :func:`answer_question`); ``fan``: also the fan figures' bands."""
+    answers = [answer_question(q, sources, tested, seed=seed, basis=basis, basis_loo=basis_loo, fan=fan)
+               for q in questions]
+    return SizingResult(answers, response, response_unit, response_scale, provenance, basis, basis_loo, source)

@@ -1,0 +1,247 @@
+"""Sizing questions: operating values with units, ranges, and their checks against the data.
+
+A value is a number and a pint unit of the quantity it names, ``"8 MN*m"``, ``"1.04 rpm"``,
+``"5 degC"`` (``°`` and ``·`` are accepted for ``deg`` and ``*``); a *range* is two numbers and one
+unit, ``"0.5..6 rad/s"`` (smaller first), sized at :data:`RANGE_POINTS` evenly spaced points, both
+ends included. Values are converted to SI and checked against the quantity's physical bound
+(:mod:`bayesfric.quantities`); the unit the user wrote is kept for display.
+
+Every problem is a :class:`SizingError` carrying the key it concerns and a one-line problem;
+callers prefix the location (``studies/x.toml: sizing[0].at.velocity: ...`` or ``--at velocity: ...``).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from bayesfric.errors import UserError
+from bayesfric.quantities import QUANTITIES, UnitError, conversion
+
+__all__ = [
+    "RANGE_POINTS", "CLI_KEYS", "SizingError", "Value", "SizingQuestion", "parse_value", "parse_capacity",
+    "parse_at", "make_question", "check_question",
+]
+
+#: Points at which a range is sized (evenly spaced, both ends included).
+RANGE_POINTS = 25
+
+_NUMBER = r"[-+]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][-+]?\d+)?"
+_VALUE = re.compile(rf"\s*({_NUMBER})\s*(.*?)\s*")
+_RANGE = re.compile(rf"\s*({_NUMBER})\s*\.\.\s*({_NUMBER})\s*(.*?)\s*")
+_EXAMPLES = {"torque": "40 kN*m", "force": "2 kN", "angle": "90 deg", "velocity": "1.04 rpm",
+             "bending_moment": "8 MN*m", "temperature": "5 degC"}
+
+
+class SizingError(UserError):
+    """A bad sizing question: ``key`` (what it concerns, may be empty) and a one-line ``problem``."""
+
+    def __init__(self, key: str, problem: str):
+        super().__init__(f"{key}: {problem}" if key else problem)
+        self.key, self.problem = key, problem
+
+
+@dataclass(frozen=True)
+class Value:
+    """A value (or range) of one quantity: SI bounds, and the text and unit the user wrote."""
+
+    quantity: str
+    lo: float
+    hi: float
+    text: str
+    unit: str
+    scale: float  # si = scale * written + offset
+    offset: float
+
+    @property
+    def is_range(self) -> bool:
+        return self.hi > self.lo
+
+    def points(self) -> np.ndarray:
+        """SI values at which the value is sized: one, or :data:`RANGE_POINTS` across a range."""
+        return np.linspace(self.lo, self.hi, RANGE_POINTS) if self.is_range else np.array([self.lo])
+
+    def display(self, si):
+        """SI value(s) in the unit the user wrote."""
+        return (np.asarray(si, dtype=float) - self.offset) / self.scale
+
+
+def _example(quantity: str) -> str:
+    return _EXAMPLES.get(quantity, f"1 {QUANTITIES[quantity].unit}" if quantity in QUANTITIES else "1 N*m")
+
+
+def parse_value(text: object, quantity: str, key: str = "", allow_range: bool = True) -> Value:
+    """Parse ``"<number> <unit>"`` (or ``"<lo>..<hi> <unit>"``) as a value of ``quantity``.
+
+    Raises
+    ------
+    SizingError
+        Not a string, no number, no unit, an unknown unit or one of another dimension, a range
+        where none is allowed, an empty or reversed range, a non-finite value or one outside the
+        quantity's physical bound.
+    """
+    key = key or quantity
+    if quantity not in QUANTITIES:
+        raise SizingError(key, f"{quantity!r} is not an operating quantity ({', '.join(QUANTITIES)})")
+    example = _example(quantity)
+    if not isinstance(text, str) or not text.strip():
+        shown = repr(text) if not isinstance(text, str) else "an empty string"
+        raise SizingError(key, f"give the value with its unit as a string, e.g. \"{example}\", got {shown}")
+    match = _RANGE.fullmatch(text) if allow_range else None
+    if match:
+        numbers, unit = (float(match.group(1)), float(match.group(2))), match.group(3)
+    elif (match := _VALUE.fullmatch(text)) and not text.strip().startswith("..") and ".." not in text:
+        numbers, unit = (float(match.group(1)),), match.group(2)
+    elif ".." in text and not allow_range:
+        raise SizingError(key, f"a single value is needed here, not a range: {text!r}")
+    else:
+        form = f"\"{example}\"" + (" or a range \"<low>..<high> <unit>\"" if allow_range else "")
+        raise SizingError(key, f"cannot read {text!r}: expected a number and a unit, e.g. {form}")
+    if not unit:
+        raise SizingError(key, f"{text!r} has no unit; write it with one, e.g. \"{example}\"")
+    try:
+        scale, offset = conversion(unit, quantity)
+    except UnitError as exc:
+        raise SizingError(key, f"{text!r}: {exc}") from None
+    si = [scale * x + offset for x in numbers]
+    if not all(math.isfinite(x) for x in si):
+        raise SizingError(key, f"{text!r} is not a finite value")
+    bad = QUANTITIES[quantity].violations(np.asarray(si))
+    if bad.any():
+        raise SizingError(key, f"{text!r} is outside the physical bound of {quantity} "
+                               f"({QUANTITIES[quantity].bound_text()})")
+    if len(si) == 2 and not si[1] > si[0]:
+        raise SizingError(key, f"range {text!r} must go from the smaller to the larger value")
+    return Value(quantity, si[0], si[-1], text.strip(), unit, scale, offset)
+
+
+def parse_capacity(text: object, response: str | None = None, key: str = "capacity") -> Value:
+    """The available drive capacity: a torque or a force (the data's ``response`` once known)."""
+    if response is not None:
+        return parse_value(text, response, key, allow_range=False)
+    problems = []
+    for quantity in ("torque", "force"):
+        try:
+            return parse_value(text, quantity, key, allow_range=False)
+        except SizingError as exc:
+            problems.append(exc.problem)
+    if isinstance(text, str) and text.strip() and "dimension" in problems[0]:
+        raise SizingError(key, f"{text!r} is neither a torque (N*m) nor a force (N)")
+    raise SizingError(key, problems[0])
+
+
+def parse_at(text: str, option: str = "--at") -> dict[str, str]:
+    """``"bending_moment=8 MN*m, velocity=1.04 rpm"`` -> {input: value text}."""
+    out: dict[str, str] = {}
+    if not isinstance(text, str) or not text.strip():
+        raise SizingError(option, 'give the point as "INPUT=VALUE UNIT, ...", e.g. "velocity=2 rad/s"')
+    for item in text.split(","):
+        if "=" not in item:
+            raise SizingError(option, f"{item.strip()!r}: expected INPUT=VALUE UNIT, e.g. \"velocity=2 rad/s\"")
+        name, value = (s.strip() for s in item.split("=", 1))
+        if not name:
+            raise SizingError(option, f"{item.strip()!r}: the input name is missing before '='")
+        if name in out:
+            raise SizingError(option, f"input {name!r} is given twice")
+        out[name] = value
+    return out
+
+
+@dataclass(frozen=True)
+class SizingQuestion:
+    """One sizing question (a ``[[sizing]]`` entry, or ``size FIT.nc --at ...``).
+
+    ``at`` maps every input to its :class:`Value` (at most one range); ``capacity`` is the
+    available drive torque or force; ``energy_rotation`` the angle of one rotation whose friction
+    energy is asked (torque responses only).
+    """
+
+    label: str
+    at: dict[str, Value]
+    confidence: float
+    capacity_text: str | None = None
+    energy_rotation: Value | None = None
+    capacity: Value | None = None  # parsed against the data's response by check_question
+
+    @property
+    def axis(self) -> str | None:
+        """The input given as a range, if any."""
+        return next((k for k, v in self.at.items() if v.is_range), None)
+
+    def grid(self) -> dict[str, np.ndarray]:
+        """SI value of every input at every point of the question (ranges expanded)."""
+        axis = self.axis
+        n = len(self.at[axis].points()) if axis else 1
+        return {k: v.points() if k == axis else np.full(n, v.lo) for k, v in self.at.items()}
+
+    def describe(self) -> str:
+        return ", ".join(f"{k} = {v.text}" for k, v in self.at.items())
+
+
+#: How errors name the keys of a question: study-file keys (``sizing[i].at.velocity``) or CLI options.
+CLI_KEYS = {"at": "--at", "confidence": "--confidence", "capacity": "--capacity",
+            "energy_rotation": "--energy-rotation"}
+
+
+def _key(keys: Mapping[str, str] | None, name: str, sub: str | None = None) -> str:
+    base = (keys or {}).get(name, name)
+    if sub is None:
+        return base
+    return f"{base} {sub}" if base.startswith("--") else f"{base}.{sub}"
+
+
+def make_question(at: Mapping[str, object], confidence: float, *, label: str = "", capacity: object = None,
+                  energy_rotation: object = None, keys: Mapping[str, str] | None = None) -> SizingQuestion:
+    """Parse a question's values (data-independent checks). ``keys`` renames the keys errors name
+    (:data:`CLI_KEYS` for the command line); by default they are the study file's."""
+    if not at:
+        raise SizingError(_key(keys, "at"), "name at least one operating input and its value")
+    values = {}
+    for name, text in at.items():
+        if name not in QUANTITIES:
+            raise SizingError(_key(keys, "at", name), f"{name!r} is not an operating quantity "
+                                                      f"({', '.join(QUANTITIES)})")
+        values[name] = parse_value(text, name, _key(keys, "at", name))
+    ranges = [k for k, v in values.items() if v.is_range]
+    if len(ranges) > 1:
+        raise SizingError(_key(keys, "at"), f"at most one input may be a range (the fan figure's axis), got "
+                                            f"{', '.join(ranges)}")
+    if not 0 < confidence < 1:
+        raise SizingError(_key(keys, "confidence"), f"must be in (0, 1), got {confidence:g}")
+    if capacity is not None:
+        parse_capacity(capacity, key=_key(keys, "capacity"))
+    rotation = None
+    if energy_rotation is not None:
+        rotation = parse_value(energy_rotation, "angle", _key(keys, "energy_rotation"), allow_range=False)
+        if not rotation.lo > 0:
+            raise SizingError(_key(keys, "energy_rotation"), f"must be a positive angle, got {rotation.text!r}")
+    label = label or ", ".join(f"{k} {v.text}" for k, v in values.items())
+    return SizingQuestion(label, values, float(confidence), capacity, rotation)
+
+
+def check_question(question: SizingQuestion, inputs: Iterable[str], required: Iterable[str], response: str,
+                   keys: Mapping[str, str] | None = None, inputs_of: str = "the data") -> SizingQuestion:
+    """Checks against the data: every input named is one of ``inputs``; every one of ``required``
+    (what the candidate laws read) is given; the capacity is of the ``response`` quantity; an
+    energy needs a torque response. Returns the question with its capacity parsed."""
+    inputs, required = list(inputs), list(required)
+    for name in question.at:
+        if name not in inputs:
+            raise SizingError(_key(keys, "at", name), f"{name!r} is not an input of {inputs_of} "
+                                                  f"(inputs: {', '.join(inputs)})")
+    missing = [r for r in required if r not in question.at]
+    if missing:
+        raise SizingError(_key(keys, "at"), f"give a value for every input the laws read: missing {', '.join(missing)} "
+                                  f"(inputs read: {', '.join(required)})")
+    capacity = None
+    if question.capacity_text is not None:
+        capacity = parse_capacity(question.capacity_text, response, key=_key(keys, "capacity"))
+    if question.energy_rotation is not None and response != "torque":
+        raise SizingError(_key(keys, "energy_rotation"),
+                          f"the energy of a rotation needs a torque response, the data has {response}")
+    return SizingQuestion(question.label, question.at, question.confidence, question.capacity_text,
+                          question.energy_rotation, capacity)

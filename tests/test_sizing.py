@@ -1,0 +1,297 @@
+"""Actuator sizing (issue #10): hand-computed pieces, predictions from hand-made fits, study-file
+questions, and one tiny study end to end (report sections, sizing.csv, fan figure, `bayesfric size`)."""
+
+from __future__ import annotations
+
+import csv
+import math
+
+import numpy as np
+import pytest
+
+from bayesfric import sizing
+from bayesfric.model import Noise
+from bayesfric.sizing import SizingError, make_question
+from tests.sizing_helpers import hand_fit
+
+C, D = 4, 500
+TESTED = {"velocity": np.linspace(0.1, 2.0, 12)}
+
+
+def const(value: float) -> np.ndarray:
+    return np.full((C, D), float(value))
+
+
+# -- hand-computed pieces ---------------------------------------------------------------------------
+def test_extrapolation_distance_by_hand():
+    d = sizing.extrapolation_distance([1.0, 2.0, 4.0, 6.0, 8.0, 12.0], 2.0, 6.0)
+    np.testing.assert_allclose(d, [0.25, 0.0, 0.0, 0.0, 0.5, 1.5])
+    np.testing.assert_array_equal(sizing.extrapolation_distance([3.0, 3.5], 3.0, 3.0), [0.0, np.inf])
+
+
+def test_variance_split_by_hand_and_by_the_law_of_total_variance():
+    # two laws, weights 1/4 and 3/4; means 10 and 14; parameter variances 1 and 3; noise 4 and 2
+    param, noise, between = sizing.variance_split([1.0, 3.0], np.array([[10.0], [14.0]]), np.array([[1.0], [3.0]]),
+                                                  np.array([[4.0], [2.0]]))
+    assert param[0] == pytest.approx(0.25 * 1 + 0.75 * 3)  # 2.5
+    assert noise[0] == pytest.approx(0.25 * 4 + 0.75 * 2)  # 2.5
+    assert between[0] == pytest.approx(0.25 * (10 - 13) ** 2 + 0.75 * (14 - 13) ** 2)  # 3.0
+    rng = np.random.default_rng(1)  # the three terms add up to the variance of the mixture
+    n = 400_000
+    law = rng.random(n) < 0.75
+    mu = np.where(law, 14 + rng.normal(0, math.sqrt(3), n), 10 + rng.normal(0, 1, n))
+    y = mu + rng.normal(0, 1, n) * np.where(law, math.sqrt(2), 2.0)
+    assert y.var() == pytest.approx(param[0] + noise[0] + between[0], rel=0.01)
+
+
+def test_weighted_quantiles_invert_the_weighted_cdf():
+    values = np.array([[1.0], [2.0], [3.0]])
+    q = sizing.weighted_quantiles(values, np.array([0.3, 0.5, 0.2]), [0.1, 0.3, 0.31, 0.8, 0.81, 1.0])
+    assert [float(q[k][0]) for k in (0.1, 0.3, 0.31, 0.8, 0.81, 1.0)] == [1.0, 1.0, 2.0, 2.0, 3.0, 3.0]
+    x = np.random.default_rng(0).normal(size=(1001, 2))
+    equal = sizing.weighted_quantiles(x, np.ones(1001), [0.05, 0.5])
+    np.testing.assert_allclose(equal[0.5], np.quantile(x, 0.5, axis=0, method="inverted_cdf"))
+
+
+def test_exclusion_reasons_come_from_the_records_booleans():
+    assert sizing.exclusion({"diagnostics_passed": True, "evidence_agree": True}) is None
+    failed = sizing.exclusion({"diagnostics_passed": False, "diagnostics_problems": ["R-hat 1.02 > 1.01"]})
+    assert failed == "failed the diagnostics gate (R-hat 1.02 > 1.01)"
+    both = sizing.exclusion({"diagnostics_passed": False, "evidence_agree": False, "evidence_disagreement": -0.09})
+    assert both == "failed the diagnostics gate; evidence estimators disagree by 0.09 nat"
+
+
+# -- parsing questions ------------------------------------------------------------------------------
+def test_values_ranges_and_units():
+    assert sizing.parse_value("8 MN*m", "bending_moment").lo == pytest.approx(8e6)
+    assert sizing.parse_value("5 °C", "temperature").lo == pytest.approx(278.15)
+    v = sizing.parse_value("0.5..6 rad/s", "velocity")
+    assert v.is_range and (v.lo, v.hi) == (0.5, 6.0) and len(v.points()) == sizing.RANGE_POINTS
+    rpm = sizing.parse_value("1.04 rpm", "velocity")
+    assert rpm.lo == pytest.approx(1.04 * 2 * math.pi / 60) and float(rpm.display(rpm.lo)) == pytest.approx(1.04)
+    q = make_question({"velocity": "0.5..6 rad/s"}, 0.9, capacity="40 N*m", energy_rotation="90 deg")
+    assert q.axis == "velocity" and q.energy_rotation.lo == pytest.approx(math.pi / 2)
+
+
+@pytest.mark.parametrize(("at", "kwargs", "fragment"), [
+    ({"bending_moment": "8 kN"}, {}, "at.bending_moment: '8 kN': unit 'kN' has dimension"),
+    ({"velocity": "6..0.5 rad/s"}, {}, "must go from the smaller to the larger"),
+    ({"temperature": "-300 degC"}, {}, "outside the physical bound of temperature (> 0 K)"),
+    ({"velocity": "fast"}, {}, "cannot read 'fast'"),
+    ({"velocity": "8"}, {}, "has no unit"),
+    ({"velocity": 8}, {}, "give the value with its unit as a string"),
+    ({"speed": "2 rad/s"}, {}, "'speed' is not an operating quantity"),
+    ({"velocity": "1..2 rad/s", "temperature": "1..2 degC"}, {}, "at most one input may be a range"),
+    ({"velocity": "2 rad/s"}, {"capacity": "40 rpm"}, "capacity: '40 rpm' is neither a torque"),
+    ({"velocity": "2 rad/s"}, {"energy_rotation": "0..90 deg"}, "a single value is needed here"),
+])
+def test_bad_questions_name_the_key(at, kwargs, fragment):
+    with pytest.raises(SizingError) as info:
+        make_question(at, 0.9, **kwargs)
+    assert fragment in str(info.value) and "\n" not in str(info.value)
+
+
+def test_cli_point_syntax():
+    assert sizing.parse_at("bending_moment=8 MN*m, velocity=1.04 rpm") == {"bending_moment": "8 MN*m",
+                                                                            "velocity": "1.04 rpm"}
+    for bad, fragment in (("velocity 2 rad/s", "expected INPUT=VALUE"), ("velocity=1 rpm, velocity=2 rpm", "twice"),
+                          ("=2 rpm", "name is missing")):
+        with pytest.raises(SizingError, match=fragment):
+            sizing.parse_at(bad)
+
+
+# -- predictions from hand-made fits ----------------------------------------------------------------
+def _answer(question, sources, tested=None):
+    question = sizing.check_question(question, ["velocity"], ["velocity"], "torque")
+    return sizing.answer_question(question, sources, tested or {"velocity": (0.1, 2.0)}, seed=3,
+                                  basis="stacking blocked", basis_loo="stacking LOO")
+
+
+def test_per_law_quantiles_exceedance_average_and_split_on_known_draws():
+    rng = np.random.default_rng(0)
+    truth = hand_fit("coulomb_viscous", {"T_C": const(5), "c_v": const(2), "sigma": const(0.5)}, TESTED)
+    spread = hand_fit("coulomb", {"T_C": 8 + 0.3 * rng.normal(size=(C, D)), "sigma": const(0.5)}, TESTED)
+    failed = hand_fit("coulomb", {"T_C": const(50), "sigma": const(0.5)}, TESTED)
+    q = make_question({"velocity": "4 rad/s"}, 0.9, capacity="12 N*m", energy_rotation="90 deg")
+    a = _answer(q, [sizing.LawSource("coulomb_viscous", truth, 0.56, 0.5),
+                    sizing.LawSource("coulomb", spread, 0.24, 0.5),
+                    sizing.LawSource("failed_law", failed, 0.2, 0.0, excluded="failed the diagnostics gate")])
+    cv, co, bad = a.laws
+    assert bad.excluded and bad.weight == 0 and [w.name for w in a.used] == ["coulomb_viscous", "coulomb"]
+    assert cv.mean_fn.q(0.05)[0] == pytest.approx(13.0) and cv.mean_fn.q(0.95)[0] == pytest.approx(13.0)
+    assert cv.var_param[0] == pytest.approx(0.0, abs=1e-20) and cv.var_noise[0] == pytest.approx(0.25)
+    assert cv.noisy.q(0.95)[0] == pytest.approx(13 + 1.645 * 0.5, abs=0.06)  # normal quantile, MC error
+    assert cv.required[0] == pytest.approx(13 + 1.2816 * 0.5, abs=0.06)
+    z = 4 * cv.p_se[0]  # P(|T| > 12) = P(Z > -2) = 0.977
+    assert cv.p_exceed[0] == pytest.approx(0.97725, abs=max(z, 0.005)) and 0 < cv.p_se[0] < 0.01
+    assert co.p_exceed[0] == 0 and co.p_bound[0] == pytest.approx(3 / (C * D))  # no draw exceeds
+    # the average: renormalised weights 0.7 / 0.3, the failed law never mixed in
+    mix = a.average
+    assert mix.weights == pytest.approx({"coulomb_viscous": 0.7, "coulomb": 0.3})
+    assert mix.p_exceed[0] == pytest.approx(0.7 * cv.p_exceed[0])
+    m = np.array([13.0, co.mean_fn.mean[0]])
+    assert mix.var_between[0] == pytest.approx(0.7 * 0.3 * (m[0] - m[1]) ** 2)
+    assert mix.var_param[0] == pytest.approx(0.3 * co.var_param[0]) and mix.var_noise[0] == pytest.approx(0.25)
+    assert a.average_loo.weights == pytest.approx({"coulomb_viscous": 0.5, "coulomb": 0.5})
+    assert a.energy(cv.noisy, 0.9)[0] == pytest.approx(cv.required[0] * math.pi / 2)
+    # 4 rad/s is (4 - 2) / 1.9 = 1.05 tested ranges beyond the data: warned
+    assert a.distance["velocity"][0] == pytest.approx(2 / 1.9)
+    assert any("rests on extrapolation" in w for w in a.warnings)
+    assert a.fan is not None and a.fan.axis == "velocity" and a.fan.x[-1] == pytest.approx(4.0)
+
+
+def test_noise_models_and_a_new_units_group_offset():
+    x = {"velocity": np.array([1.0, 3.0])}
+    rng = np.random.default_rng(2)
+    nu = np.where(rng.random((C, D)) < 0.25, 1.5, 10.0)
+    fit = hand_fit("coulomb", {"T_C": const(10), "sigma": const(1.0), "nu": nu}, TESTED, noise=Noise("student_t"))
+    draws = sizing.predict(fit, x)
+    inf = ~np.isfinite(draws.noise_var[..., 0])
+    assert inf.mean() == pytest.approx(0.25, abs=0.03) and np.all(draws.noise_var[~inf] == pytest.approx(1.25))
+    fit = hand_fit("coulomb", {"T_C": const(10), "sigma_rel": const(0.1), "sigma_floor": const(0.3)}, TESTED,
+                   noise=Noise("proportional"))
+    np.testing.assert_allclose(sizing.predict(fit, x).noise_var, 0.1**2 * 100 + 0.09)
+    fit = hand_fit("coulomb", {"T_C": const(10), "sigma": const(0.1), "group_sd": const(0.2),
+                               "group_z": np.zeros((C, D, 2))}, TESTED, noise=Noise(group="series"))
+    mu = sizing.predict(fit, x).mu
+    assert np.log(mu[..., 0]).std() == pytest.approx(0.2, rel=0.08)  # a new unit: offset ~ N(0, group_sd)
+    np.testing.assert_allclose(mu[..., 0], mu[..., 1])  # the same unit at every point
+
+
+def test_student_t_with_infinite_variance_is_reported():
+    nu = np.where(np.random.default_rng(4).random((C, D)) < 0.1, 1.2, 30.0)
+    fit = hand_fit("coulomb", {"T_C": const(10), "sigma": const(1.0), "nu": nu}, TESTED, noise=Noise("student_t"))
+    a = _answer(make_question({"velocity": "1 rad/s"}, 0.99), [sizing.LawSource("coulomb", fit, 1.0, 1.0)])
+    assert a.laws[0].infinite_noise == pytest.approx(0.1, abs=0.02)
+    assert np.isfinite(a.laws[0].var_noise[0]) and any("nu ≤ 2" in w for w in a.warnings)
+
+
+def test_trajectory_laws_cannot_be_sized():
+    fit = hand_fit("coulomb", {"T_C": const(1), "sigma": const(1)}, TESTED)
+    fit.attrs["law"] = "dahl"
+    with pytest.raises(SizingError, match="trajectory"):
+        sizing.predict(fit, {"angle": np.array([0.1]), "preload": np.array([10.0])})
+
+
+# -- study files --------------------------------------------------------------------------------------
+@pytest.fixture
+def bench(tmp_path):
+    """A small simulated data set (CSV + sidecar): coulomb_viscous truth, 0.1-2 rad/s."""
+    from bayesfric.datasets.synthetic import simulate
+    from bayesfric.laws import get_law
+
+    v = np.geomspace(0.1, 2.0, 24)
+    ds = simulate(get_law("coulomb_viscous"), {"velocity": v}, {"T_C": 5.0, "c_v": 2.0}, sigma=0.2, seed=5)
+    rows = ["speed,torque"] + [f"{a:.10g},{b:.10g}" for a, b in zip(v, ds["torque"].values, strict=True)]
+    (tmp_path / "bench.csv").write_text("\n".join(rows) + "\n")
+    (tmp_path / "bench.toml").write_text(
+        '[dataset]\nname = "bench"\nprovenance = "simulated"\nsource = "test"\n'
+        '[columns.speed]\nrole = "input"\nquantity = "velocity"\nunit = "rad/s"\n'
+        '[columns.torque]\nrole = "response"\nquantity = "torque"\nunit = "N*m"\n')
+    return tmp_path
+
+
+SIZING = '[[sizing]]\nlabel = "top speed"\nat = { velocity = "1..4 rad/s" }\nconfidence = 0.9\ncapacity = "12 N*m"\n'
+
+
+def tiny_study(sizing_text=SIZING, laws=("coulomb", "coulomb_viscous")):
+    return ('[study]\nname = "tiny"\n[data]\ndataset = "bench.csv"\n'
+            '[sampler]\ndraws = 800\ntune = 300\nchains = 2\n'
+            + "".join(f'[[laws]]\nname = "{w}"\n' for w in laws)
+            + '[compare]\nloo = true\nevidence = false\n'
+            '[[compare.blocked]]\naxis = "velocity"\nthreshold = 1.2\nlabel = "above 1.2"\n' + sizing_text)
+
+
+@pytest.mark.parametrize(("text", "fragment"), [
+    ('[[sizing]]\nat = { velocity = "2 m" }\n', "sizing[0].at.velocity: '2 m': unit 'm' has dimension"),
+    ('[[sizing]]\nat = { velocity = "2 rad/s" }\nconfidence = 1.5\n', "sizing[0].confidence: must be a number > 0"),
+    ('[[sizing]]\nat = { velocity = "2 rad/s" }\ncapacity = "3 kg"\n', "sizing[0].capacity: '3 kg' is neither"),
+    ('[[sizing]]\nat = { velocity = "2 rad/s" }\nmargin = 2\n', "sizing[0]: unknown key 'margin'"),
+    ('[[sizing]]\nconfidence = 0.9\n', "sizing[0].at: is required"),
+    ('[[sizing]]\nat = { temperature = "20 degC" }\n', "sizing[0].at.temperature: 'temperature' is not an input of "
+                                                      "the data"),
+    ('[[sizing]]\nat = { velocity = "2 rad/s" }\ncapacity = "3 N"\n', "sizing[0].capacity: '3 N': unit 'N' has "
+                                                                     "dimension"),
+])
+def test_sizing_entries_are_validated_before_anything_is_written(bench, text, fragment):
+    from bayesfric.study import StudyError, load_study
+    from bayesfric.study.runner import _prepare
+
+    path = bench / "s.toml"
+    path.write_text(tiny_study(text))
+    with pytest.raises(StudyError) as info:
+        load_study(path)
+        _prepare(path, bench / "reports", quick=False)
+    assert fragment in str(info.value) and str(info.value).startswith(str(path)) and "\n" not in str(info.value)
+    assert not (bench / "reports").exists()
+
+
+def test_every_input_a_law_reads_is_required(tmp_path):
+    from bayesfric.study import StudyError, load_study
+    from bayesfric.study.runner import load_study_data, sizing_questions
+
+    text = (tiny_study('[[sizing]]\nat = { velocity = "1.04 rpm" }\n', laws=("rothe_erde", "palmgren"))
+            .replace('"bench.csv"', '"pitch_bearing"').replace('threshold = 1.2', 'threshold = 0.09'))
+    (tmp_path / "s.toml").write_text(text)
+    study = load_study(tmp_path / "s.toml")
+    with pytest.raises(StudyError, match=r"sizing\[0\].at: give a value for every input the laws read: missing "
+                                         "bending_moment"):
+        sizing_questions(study, load_study_data(study))
+
+
+def test_shipped_sizing_questions():
+    from bayesfric.study import STUDIES_DIR, load_study
+
+    asked = {name: load_study(STUDIES_DIR / f"{name}.toml").sizing for name in
+             ("pitch_bearing", "robot_joint", "unwinder")}
+    (pitch,) = asked["pitch_bearing"]
+    assert pitch.at["bending_moment"].lo == pytest.approx(8e6) and pitch.energy_rotation.lo == pytest.approx(np.pi / 2)
+    assert asked["robot_joint"][0].axis == "velocity" and asked["robot_joint"][0].at["velocity"].hi == 6.0
+    assert asked["unwinder"][0].at["temperature"].lo == pytest.approx(278.15)
+
+
+def test_tiny_study_end_to_end_and_size_without_refitting(bench, monkeypatch, capsys):
+    """The runner writes weights.json, sizing.csv, the fan figure and the sections; `bayesfric size`
+    answers the same question from the stored fits (the samplers are disabled) with the same numbers,
+    and a single fit answers --at."""
+    import functools
+    import json
+
+    from bayesfric import compare, inference
+    from bayesfric.cli import main
+    from bayesfric.study import run_study
+
+    (bench / "s.toml").write_text(tiny_study())
+    folder = run_study(bench / "s.toml", out_root=bench / "reports")
+    record = json.loads((folder / "weights.json").read_text())
+    assert record["average_by"] == "stacking above 1.2" and record["shown_beside"] == "stacking LOO"
+    assert {e["law"] for e in record["laws"]} == {"coulomb", "coulomb_viscous"}
+    with (folder / "sizing.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == sizing.RANGE_POINTS * 4  # two laws, the blocked-weight average and the LOO one
+    top = [r for r in rows if r["governing"] == "True" and r["role"] == "average"]
+    assert len(top) == 1 and float(top[0]["velocity"]) == pytest.approx(4.0)
+    assert float(top[0]["distance[velocity]"]) == pytest.approx((4 - 2) / 1.9)
+    assert float(top[0]["var_between"]) >= 0 and 0 <= float(top[0]["p_exceed"]) <= 1
+    assert (folder / "figures" / "sizing_1.png").stat().st_size > 10_000
+    summary = (folder / "summary.md").read_text()
+    assert "## Sizing" in summary and "MODEL AVERAGE" in summary and "between-law disagreement" in summary
+    assert "figures/sizing_1.png" in summary and "rests on extrapolation" in summary
+    assert "<h2>Sizing</h2>" in (folder / "report.html").read_text()
+
+    @functools.wraps(inference.SAMPLERS["nuts"])  # keeps the signature the schema reads defaults from
+    def no_sampling(*args, **kwargs):
+        raise AssertionError("size refitted a law")
+
+    monkeypatch.setitem(inference.SAMPLERS, "nuts", no_sampling)
+    monkeypatch.setattr(compare.RefitEngine, "run", no_sampling)
+    capsys.readouterr()
+    assert main(["size", str(bench / "s.toml"), "--reports", str(bench / "reports")]) == 0
+    out = capsys.readouterr().out
+    assert "MODEL AVERAGE" in out and "variance split" in out and "Extrapolation distance" in out
+    required = f"{float(top[0]['required']):.4g}"
+    assert required in out  # the same number as the study's sizing.csv: same fits, weights and seed
+    fit = folder / "fits" / "coulomb_viscous.nc"
+    assert main(["size", str(fit), "--at", "velocity=3 rad/s", "--capacity", "12 N*m", "--confidence", "0.95"]) == 0
+    out = capsys.readouterr().out
+    assert "coulomb_viscous" in out and "MODEL AVERAGE" not in out and "P(|torque| > 12 N*m)" in out
