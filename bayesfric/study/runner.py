@@ -6,6 +6,12 @@ whole study succeeded, so a failed or interrupted run never leaves a half-writte
 check of the study, its paths and its data runs before anything is written; an existing
 ``<out_root>/<study>`` is replaced only if bayesfric created it for this study; work folders of
 killed runs are removed by the next run of the study (:mod:`bayesfric.fsutil`).
+
+Besides the reports, every run stores ``weights.json`` (:mod:`bayesfric.sizing.store`): the
+weights, the diagnostics and evidence verdicts and the weighting exclusions of every law, so
+``bayesfric size`` can answer sizing questions from ``fits/*.nc`` later without refitting. A study
+with ``[[sizing]]`` questions also gets them answered here: ``sizing.csv``, a fan figure per
+question and a sizing section in ``summary.md`` and ``report.html``.
 """
 
 from __future__ import annotations
