@@ -28,6 +28,7 @@ from bayesfric.laws import get_law
 from bayesfric.model import build_program
 from bayesfric.priors import PriorError
 from bayesfric.report.figures import plot_predictive, plot_sizing_fan
+from bayesfric.report.sizing import headlines as sizing_headlines
 from bayesfric.report.summary import write_reports
 from bayesfric.study.config import Study, StudyError, load_study, sampler_settings, walkers_problem
 from bayesfric.study.outcome import Estimate, LawOutcome, StudyOutcome
@@ -404,6 +405,8 @@ def run_study(path: str | Path, out_root: str | Path = "reports", quick: bool = 
             outcome.sizing = sizing.size_study(questions, ds, law_sources, record, study_name=study.name, seed=seed)
         outcome.seconds = time.perf_counter() - start
         outcome.findings = _findings(outcome) + outcome.findings
+        if outcome.sizing is not None:
+            outcome.findings += sizing_headlines(outcome.sizing)
         figures = _figures(outcome, work)
         write_reports(outcome, work, figures)
         try:
