@@ -277,6 +277,7 @@ def test_tiny_study_end_to_end_and_size_without_refitting(bench, monkeypatch, ca
     summary = (folder / "summary.md").read_text()
     assert "## Sizing" in summary and "MODEL AVERAGE" in summary and "between-law disagreement" in summary
     assert "figures/sizing_1.png" in summary and "rests on extrapolation" in summary
+    assert "- Sizing 'top speed': required \\|torque\\| **" in summary  # the headline among the findings
     assert "<h2>Sizing</h2>" in (folder / "report.html").read_text()
 
     @functools.wraps(inference.SAMPLERS["nuts"])  # keeps the signature the schema reads defaults from

@@ -122,7 +122,9 @@ def plot_sizing_fan(result, answer, path: Path, *, title: str = "") -> Path:
         ax.axhline(question.capacity.lo / scale, color="crimson", lw=1.5, label=f"capacity {question.capacity.text}")
     asked = value.display(np.array([value.lo, value.hi]))
     if value.is_range:
-        ax.axvspan(asked[0], asked[1], color="tab:orange", alpha=0.08, lw=0, label="asked range")
+        ax.axvspan(asked[0], asked[1], ymax=0.025, color="tab:orange", lw=0, label="asked range")
+        for edge in asked:
+            ax.axvline(edge, color="tab:orange", lw=1.0, ls=":")
     else:
         ax.axvline(asked[0], color="tab:orange", lw=1.2, ls=":", label="asked point")
     others = ", ".join(f"{k} = {v.text}" for k, v in question.at.items() if k != fan.axis)

@@ -16,7 +16,7 @@ from bayesfric.quantities import QUANTITIES
 from bayesfric.report.tables import format_table
 from bayesfric.sizing import EXTRAPOLATION_WARN, LEVELS, RANGE_POINTS, Answer, SizingResult
 
-__all__ = ["Section", "sections", "records", "text_report", "RANGE_ROWS"]
+__all__ = ["Section", "sections", "records", "text_report", "headlines", "RANGE_ROWS"]
 
 #: Points of a range shown in the along-the-range table (sizing.csv has every point).
 RANGE_ROWS = 6
@@ -219,6 +219,27 @@ def sections(result: SizingResult, figures: dict[int, str] | None = None) -> lis
                 sec.tables.append(table)
         out.append(sec)
     return out
+
+
+def headlines(result: SizingResult) -> list[str]:
+    """One finding per question: the averaged required capacity at its governing point."""
+    lines = []
+    for answer in result.answers:
+        q, j = answer.question, answer.governing
+        unit, scale = result.response_unit, result.response_scale
+        if answer.average is None:
+            lines.append(f"Sizing '{q.label}': no model average ({answer.no_average}).")
+            continue
+        text = (f"Sizing '{q.label}': required |{result.response}| **{_g(float(answer.average.required[j]) / scale)} "
+                f"{unit}** at confidence {q.confidence:g} (model average, {_point_text(answer, j)})")
+        if q.energy_rotation is not None:
+            energy = float(answer.energy(answer.average.noisy, q.confidence)[j])
+            e_unit, e_scale = _energy_unit(energy)
+            text += f"; friction energy of one {q.energy_rotation.text} rotation {_g(energy / e_scale)} {e_unit}"
+        if answer.warnings:
+            text += f" — {len(answer.warnings)} warning(s), see Sizing"
+        lines.append(text + ".")
+    return lines
 
 
 def text_report(result: SizingResult) -> str:

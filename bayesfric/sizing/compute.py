@@ -417,7 +417,7 @@ def answer_question(question: SizingQuestion, sources: Sequence[LawSource],
     for k, d in distance.items():
         worst = float(np.max(d))
         if worst > EXTRAPOLATION_WARN:
-            warnings.append(f"{k}: up to {worst:.2f} tested ranges beyond the data (more than "
+            warnings.append(f"{k}: up to {worst:.4g} tested ranges beyond the data (more than "
                             f"{EXTRAPOLATION_WARN:g}): the answer rests on extrapolation")
     if len(sources) == 1 and "diagnostics" in sources[0].fit.attrs and not verdict_of(sources[0].fit).passed:
         problems = "; ".join(verdict_of(sources[0].fit).problems)

@@ -6,6 +6,12 @@ whole study succeeded, so a failed or interrupted run never leaves a half-writte
 check of the study, its paths and its data runs before anything is written; an existing
 ``<out_root>/<study>`` is replaced only if bayesfric created it for this study; work folders of
 killed runs are removed by the next run of the study (:mod:`bayesfric.fsutil`).
+
+Besides the reports, every run stores ``weights.json`` (:mod:`bayesfric.sizing.store`): the
+weights, the diagnostics and evidence verdicts and the weighting exclusions of every law, so
+``bayesfric size`` can answer sizing questions from ``fits/*.nc`` later without refitting. A study
+with ``[[sizing]]`` questions also gets them answered here: ``sizing.csv``, a fan figure per
+question and a sizing section in ``summary.md`` and ``report.html``.
 """
 
 from __future__ import annotations
@@ -22,6 +28,7 @@ from bayesfric.laws import get_law
 from bayesfric.model import build_program
 from bayesfric.priors import PriorError
 from bayesfric.report.figures import plot_predictive, plot_sizing_fan
+from bayesfric.report.sizing import headlines as sizing_headlines
 from bayesfric.report.summary import write_reports
 from bayesfric.study.config import Study, StudyError, load_study, sampler_settings, walkers_problem
 from bayesfric.study.outcome import Estimate, LawOutcome, StudyOutcome
@@ -398,6 +405,8 @@ def run_study(path: str | Path, out_root: str | Path = "reports", quick: bool = 
             outcome.sizing = sizing.size_study(questions, ds, law_sources, record, study_name=study.name, seed=seed)
         outcome.seconds = time.perf_counter() - start
         outcome.findings = _findings(outcome) + outcome.findings
+        if outcome.sizing is not None:
+            outcome.findings += sizing_headlines(outcome.sizing)
         figures = _figures(outcome, work)
         write_reports(outcome, work, figures)
         try:
