@@ -220,7 +220,8 @@ def _size_study(args: argparse.Namespace, question):
         raise UserError(f"{study.path}: no report of study {study.name!r} in {args.reports}: run "
                         f"`bayesfric study {args.target} --out {args.reports}` first")
     record = sizing.read_record(folder)
-    laws = sizing.sources(record, folder, [spec.name for spec in study.laws], data_hash=ds.attrs.get("data_hash"))
+    laws = sizing.sources(record, folder, [spec.name for spec in study.laws], data_hash=ds.attrs.get("data_hash"),
+                          selection=str(ds.attrs.get("selection", "")))
     return sizing.size_study(questions, ds, laws, record, study_name=study.name, seed=study.sampler["seed"], fan=False)
 
 

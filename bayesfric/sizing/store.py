@@ -101,7 +101,8 @@ def exclusion(entry: dict[str, Any]) -> str | None:
 
 
 def sources(record: dict[str, Any], folder: Path, laws: Sequence[str] | None = None,
-            fits: dict[str, xr.DataTree] | None = None, data_hash: str | None = None) -> list[LawSource]:
+            fits: dict[str, xr.DataTree] | None = None, data_hash: str | None = None,
+            selection: str | None = None) -> list[LawSource]:
     """The :class:`LawSource` of every law of the record (in the order of ``laws`` when given).
 
     Fits come from ``fits`` (in memory, the runner) or from ``folder/fits/*.nc``.
@@ -110,7 +111,8 @@ def sources(record: dict[str, Any], folder: Path, laws: Sequence[str] | None = N
     ------
     SizingError
         A law of ``laws`` has no entry (the study changed since it ran), a fit file is missing or
-        unreadable, or a fit was made from other data than ``data_hash``.
+        unreadable, or a fit was made from other data than ``data_hash`` or another row
+        ``selection`` (the data's ``selection`` attr).
     """
     entries = {e.get("law"): e for e in record["laws"] if isinstance(e, dict)}
     names = list(laws) if laws is not None else list(entries)
@@ -136,6 +138,10 @@ def sources(record: dict[str, Any], folder: Path, laws: Sequence[str] | None = N
             raise SizingError("", f"{folder}: the fit of {name} was made from other data (hash "
                                   f"{fit.attrs.get('data_hash')}, the study's data now {data_hash}); "
                                   "run the study again")
+        if selection is not None and str(fit.attrs.get("data_selection", "")) != selection:
+            raise SizingError("", f"{folder}: the fit of {name} was made from another row selection "
+                                  f"({fit.attrs.get('data_selection') or 'all rows'}; the study now selects "
+                                  f"{selection or 'all rows'}); run the study again")
         weights = entry.get("weights") or {}
 
         def weight(key, weights=weights):

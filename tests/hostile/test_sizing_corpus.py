@@ -37,8 +37,8 @@ def tree(tmp_path: Path) -> Path:
         '[columns.torque]\nrole = "response"\nquantity = "torque"\nunit = "N*m"\n')
     (tmp_path / "s.toml").write_text(STUDY + QUESTION)
     (tmp_path / "plain.toml").write_text(STUDY)
-    draws = {"T_C": np.full((2, 50), 5.0), "c_v": np.full((2, 50), 2.0), "sigma": np.full((2, 50), 0.2)}
-    fit = hand_fit("coulomb_viscous", draws, {"velocity": v})
+    draws_cv = {"T_C": np.full((2, 50), 5.0), "c_v": np.full((2, 50), 2.0), "sigma": np.full((2, 50), 0.2)}
+    fit = hand_fit("coulomb_viscous", draws_cv, {"velocity": v})
     save_fit(fit, tmp_path / "fit.nc")
     fit.attrs["law"] = "dahl"
     save_fit(fit, tmp_path / "dahl.nc")
@@ -48,6 +48,15 @@ def tree(tmp_path: Path) -> Path:
     old = tmp_path / "old_reports" / "tiny"  # a report from before sizing: marked, no weights.json
     (old / "fits").mkdir(parents=True)
     (old / MARKER).write_text(json.dumps({"tool": "bayesfric", "study": "tiny"}))
+    stale = tmp_path / "stale_reports" / "tiny"  # a report whose fit was made from other data
+    (stale / "fits").mkdir(parents=True)
+    (stale / MARKER).write_text(json.dumps({"tool": "bayesfric", "study": "tiny"}))
+    save_fit(hand_fit("coulomb_viscous", draws_cv, {"velocity": v}), stale / "fits" / "coulomb_viscous.nc")
+    entry = {"law": "coulomb_viscous", "fit": "fits/coulomb_viscous.nc", "diagnostics_passed": True,
+             "evidence_agree": True, "weights": {"stacking LOO": 1.0}}
+    (stale / "weights.json").write_text(json.dumps({"format": 1, "average_by": "stacking LOO", "laws": [entry]}))
+    (tmp_path / "two.toml").write_text(STUDY.replace('[[laws]]', '[[laws]]\nname = "coulomb"\n[[laws]]', 1)
+                                       + QUESTION)
     return tmp_path
 
 
@@ -76,6 +85,9 @@ CASES = [
     ("no-report", ("size", "s.toml", "--reports", "reports"),
      ("s.toml", "no report of study 'tiny'", "bayesfric study")),
     ("old-report", ("size", "s.toml", "--reports", "old_reports"), ("weights.json", "run the study again")),
+    ("stale-data", ("size", "s.toml", "--reports", "stale_reports"), ("made from other data", "run the study again")),
+    ("laws-changed", ("size", "two.toml", "--reports", "stale_reports"),
+     ("no fit of coulomb", "laws changed", "run the study again")),
     ("no-question", ("size", "plain.toml"), ("plain.toml", "asks no sizing question", "[[sizing]]")),
     ("missing-study", ("size", "nope.toml"), ("nope.toml", "not found")),
     ("not-a-target", ("size", "bench.csv"), ("bench.csv", "study file (.toml) or a fit (.nc)")),
