@@ -102,7 +102,8 @@ class Program:
     response: np.ndarray
     group_index: np.ndarray | None
     group_labels: list[Any] = field(default_factory=list)
-    _densities: dict[int, Density] = field(default_factory=dict, repr=False, compare=False)
+    # init=False: dataclasses.replace(program, response=...) starts a fresh cache, never the old data's density
+    _densities: dict[int, Density] = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def density(self, seed: int = 0) -> Density:
         """The program's one log density (:mod:`bayesfric.density`), built once per seed.
