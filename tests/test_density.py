@@ -1,5 +1,7 @@
 """One log density per program: every consumer reads the same numbers at the same point."""
 
+import dataclasses
+
 import jax
 import numpy as np
 import pytest
@@ -43,8 +45,6 @@ def test_the_density_is_numpyros_potential_and_splits_into_prior_and_likelihood(
     assert float(density.log_joint(x, half)) == pytest.approx(float(density.log_prior(x) + pointwise[half].sum()),
                                                               rel=1e-10)
     assert program.density() is density  # built once
-    import dataclasses
-
     shifted = dataclasses.replace(program, response=program.response + 1.0)  # a copy never reuses the old data
     assert shifted.density() is not density
     assert float(shifted.density().log_likelihood(x).sum()) != pytest.approx(float(pointwise.sum()))
