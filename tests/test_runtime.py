@@ -60,7 +60,8 @@ def test_a_second_fit_in_a_new_process_compiles_nothing(tmp_path):
     second = json.loads(_run(PROBE, BAYESFRIC_CACHE_DIR=str(tmp_path)))
     assert first.get("cache_misses", 0) > 50  # a fit is many small programs, all written
     assert second.get("cache_misses", 0) == 0, second
-    assert second["cache_hits"] == first["compile_requests_use_cache"]
+    # every program the second process asked for came from the disk cache
+    assert second["cache_hits"] == second["compile_requests_use_cache"] > 50, second
 
 
 @pytest.mark.slow
