@@ -58,10 +58,11 @@ def test_a_second_fit_in_a_new_process_compiles_nothing(tmp_path):
     """Two processes fit the same law to the same data: the second loads every program from disk."""
     first = json.loads(_run(PROBE, BAYESFRIC_CACHE_DIR=str(tmp_path)))
     second = json.loads(_run(PROBE, BAYESFRIC_CACHE_DIR=str(tmp_path)))
-    assert first.get("cache_misses", 0) > 50  # a fit is many small programs, all written
+    assert first.get("cache_misses", 0) > 20  # a fit is tens of small programs (38 in Nov 2026), all written
     assert second.get("cache_misses", 0) == 0, second
-    # every program the second process asked for came from the disk cache
-    assert second["cache_hits"] == second["compile_requests_use_cache"] > 50, second
+    # every program the first process wrote, the second read back. (blackjax compiles one tiny
+    # program at import, before bayesfric configures the cache: it counts as neither, in both.)
+    assert second["cache_hits"] == first["cache_misses"], (first, second)
 
 
 @pytest.mark.slow

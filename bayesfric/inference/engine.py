@@ -37,7 +37,7 @@ import jax.numpy as jnp
 import numpy as np
 import xarray as xr
 
-from bayesfric.density import build_density
+from bayesfric.density import median_starts
 from bayesfric.inference.adaptation import nuts_chain, sampling_schedule
 from bayesfric.inference.datatree import assemble
 from bayesfric.inference.diagnostics import GATE, Gate, Verdict, check
@@ -145,7 +145,7 @@ class NutsEngine:
         self.warm = False
         self._schedule = sampling_schedule(self.tune, self.draws)
         # prior-median starts (numpyro's init_to_median), from different prior draws per chain
-        self._init_z = jnp.stack([build_density(program, seed * 7919 + c).x0 for c in range(self.chains)])
+        self._init_z = median_starts(program, [seed * 7919 + c for c in range(self.chains)])
         self._init_imm = jnp.ones(self._density.dim)
         self._sampler = jax.jit(self._sample_batch)
         if warm_start is not None:
