@@ -70,3 +70,12 @@ def test_the_off_switch_writes_no_cache(tmp_path):
     events = json.loads(_run(PROBE, BAYESFRIC_CACHE_DIR=str(tmp_path / "c"), BAYESFRIC_NO_CACHE="1"))
     assert "cache_hits" not in events and "cache_misses" not in events
     assert not (tmp_path / "c").exists()
+
+
+def test_the_fit_command_imports_only_what_it_uses():
+    """``bayesfric fit`` needs no plotting, no ODE solver, no comparison or study-runner code."""
+    code = ("import sys; import bayesfric.cli, bayesfric.inference, bayesfric.datasets, bayesfric.laws; "
+            "from bayesfric.study.config import SAMPLER; from bayesfric.report.tables import fit_report; "
+            "print(sorted(m for m in ('matplotlib', 'arviz', 'arviz_plots', 'diffrax', 'bayesfric.study.runner', "
+            "'bayesfric.compare') if m in sys.modules))")
+    assert _run(code) == "[]"

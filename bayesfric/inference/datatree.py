@@ -7,7 +7,7 @@ from functools import partial
 from importlib.metadata import version
 from typing import Any
 
-import arviz as az
+import arviz_base
 import jax
 import numpy as np
 import xarray as xr
@@ -121,7 +121,7 @@ def assemble(
         dims.update(group_z=["group"], group_offset=["group"], group_index=[OBS_DIM])
         coords["group"] = [str(g) for g in program.group_labels]
         constant["group_index"] = np.asarray(program.group_index)
-    dt = az.from_dict(
+    dt = arviz_base.from_dict(
         {
             "posterior": posterior,
             "sample_stats": sample_stats,
@@ -136,7 +136,7 @@ def assemble(
         coords=coords,
     )
     # one log density per site and draw: built without the site dims of vector-valued parameters
-    dt["log_prior"] = az.from_dict({"log_prior": _chains(log_prior, n_chains)})["log_prior"]
+    dt["log_prior"] = arviz_base.from_dict({"log_prior": _chains(log_prior, n_chains)})["log_prior"]
     # group coordinates of the data (series, run ...) travel with the observations
     for name, coord in ds.coords.items():
         if coord.attrs.get("role") == "group":

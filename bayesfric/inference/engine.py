@@ -31,7 +31,7 @@ import copy
 import time
 from dataclasses import dataclass, field
 
-import arviz as az
+import arviz_base
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -260,7 +260,7 @@ class NutsEngine:
 
     def _verdict(self, samples: dict, diverging: np.ndarray, energy: np.ndarray) -> Verdict:
         dims = {k: ["group"] for k in ("group_z", "group_offset") if k in samples}
-        dt = az.from_dict({"posterior": samples,
+        dt = arviz_base.from_dict({"posterior": samples,
                            "sample_stats": {"diverging": diverging, "energy": energy}}, dims=dims)
         return check(dt, gate=self.gate)
 
