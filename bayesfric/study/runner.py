@@ -158,7 +158,7 @@ def _fold_schemes(study: Study, ds, seed: int, kfold: int) -> list[tuple[str, ob
     for i, b in enumerate(study.blocked):
         try:
             folds = compare.blocked_masks(ds, b.axis, threshold=b.threshold, quantile=b.quantile,
-                                          direction=b.direction)
+                                          direction=b.direction, future=b.future)
         except (DataError, ValueError) as exc:
             raise StudyError(f"{where}: compare.blocked[{i}]: {exc}") from None
         schemes.append((b.label or folds.scheme, folds, "blocked"))
