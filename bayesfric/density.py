@@ -97,7 +97,9 @@ class Density:
         """Constrained draws, shaped ``(n, ...)`` per site, to flat unconstrained vectors ``(n, dim)``."""
         model, kwargs = self.program.model, self.program.model_kwargs
         draws = {k: jnp.asarray(constrained[k]) for k in self.sites}
-        return jax.vmap(lambda p: ravel_pytree(unconstrain_fn(model, (), kwargs, p))[0])(draws)
+        # one compiled program: run eagerly, the transforms dispatch (and the first time in a
+        # process compile) op by op -- 27 s for a warm start of stribeck on the loaded 2-core box
+        return jax.jit(jax.vmap(lambda p: ravel_pytree(unconstrain_fn(model, (), kwargs, p))[0]))(draws)
 
 
 def _median_start(program: Program, key: jax.Array) -> dict[str, jax.Array]:
