@@ -15,7 +15,7 @@ from matplotlib.figure import Figure
 
 from bayesfric.quantities import QUANTITIES
 
-__all__ = ["plot_predictive", "plot_sizing_fan", "provenance_label"]
+__all__ = ["plot_predictive", "plot_sizing_fan", "provenance_label", "banner", "save"]
 
 
 def provenance_label(ds: xr.Dataset) -> str:
@@ -27,6 +27,24 @@ def provenance_label(ds: xr.Dataset) -> str:
     if prov == "simulated":
         return f"SIMULATED data — {source}"
     return f"measured data — {source}"
+
+
+def banner(fig: Figure, ds: xr.Dataset) -> None:
+    """Stamp the data's provenance on a figure: a red "RECONSTRUCTED DATA" banner when the data
+    set says it was reconstructed from a paper's figures (``ds.attrs["provenance"]``), a grey
+    provenance line otherwise."""
+    prov = ds.attrs.get("provenance", "?")
+    if prov == "reconstructed":
+        fig.text(0.995, 0.995, "RECONSTRUCTED DATA — not measured", ha="right", va="top", fontsize=9,
+                 fontweight="bold", color="white", bbox={"facecolor": "crimson", "edgecolor": "none", "pad": 3})
+    else:
+        fig.text(0.995, 0.995, "SIMULATED DATA" if prov == "simulated" else "measured data", ha="right", va="top",
+                 fontsize=8, color="0.3")
+
+
+def save(fig: Figure, path: Path) -> Path:
+    """Write ``fig`` as PNG atomically (temporary file, then rename)."""
+    return _save(fig, path)
 
 
 def _save(fig, path: Path) -> Path:
