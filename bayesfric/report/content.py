@@ -129,6 +129,8 @@ def _claims(outcome) -> Table | None:
         pct = c.kind == "ratio"
 
         def show(x: float, pct: bool = pct) -> str:
+            if math.isinf(x):
+                return "+∞" if x > 0 else "−∞"
             return "–" if not math.isfinite(x) else (f"{x:+.0%}" if pct else f"{x:.3g}")
 
         if c.kind == "best":
