@@ -51,6 +51,15 @@ sampler settings, comparison methods and extrapolation folds::
     capacity = "40 N*m"                # optional: available drive torque (or force): P(|T| > it)
     # energy_rotation = "90 deg"       # optional (torque data): friction energy of one rotation
 
+    [[claims]]                         # optional, repeatable: a claim of the source paper
+    text = "Eq. 41 predicts above 0.5 rad/s"
+    source = "seed 004 §3.3"
+    kind = "best"                      # ratio | parameter | score | best (bayesfric.study.claims)
+    law = "joint_tribological"
+    metric = "elpd_cv"                 # a metric of bayesfric.study.scores.METRICS
+    scheme = "train ≤ 0.5 rad/s, score above"
+    # expect = [low, high]             # ratio, parameter, score: the claimed range
+
 Sizing (``bayesfric size``, :mod:`bayesfric.sizing`): each ``at`` value is a string with its
 unit, ``"8 MN*m"``, ``"1.04 rpm"``, ``"5 degC"``, or a range ``"<low>..<high> <unit>"`` (smaller
 first) sized at :data:`bayesfric.sizing.RANGE_POINTS` evenly spaced points; at most one input per
@@ -74,7 +83,7 @@ inputs against the data and the laws) are in :func:`bayesfric.study.runner.valid
 
 Every error is a :class:`StudyError` with one line naming the file and the key:
 ``path: [section] key: problem``, ``path: laws[i].key: problem`` or
-``path: sizing[i].at.velocity: problem``.
+``path: sizing[i].at.velocity: problem`` or ``path: claims[i].at.velocity: problem``.
 """
 
 from __future__ import annotations

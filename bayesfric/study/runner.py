@@ -27,7 +27,6 @@ from bayesfric.inference import SAMPLERS, release_compiled_code, save_fit
 from bayesfric.laws import get_law
 from bayesfric.model import build_program
 from bayesfric.priors import PriorError
-from bayesfric.report.summary import write_reports
 from bayesfric.study.claims import ClaimError, check_claim, evaluate_claims
 from bayesfric.study.config import Study, StudyError, load_study, sampler_settings, walkers_problem
 from bayesfric.study.outcome import Estimate, LawOutcome, StudyOutcome
@@ -382,6 +381,8 @@ def run_study(path: str | Path, out_root: str | Path = "reports", quick: bool = 
         outcome.table = score_table(outcome)
         outcome.claims = evaluate_claims(study.claims, outcome, outcome.table)
         outcome.seconds = time.perf_counter() - start
+        from bayesfric.report.summary import write_reports  # here: bayesfric.report reads bayesfric.study
+
         write_reports(outcome, work)
         try:
             fsutil.install_folder(work, final, study.name)

@@ -17,6 +17,18 @@ __all__ = ["find_chromium", "PageCheck", "inspect_page", "WIDTH"]
 WIDTH = 1280
 
 
+#: Text of every text node whose element starts within the first 900 px (the first screen).
+_FIRST_SCREEN = """() => {
+  const walk = document.createTreeWalker(document.body, NodeFilter.SHOW_TEXT);
+  const out = [];
+  while (walk.nextNode()) {
+    const el = walk.currentNode.parentElement;
+    if (el && el.getBoundingClientRect().top < 900) out.push(walk.currentNode.textContent);
+  }
+  return out.join('');
+}"""
+
+
 def find_chromium() -> str | None:
     """Path of the system Chromium (or Chrome), or None."""
     for name in ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable"):
@@ -54,9 +66,7 @@ def inspect_page(html: Path, screenshot: Path, chromium: str) -> PageCheck:
             check.broken_images = [alt for alt, ok in images if not ok]
             check.section_ids = page.evaluate("Array.from(document.querySelectorAll('section')).map(s => s.id)")
             check.scroll_width = int(page.evaluate("document.documentElement.scrollWidth"))
-            check.first_screen_text = page.evaluate(
-                "Array.from(document.querySelectorAll('body *')).filter(e => e.getBoundingClientRect().top < 900"
-                " && e.children.length === 0).map(e => e.textContent).join(' ')")
+            check.first_screen_text = page.evaluate(_FIRST_SCREEN)
             page.screenshot(path=str(screenshot), full_page=True)
         finally:
             browser.close()
