@@ -216,7 +216,10 @@ def _verdict(claim: Claim, value: float) -> str:
 def _evaluate(claim: Claim, outcome, table) -> ClaimResult:
     laws = {w.name: w for w in outcome.laws}
     if claim.kind in ("ratio", "parameter"):
-        for name in dict.fromkeys([claim.law, claim.reference or claim.law]):
+        used = [claim.law] if set(laws[claim.law].law.params) - set(claim.fixed) else []  # posterior read?
+        if claim.kind == "ratio":
+            used.append(claim.reference or claim.law)
+        for name in dict.fromkeys(used):
             if not laws[name].reliable:
                 return ClaimResult(claim, "not testable", why=f"the fit of {name} failed the diagnostics gate")
     if claim.kind == "ratio":
