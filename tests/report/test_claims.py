@@ -112,3 +112,13 @@ def test_claim_ratio_of_trajectory_law_is_refused():
     with pytest.raises(ClaimError, match="trajectory"):
         check_claim(c, ["dahl"], [], [])
     assert np.isfinite(c.at["angle"])
+
+
+def test_fully_fixed_numerator_needs_only_the_reference_fit(study, tmp_path):
+    """A catalogue prediction (every parameter fixed) against a passing reference stays testable
+    when the numerator law's own fit failed: its posterior is never read."""
+    out = outcome(study, tmp_path, failed="coulomb")
+    c = claim(kind="ratio", law="coulomb", fixed={"T_C": 4.0}, at={"velocity": "1 rad/s"},
+              reference="coulomb_viscous", expect=[-0.5, -0.2])  # 4 / (5 + 2) − 1 = −0.43
+    (result,) = evaluate_claims([c], out, out.table)
+    assert result.verdict == "reproduced" and result.value == pytest.approx(4 / 7 - 1, rel=0.03)
