@@ -21,8 +21,9 @@ __all__ = ["Table", "FigureRef", "LawSection", "Report", "build", "SECTIONS", "r
 
 #: (id, heading) of every section in page order; optional ones appear only when they have content.
 SECTIONS = [
-    ("summary", "Summary"), ("claims", "What the source paper says vs what the posterior says"),
-    ("ranking", "Ranking"), ("extrapolation", "Inside vs outside the tested envelope"),
+    ("summary", "Summary"), ("ranking", "Ranking"),
+    ("claims", "What the source paper says vs what the posterior says"),
+    ("extrapolation", "Inside vs outside the tested envelope"),
     ("trajectories", "Trajectories: predicted vs measured"), ("sizing", "Sizing"),
     ("parameters", "Parameters"), ("data", "Data and checks"), ("findings", "All findings"),
 ]

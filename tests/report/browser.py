@@ -47,6 +47,7 @@ class PageCheck:
     section_ids: list[str] = field(default_factory=list)
     scroll_width: int = 0
     first_screen_text: str = ""
+    ranking_figure_top: float = float("inf")  # px from the top of the page to the ranking plot
 
 
 def inspect_page(html: Path, screenshot: Path, chromium: str) -> PageCheck:
@@ -67,6 +68,9 @@ def inspect_page(html: Path, screenshot: Path, chromium: str) -> PageCheck:
             check.section_ids = page.evaluate("Array.from(document.querySelectorAll('section')).map(s => s.id)")
             check.scroll_width = int(page.evaluate("document.documentElement.scrollWidth"))
             check.first_screen_text = page.evaluate(_FIRST_SCREEN)
+            check.ranking_figure_top = float(page.evaluate(
+                "(() => { const i = document.querySelector('#ranking img');"
+                " return i ? i.getBoundingClientRect().top : Infinity; })()"))
             page.screenshot(path=str(screenshot), full_page=True)
         finally:
             browser.close()

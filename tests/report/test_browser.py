@@ -51,6 +51,7 @@ def check(folder: Path, screenshot: Path) -> None:
     assert len(page.section_ids) == len(md_sections) and {"summary", "ranking", "claims"} <= set(page.section_ids)
     assert page.scroll_width <= WIDTH
     assert "Recommended:" in page.first_screen_text  # the decision is on the first screen
+    assert page.ranking_figure_top < 900  # and the ranking plot starts on it
     assert screenshot.stat().st_size > 10_000  # a real full-page PNG
 
 
