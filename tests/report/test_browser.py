@@ -71,8 +71,10 @@ def test_fake_outcome_report_in_chromium(tmp_path):
 
 
 @pytest.mark.slow
-def test_quick_study_report_in_chromium(tmp_path):
-    """A real --quick study (NUTS, LOO, blocked CV, claims) on simulated data, opened in Chromium;
+def test_small_study_report_in_chromium(tmp_path):
+    """A real small study (NUTS 2 × 700 draws — --quick's 2 × 300 fail the ESS gate, and a report
+    without a recommendation would test less — LOO, blocked CV, claims) on simulated data, opened
+    in Chromium;
     the screenshot is kept in reports/ci-screenshots when CI sets BAYESFRIC_SCREENSHOTS."""
     speeds = np.geomspace(0.005, 4.0, 20)
     v = np.concatenate([-speeds[::-1], speeds])
@@ -85,12 +87,12 @@ def test_quick_study_report_in_chromium(tmp_path):
         '[columns.torque]\nrole = "response"\nquantity = "torque"\nunit = "N*m"\n')
     (tmp_path / "s.toml").write_text(
         '[study]\nname = "tiny"\nquestion = "Trained below 1 rad/s, which law predicts above?"\n'
-        '[data]\ndataset = "bench.csv"\n[sampler]\ndraws = 600\ntune = 400\nchains = 2\n'
+        '[data]\ndataset = "bench.csv"\n[sampler]\ndraws = 700\ntune = 400\nchains = 2\n'
         '[[laws]]\nname = "coulomb"\n[[laws]]\nname = "coulomb_viscous"\n[compare]\nevidence = false\n'
         '[[compare.blocked]]\naxis = "velocity"\nthreshold = 1.0\nlabel = "outside"\n'
         '[[claims]]\ntext = "viscous coefficient 2 N·m·s/rad"\nsource = "simulation"\nkind = "parameter"\n'
         'law = "coulomb_viscous"\nparameter = "c_v"\nexpect = [1.8, 2.2]\n')
-    folder = run_study(tmp_path / "s.toml", out_root=tmp_path / "reports", quick=True)
+    folder = run_study(tmp_path / "s.toml", out_root=tmp_path / "reports")
     check(folder, tmp_path / "screenshot.png")
     if keep := os.environ.get("BAYESFRIC_SCREENSHOTS"):
         Path(keep).mkdir(parents=True, exist_ok=True)
