@@ -278,8 +278,9 @@ def draw(outcome, folder: Path) -> tuple[list[FigureRef], dict[int, Path]]:
     if plot_trajectories(outcome, fdir / "trajectories.png") is not None:
         refs.append(FigureRef("trajectories", "figures/trajectories.png",
                               "Measured trajectories (dots) against the two best-ranked laws' posterior-predictive "
-                              "medians, per condition. Read: does the law follow the loop or coast-down shape, also "
-                              "on the held-out conditions?", "trajectories"))
+                              "medians (from the full fit), per condition; conditions held out by the first blocked "
+                              "scheme are titled in red. Read: does the law follow the loop or coast-down shape, "
+                              "and does it keep doing so at the held-out conditions?", "trajectories"))
     for w in outcome.laws:
         if plot_pairs(outcome, w, fdir / f"pairs_{w.name}.png") is not None:
             refs.append(FigureRef(f"parameters:{w.name}", f"figures/pairs_{w.name}.png",

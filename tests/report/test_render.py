@@ -90,3 +90,26 @@ def test_templates_are_package_data():
     folder = root / "bayesfric" / "report"
     shipped = {p for g in globs["bayesfric.report"] for p in folder.glob(g)}
     assert set((folder / "templates").iterdir()) == shipped and len(shipped) == 2
+
+
+def test_trajectory_data_get_a_trajectory_figure_and_section(tmp_path):
+    """Data with trajectories (ds.attrs['trajectory']) get the measured-vs-predicted panels."""
+    import numpy as np
+
+    (tmp_path / "t.toml").write_text(
+        '[study]\nname = "t"\n[data]\ndataset = "robot_joint"\n[[laws]]\nname = "coulomb"\n[[laws]]\n'
+        'name = "coulomb_viscous"\n[compare]\nevidence = false\n[[compare.blocked]]\naxis = "velocity"\n'
+        'threshold = 1.0\nlabel = "outside"\n')
+    out = outcome(load_study(tmp_path / "t.toml"), tmp_path)
+    n = out.data.sizes["obs"]
+    out.data = out.data.assign_coords(time=("obs", np.tile(np.linspace(0.0, 1.0, n // 4), 4)),
+                                      run=("obs", np.repeat(np.arange(4), n // 4)))
+    out.data["time"].attrs.update(role="input", units="s")
+    out.data["run"].attrs.update(role="group")
+    out.data.attrs["trajectory"] = "run"
+    folder = tmp_path / "report"
+    folder.mkdir()
+    write_reports(out, folder)
+    assert (folder / "figures" / "trajectories.png").stat().st_size > 10_000
+    assert "## Trajectories: predicted vs measured" in (folder / "summary.md").read_text()
+    assert '<section id="trajectories">' in (folder / "report.html").read_text()
