@@ -34,12 +34,13 @@ def banner(fig: Figure, ds: xr.Dataset) -> None:
     set says it was reconstructed from a paper's figures (``ds.attrs["provenance"]``), a grey
     provenance line otherwise."""
     prov = ds.attrs.get("provenance", "?")
+    # As the figure's suptitle: a constrained layout keeps room for it above every panel title.
     if prov == "reconstructed":
-        fig.text(0.995, 0.995, "RECONSTRUCTED DATA — not measured", ha="right", va="top", fontsize=9,
-                 fontweight="bold", color="white", bbox={"facecolor": "crimson", "edgecolor": "none", "pad": 3})
+        fig.suptitle("RECONSTRUCTED DATA — not measured", x=0.995, ha="right", fontsize=9, fontweight="bold",
+                     color="white", bbox={"facecolor": "crimson", "edgecolor": "none", "pad": 3})
     else:
-        fig.text(0.995, 0.995, "SIMULATED DATA" if prov == "simulated" else "measured data", ha="right", va="top",
-                 fontsize=8, color="0.3")
+        fig.suptitle("SIMULATED DATA" if prov == "simulated" else "measured data", x=0.995, ha="right",
+                     fontsize=8, color="0.3")
 
 
 def save(fig: Figure, path: Path) -> Path:

@@ -31,7 +31,7 @@ import matplotlib as mpl
 import numpy as np
 from matplotlib.figure import Figure
 
-from bayesfric.quantities import QUANTITIES
+from bayesfric.quantities import QUANTITIES, UnitError, conversion
 from bayesfric.report.content import FigureRef
 from bayesfric.report.figures import banner, plot_sizing_fan, save
 from bayesfric.study import scores as sc
@@ -48,12 +48,23 @@ def _colours() -> list[str]:
     return mpl.rcParams["axes.prop_cycle"].by_key()["color"]
 
 
-def _unit(ds, name: str) -> str:
-    if name in ds.coords and ds[name].attrs.get("units"):
-        return str(ds[name].attrs["units"])
-    if name in ds and ds[name].attrs.get("units"):
-        return str(ds[name].attrs["units"])
-    return QUANTITIES[name].unit if name in QUANTITIES else ""
+def _display(ds, name: str) -> tuple[str, float, float]:
+    """(unit, scale, offset) to show ``name`` in the unit of the data file (MN·m, rpm, °C), with
+    ``shown = (si − offset) / scale``; SI when the data set does not record its original unit."""
+    attrs = ds[name].attrs
+    unit, quantity = attrs.get("original_unit"), attrs.get("quantity", name)
+    if unit and quantity in QUANTITIES:
+        try:
+            scale, offset = conversion(unit, quantity)
+            return str(unit), float(scale), float(offset)
+        except UnitError:
+            pass
+    return str(attrs.get("units") or (QUANTITIES[name].unit if name in QUANTITIES else "")), 1.0, 0.0
+
+
+def _shown(ds, name: str, values) -> np.ndarray:
+    _, scale, offset = _display(ds, name)
+    return (np.asarray(values, dtype=float) - offset) / scale
 
 
 def plot_ranking(outcome, path: Path) -> Path:
@@ -126,7 +137,7 @@ def plot_bands(outcome, axis: str, path: Path, heldout: np.ndarray | None) -> Pa
     marked. With several inputs the band is drawn per observation (vertical bars)."""
     ds = outcome.data
     response = ds.attrs["response"]
-    x, y = np.asarray(ds[axis].values, dtype=float), np.asarray(ds[response].values, dtype=float)
+    x, y = _shown(ds, axis, ds[axis].values), _shown(ds, response, ds[response].values)
     order = sc.ranking_order(outcome.table, [w.name for w in outcome.laws], sc.criteria(outcome)[0])[:MAX_PANELS]
     fits = {w.name: w.fit for w in outcome.laws}
     one_input = sum(v.attrs.get("role") == "input" for v in ds.coords.values()) == 1
@@ -137,9 +148,9 @@ def plot_bands(outcome, axis: str, path: Path, heldout: np.ndarray | None) -> Pa
     trained = ~heldout if heldout is not None else np.ones_like(x, dtype=bool)
     s = np.argsort(x, kind="stable")
     for ax, name, colour in zip(axes, order, _colours() * 3, strict=False):
-        pp = _draws(fits[name], "posterior_predictive", "response")
+        pp = _shown(ds, response, _draws(fits[name], "posterior_predictive", "response"))
         lo, mid, hi = np.quantile(pp, [0.05, 0.5, 0.95], axis=0)
-        ax.axvspan(x[trained].min(), x[trained].max(), color="#e6f2e6", lw=0, zorder=0)
+        ax.axvspan(x[trained].min(), x[trained].max(), color="#e6f2e6", lw=0, zorder=0)  # trained region
         ax.plot(x[trained], y[trained], ".", ms=3, color="0.35")
         if heldout is not None and heldout.any():
             ax.plot(x[heldout], y[heldout], "o", ms=4, mfc="none", mec="crimson")
@@ -153,8 +164,8 @@ def plot_bands(outcome, axis: str, path: Path, heldout: np.ndarray | None) -> Pa
         ax.tick_params(labelsize=7)
     for ax in axes[len(order):]:
         ax.set_visible(False)
-    fig.supxlabel(f"{axis} [{_unit(ds, axis)}]   (green: trained region; red circles: held out)", fontsize=8)
-    fig.supylabel(f"{response} [{_unit(ds, response)}]", fontsize=8)
+    fig.supxlabel(f"{axis} [{_display(ds, axis)[0]}]   (green: trained region; red circles: held out)", fontsize=8)
+    fig.supylabel(f"{response} [{_display(ds, response)[0]}]", fontsize=8)
     banner(fig, ds)
     return save(fig, path)
 
@@ -217,13 +228,13 @@ def plot_trajectories(outcome, path: Path) -> Path | None:
     cols = min(3, len(ids))
     fig = Figure(figsize=(4.0 * cols, 3.0 * math.ceil(len(ids) / cols) + 0.6), layout="constrained")
     axes = np.atleast_1d(fig.subplots(math.ceil(len(ids) / cols), cols, squeeze=False)).ravel()
-    bands = {name: np.quantile(_draws(laws[name].fit, "posterior_predictive", "response"), [0.05, 0.5, 0.95], axis=0)
-             for name in order}
+    bands = {name: np.quantile(_shown(ds, response, _draws(laws[name].fit, "posterior_predictive", "response")),
+                               [0.05, 0.5, 0.95], axis=0) for name in order}
     values = np.asarray(ds[key].values)
     for ax, tid in zip(axes, ids, strict=False):
         m = values == tid
-        x = np.asarray(ds[axis].values, dtype=float)[m]
-        ax.plot(x, np.asarray(ds[response].values, dtype=float)[m], ".", ms=3, color="0.3", label="measured")
+        x = _shown(ds, axis, ds[axis].values)[m]
+        ax.plot(x, _shown(ds, response, ds[response].values)[m], ".", ms=3, color="0.3", label="measured")
         for name, colour in zip(order, _colours(), strict=False):
             lo, mid, hi = (b[m] for b in bands[name])
             ax.fill_between(x, lo, hi, color=colour, alpha=0.2, lw=0) if axis == "time" else None
@@ -234,8 +245,8 @@ def plot_trajectories(outcome, path: Path) -> Path | None:
     for ax in axes[len(ids):]:
         ax.set_visible(False)
     axes[0].legend(fontsize=7)
-    fig.supxlabel(f"{axis} [{_unit(ds, axis)}]", fontsize=8)
-    fig.supylabel(f"{response} [{_unit(ds, response)}]", fontsize=8)
+    fig.supxlabel(f"{axis} [{_display(ds, axis)[0]}]", fontsize=8)
+    fig.supylabel(f"{response} [{_display(ds, response)[0]}]", fontsize=8)
     banner(fig, ds)
     return save(fig, path)
 
