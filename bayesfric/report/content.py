@@ -223,13 +223,16 @@ def build(outcome, figures: list[FigureRef], sizing_figures: dict[int, str]) -> 
             by_section.setdefault(f.section, []).append(f)
     findings = fd.findings(outcome, table)
     sizing = []
+    summary = fd.summary_block(outcome, table, _claim_warnings(outcome))
     if outcome.sizing is not None:
-        findings += sizing_report.headlines(outcome.sizing)
+        headlines = sizing_report.headlines(outcome.sizing)
+        findings += headlines
+        summary.answers += headlines  # the sizing answer belongs to the decision block too
         sizing = sizing_report.sections(outcome.sizing, sizing_figures)
     rep = Report(
         title=outcome.study.title, banner=provenance_label(outcome.data),
         reconstructed=outcome.data.attrs.get("provenance") == "reconstructed",
-        summary=fd.summary_block(outcome, table, _claim_warnings(outcome)), findings=findings,
+        summary=summary, findings=findings,
         claims=_claims(outcome), ranking=ranking,
         ranking_note="Weights exclude fits that failed the diagnostics gate"
                      + (" (the study asked to include them)." if outcome.study.include_failed else "."),

@@ -72,7 +72,7 @@ def test_fake_outcome_report_in_chromium(tmp_path):
 
 @pytest.mark.slow
 def test_small_study_report_in_chromium(tmp_path):
-    """A real small study (NUTS 2 × 700 draws — --quick's 2 × 300 fail the ESS gate, and a report
+    """A real small study with a sizing question (NUTS 2 × 700 draws — --quick's 2 × 300 fail the ESS gate, and a report
     without a recommendation would test less — LOO, blocked CV, claims) on simulated data, opened
     in Chromium;
     the screenshot is kept in reports/ci-screenshots when CI sets BAYESFRIC_SCREENSHOTS."""
@@ -91,9 +91,12 @@ def test_small_study_report_in_chromium(tmp_path):
         '[[laws]]\nname = "coulomb"\n[[laws]]\nname = "coulomb_viscous"\n[compare]\nevidence = false\n'
         '[[compare.blocked]]\naxis = "velocity"\nthreshold = 1.0\nlabel = "outside"\n'
         '[[claims]]\ntext = "viscous coefficient 2 N·m·s/rad"\nsource = "simulation"\nkind = "parameter"\n'
-        'law = "coulomb_viscous"\nparameter = "c_v"\nexpect = [1.8, 2.2]\n')
+        'law = "coulomb_viscous"\nparameter = "c_v"\nexpect = [1.8, 2.2]\n'
+        '[[sizing]]\nlabel = "beyond the tested speeds"\nat = { velocity = "4..6 rad/s" }\n')
     folder = run_study(tmp_path / "s.toml", out_root=tmp_path / "reports")
     check(folder, tmp_path / "screenshot.png")
+    html = (folder / "report.html").read_text()
+    assert '<section id="sizing">' in html and html.count("<img ") == len(list((folder / "figures").iterdir()))
     if keep := os.environ.get("BAYESFRIC_SCREENSHOTS"):
         Path(keep).mkdir(parents=True, exist_ok=True)
         shutil.copy(tmp_path / "screenshot.png", Path(keep) / "quick_study.png")
