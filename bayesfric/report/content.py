@@ -9,13 +9,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from bayesfric.report import findings as fd
 from bayesfric.report import sizing as sizing_report
 from bayesfric.report.figures import provenance_label
 from bayesfric.report.tables import parameter_rows
 from bayesfric.study import scores as sc
+
+if TYPE_CHECKING:
+    from bayesfric.study.outcome import StudyOutcome
 
 __all__ = ["Table", "FigureRef", "LawSection", "Report", "build", "SECTIONS", "ranking_records"]
 
@@ -98,7 +101,7 @@ def _pm(row) -> str:
     return text + ("" if row["reliable"] else " ⚠")
 
 
-def _ranking(outcome, table) -> tuple[Table, list[str]]:
+def _ranking(outcome: StudyOutcome, table) -> tuple[Table, list[str]]:
     crits = sc.criteria(outcome)
     order = sc.ranking_order(table, [w.name for w in outcome.laws], crits[0] if crits else None)
     weight_key = f"stacking {outcome.blocked[0]}" if outcome.blocked else "stacking LOO"
@@ -122,7 +125,7 @@ def _ranking(outcome, table) -> tuple[Table, list[str]]:
     return Table(caption, header, rows, warn), order
 
 
-def _claims(outcome) -> Table | None:
+def _claims(outcome: StudyOutcome) -> Table | None:
     if not outcome.claims:
         return None
     rows, warn = [], []
@@ -152,7 +155,7 @@ def _claims(outcome) -> Table | None:
     return Table(caption, ["claim", "source", "claimed", "posterior says", "verdict"], rows, warn)
 
 
-def _extrapolation(outcome, table, order) -> Table | None:
+def _extrapolation(outcome: StudyOutcome, table, order) -> Table | None:
     if not outcome.blocked:
         return None
     header = ["law"] + [f"{h} {s}" for s in outcome.blocked for h in ("elpd LOO on held-out", "penalty/pt")]
@@ -168,7 +171,7 @@ def _extrapolation(outcome, table, order) -> Table | None:
                  "(in nats per point) the law predicts outside the tested envelope than inside it.", header, rows)
 
 
-def _law_sections(outcome, figures: dict[str, FigureRef]) -> list[LawSection]:
+def _law_sections(outcome: StudyOutcome, figures: dict[str, FigureRef]) -> list[LawSection]:
     out = []
     for w in outcome.laws:
         rows = [[r.name, r.unit, f"{r.mean:.4g}", f"{r.sd:.3g}", f"{r.q05:.4g} … {r.q95:.4g}", f"{r.r_hat:.3f}",
@@ -179,7 +182,7 @@ def _law_sections(outcome, figures: dict[str, FigureRef]) -> list[LawSection]:
     return out
 
 
-def _checks(outcome) -> Table:
+def _checks(outcome: StudyOutcome) -> Table:
     rows, warn = [], []
     for i, w in enumerate(outcome.laws):
         rows.append([w.name, "passed" if w.reliable else "FAILED", _num(w.p_loo, 1),
@@ -194,7 +197,7 @@ def _checks(outcome) -> Table:
     return Table("Checks per law. ⚠ = LOO-PIT outside its simultaneous band (miscalibrated).", header, rows, warn)
 
 
-def _data_lines(outcome) -> list[str]:
+def _data_lines(outcome: StudyOutcome) -> list[str]:
     st, ds = outcome.study, outcome.data
     noise = st.noise.kind + (f", partial-pooled offsets per {st.noise.group}" if st.noise.group else "")
     return [f"data set: {ds.attrs.get('name')} — {ds.attrs.get('title', '')}",
@@ -204,13 +207,13 @@ def _data_lines(outcome) -> list[str]:
             f"noise model: {noise}", f"sampler: {st.sampler}"]
 
 
-def _claim_warnings(outcome) -> list[fd.Finding]:
+def _claim_warnings(outcome: StudyOutcome) -> list[fd.Finding]:
     bad = [r.claim.text for r in outcome.claims if r.verdict == "not reproduced"]
     return [fd.plain(f"{len(bad)} claim(s) of the source paper NOT reproduced by the posterior (see the claims "
                      "section).", warning=True)] if bad else []
 
 
-def build(outcome, figures: list[FigureRef], sizing_figures: dict[int, str]) -> Report:
+def build(outcome: StudyOutcome, figures: list[FigureRef], sizing_figures: dict[int, str]) -> Report:
     """The report's content model (``sizing_figures``: question index -> the fan's reference as
     the rendering wants it, a file name or an encoded image)."""
     table = outcome.table
@@ -255,7 +258,7 @@ def build(outcome, figures: list[FigureRef], sizing_figures: dict[int, str]) -> 
     return rep
 
 
-def ranking_records(outcome) -> list[dict]:
+def ranking_records(outcome: StudyOutcome) -> list[dict]:
     """``ranking.csv``: one row per law (in ranking order), every score of the table in columns,
     with the law's diagnostics and checks."""
     table = outcome.table

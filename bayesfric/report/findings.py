@@ -9,10 +9,14 @@ written here and parsed back. Every verdict comes from the law × metric table
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import pandas as pd
 
 from bayesfric.study import scores as sc
+
+if TYPE_CHECKING:
+    from bayesfric.study.outcome import StudyOutcome
 
 __all__ = ["Finding", "Summary", "findings", "summary_block", "plain", "RECOMMEND_WEIGHT"]
 
@@ -82,7 +86,7 @@ def _answer(table: pd.DataFrame, c: sc.Criterion, loo_winner: str | None) -> Fin
     return _f(f"Best under {c.scheme}: ", _law(winner), f", elpd {number}{_unranked(table, c)}.")
 
 
-def findings(outcome, table: pd.DataFrame) -> list[Finding]:
+def findings(outcome: StudyOutcome, table: pd.DataFrame) -> list[Finding]:
     """The study's findings: the best law per criterion and the problems that limit them."""
     crits = sc.criteria(outcome)
     loo_winner = sc.best(table, "elpd_loo") if outcome.study.loo else None
@@ -100,7 +104,7 @@ def findings(outcome, table: pd.DataFrame) -> list[Finding]:
     return lines
 
 
-def _warnings(outcome) -> list[Finding]:
+def _warnings(outcome: StudyOutcome) -> list[Finding]:
     out = []
     failed = [w.name for w in outcome.laws if not w.reliable]
     if failed:
@@ -124,7 +128,7 @@ def _warnings(outcome) -> list[Finding]:
     return out
 
 
-def _deciding(outcome) -> sc.Criterion | None:
+def _deciding(outcome: StudyOutcome) -> sc.Criterion | None:
     crits = sc.criteria(outcome)
     return next((c for c in crits if c.kind in ("extrapolation", "interpolation")), crits[0] if crits else None)
 
@@ -133,7 +137,7 @@ def _weight_key(c: sc.Criterion) -> str:
     return f"stacking {c.scheme}" if c.kind == "extrapolation" else "stacking LOO"
 
 
-def recommendation(outcome, table: pd.DataFrame) -> Finding:
+def recommendation(outcome: StudyOutcome, table: pd.DataFrame) -> Finding:
     """The law to use (or the stacking average), with the reason, from the deciding criterion:
     the first blocked-extrapolation scheme (the study's question), else PSIS-LOO."""
     c = _deciding(outcome)
@@ -152,7 +156,7 @@ def recommendation(outcome, table: pd.DataFrame) -> Finding:
               f"law carries ≥ {RECOMMEND_WEIGHT:.0%} of the weight; ", _law(winner), f" alone has the {why}.")
 
 
-def summary_block(outcome, table: pd.DataFrame, extra_warnings: list[Finding] | None = None) -> Summary:
+def summary_block(outcome: StudyOutcome, table: pd.DataFrame, extra_warnings: list[Finding] | None = None) -> Summary:
     """The top summary: question, one answer per criterion, recommendation, decision warnings."""
     loo_winner = sc.best(table, "elpd_loo") if outcome.study.loo else None
     answers = [a for c in sc.criteria(outcome) if (a := _answer(table, c, loo_winner)) is not None]

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import matplotlib as mpl
 import numpy as np
@@ -35,6 +36,9 @@ from bayesfric.quantities import QUANTITIES, UnitError, conversion
 from bayesfric.report.content import FigureRef
 from bayesfric.report.figures import banner, plot_sizing_fan, save
 from bayesfric.study import scores as sc
+
+if TYPE_CHECKING:
+    from bayesfric.study.outcome import LawOutcome, StudyOutcome
 
 __all__ = ["draw", "plot_ranking", "plot_penalty", "plot_bands", "plot_pairs", "plot_trajectories", "MAX_DRAWS"]
 
@@ -67,7 +71,7 @@ def _shown(ds, name: str, values) -> np.ndarray:
     return (np.asarray(values, dtype=float) - offset) / scale
 
 
-def plot_ranking(outcome, path: Path) -> Path:
+def plot_ranking(outcome: StudyOutcome, path: Path) -> Path:
     """One panel per criterion (blocked elpd, LOO elpd, other CV, log evidence): each law's
     estimate ± 1 se, the best law's value as a dashed line, unreliable results as red crosses
     (the layout of ``arviz`` compare plots, one panel per scale)."""
@@ -98,7 +102,7 @@ def plot_ranking(outcome, path: Path) -> Path:
     return save(fig, path)
 
 
-def plot_penalty(outcome, path: Path) -> Path:
+def plot_penalty(outcome: StudyOutcome, path: Path) -> Path:
     """Extrapolation penalty per law and blocked scheme: nats per held-out point lost outside
     the tested envelope relative to inside it (0 = extrapolates as well as it interpolates)."""
     table = outcome.table
@@ -131,7 +135,7 @@ def _draws(dt, group: str, name: str) -> np.ndarray:
     return v[np.linspace(0, len(v) - 1, min(MAX_DRAWS, len(v))).astype(int)]
 
 
-def plot_bands(outcome, axis: str, path: Path, heldout: np.ndarray | None) -> Path:
+def plot_bands(outcome: StudyOutcome, axis: str, path: Path, heldout: np.ndarray | None) -> Path:
     """One panel per law (best first, at most :data:`MAX_PANELS`): data against ``axis``, the
     law's posterior-predictive mean and 90 % band, the trained region shaded, held-out points
     marked. With several inputs the band is drawn per observation (vertical bars)."""
@@ -170,7 +174,7 @@ def plot_bands(outcome, axis: str, path: Path, heldout: np.ndarray | None) -> Pa
     return save(fig, path)
 
 
-def plot_pairs(outcome, w, path: Path) -> Path | None:
+def plot_pairs(outcome: StudyOutcome, w: LawOutcome, path: Path) -> Path | None:
     """Pairwise scatter of a law's scalar coefficients (at most 5, :data:`MAX_DRAWS` draws), with
     units; correlated coefficients show as slanted clouds. None for a one-parameter law."""
     post = w.fit["posterior"]
@@ -210,7 +214,7 @@ def _path_axis(ds, law) -> str:
                 next(k for k in ("angle", "displacement", "time") if k in inputs))
 
 
-def plot_trajectories(outcome, path: Path) -> Path | None:
+def plot_trajectories(outcome: StudyOutcome, path: Path) -> Path | None:
     """Measured vs predicted trajectories (hysteresis loops, coast-downs) for the best two laws,
     one panel per trajectory (at most :data:`MAX_TRAJECTORIES`, evenly chosen); held-out
     trajectories say so in their title. None when the data have no trajectories."""
@@ -251,7 +255,7 @@ def plot_trajectories(outcome, path: Path) -> Path | None:
     return save(fig, path)
 
 
-def _band_axes(outcome) -> list[tuple[str, np.ndarray | None]]:
+def _band_axes(outcome: StudyOutcome) -> list[tuple[str, np.ndarray | None]]:
     ds = outcome.data
     inputs = [k for k, v in ds.coords.items() if v.attrs.get("role") == "input"]
     if ds.attrs.get("trajectory"):  # along a path the trajectory panels say more; bands over condition inputs
@@ -262,7 +266,7 @@ def _band_axes(outcome) -> list[tuple[str, np.ndarray | None]]:
     return [(a, held.get(a)) for a in axes[:2]]
 
 
-def draw(outcome, folder: Path) -> tuple[list[FigureRef], dict[int, Path]]:
+def draw(outcome: StudyOutcome, folder: Path) -> tuple[list[FigureRef], dict[int, Path]]:
     """Every figure of the report into ``folder/figures``: (references with captions, sizing fans
     by question index)."""
     fdir = folder / "figures"

@@ -16,6 +16,7 @@ import base64
 import csv
 import re
 from pathlib import Path
+from typing import TYPE_CHECKING
 from urllib.parse import quote
 
 import jinja2
@@ -26,6 +27,9 @@ from bayesfric.report.content import Table, build, ranking_records
 from bayesfric.report.findings import Finding
 from bayesfric.report.study_figures import draw
 from bayesfric.report.tables import format_table, parameter_rows
+
+if TYPE_CHECKING:
+    from bayesfric.study.outcome import StudyOutcome
 
 __all__ = ["write_reports", "render", "md_text", "md_code"]
 
@@ -107,7 +111,7 @@ def render(content, folder: Path, markdown: bool) -> str:
     return re.sub(r"\n{3,}", "\n\n", text) if markdown else text
 
 
-def _parameter_records(out) -> list[dict]:
+def _parameter_records(out: StudyOutcome) -> list[dict]:
     records = []
     for w in out.laws:
         for r in parameter_rows(w.fit, w.law):
@@ -128,13 +132,13 @@ def _write_csv(path: Path, records: list[dict]) -> None:
         writer.writerows(records)
 
 
-def _claim_records(out) -> list[dict]:
+def _claim_records(out: StudyOutcome) -> list[dict]:
     return [{"claim": r.claim.text, "source": r.claim.source, "kind": r.claim.kind, "law": r.claim.law,
              "expect_low": r.claim.expect[0], "expect_high": r.claim.expect[1], "value": r.value, "low": r.lo,
              "high": r.hi, "winner": r.winner, "verdict": r.verdict, "why": r.why} for r in out.claims]
 
 
-def write_reports(out, folder: Path) -> None:
+def write_reports(out: StudyOutcome, folder: Path) -> None:
     """Write the figures, summary.md, report.html, ranking.csv, scores.csv, parameters.csv,
     claims.csv (with ``[[claims]]``) and sizing.csv (with sizing questions) into ``folder`` (the
     runner's work folder, installed atomically afterwards)."""

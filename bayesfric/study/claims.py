@@ -34,7 +34,7 @@ import json
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import jax
 import jax.numpy as jnp
@@ -43,6 +43,11 @@ import numpy as np
 from bayesfric.laws import get_law
 from bayesfric.sizing.points import SizingError, parse_value
 from bayesfric.study import scores as sc
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from bayesfric.study.outcome import StudyOutcome
 
 __all__ = ["KINDS", "Claim", "ClaimResult", "make_claim", "check_claim", "evaluate_claims", "VERDICTS"]
 
@@ -213,7 +218,7 @@ def _verdict(claim: Claim, value: float) -> str:
     return "reproduced" if claim.expect[0] <= value <= claim.expect[1] else "not reproduced"
 
 
-def _evaluate(claim: Claim, outcome, table) -> ClaimResult:
+def _evaluate(claim: Claim, outcome: StudyOutcome, table: pd.DataFrame) -> ClaimResult:
     laws = {w.name: w for w in outcome.laws}
     if claim.kind in ("ratio", "parameter"):
         used = [claim.law] if set(laws[claim.law].law.params) - set(claim.fixed) else []  # posterior read?
@@ -247,6 +252,6 @@ def _evaluate(claim: Claim, outcome, table) -> ClaimResult:
     return ClaimResult(claim, "reproduced" if winner == claim.law else "not reproduced", winner=winner)
 
 
-def evaluate_claims(claims: list[Claim], outcome, table) -> list[ClaimResult]:
+def evaluate_claims(claims: list[Claim], outcome: StudyOutcome, table: pd.DataFrame) -> list[ClaimResult]:
     """Every claim checked against the posterior (fits) and the law × metric table."""
     return [_evaluate(c, outcome, table) for c in claims]

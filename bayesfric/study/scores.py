@@ -24,9 +24,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
+
+if TYPE_CHECKING:
+    from bayesfric.study.outcome import StudyOutcome
 
 __all__ = ["METRICS", "COLUMNS", "Criterion", "score_table", "best", "passed_over", "ranking_order", "criteria",
            "value"]
@@ -105,7 +109,7 @@ def _weight_rows(w) -> list[tuple]:
              w.weight_exclusions.get(method, "")) for method, weight in w.weights.items()]
 
 
-def score_table(outcome) -> pd.DataFrame:
+def score_table(outcome: StudyOutcome) -> pd.DataFrame:
     """The tidy law × metric table of a :class:`~bayesfric.study.outcome.StudyOutcome`.
 
     Parameters
@@ -175,7 +179,7 @@ def ranking_order(table: pd.DataFrame, laws: list[str], criterion: Criterion | N
     return sorted(laws, key=key)
 
 
-def criteria(outcome) -> list[Criterion]:
+def criteria(outcome: StudyOutcome) -> list[Criterion]:
     """The study's ranking criteria in display order: blocked schemes (the question), LOO, the
     other CV schemes, the log-evidence estimators."""
     out = [Criterion("elpd_cv", s, "extrapolation") for s in outcome.blocked]
