@@ -15,11 +15,11 @@ here with bare matplotlib, in the same layout.
 
 Cost. Figures read stored draws only (no sampling). The pair plots and the predictive bands are
 thinned to :data:`MAX_DRAWS` draws; the trajectory panels evaluate nothing (they plot the fits'
-stored posterior-predictive draws). Measured (2026-11-22, loaded 2-core machine) on the shipped
-pitch_bearing study reduced to 3 of its laws (rothe_erde, rothe_erde_offset, coulomb), ``--quick``:
-the whole report (figures, summary.md, report.html, CSVs) took 3.9 s against a median fit of
-131 s (0.03× one fit). ``benchmarks/bench_figures.py STUDY.toml`` reruns the measurement on any
-study.
+stored posterior-predictive draws). Measured with ``benchmarks/bench_figures.py`` (2026-11-23,
+2-core machine shared with other jobs, load 5-7): on the shipped robot_joint study (6 laws,
+``--quick``) the figures took 23.8 s and the whole report 24.8 s against a median fit of 80.7 s,
+0.30× and 0.31× one fit; on pitch_bearing reduced to 3 laws 3.9 s against 131 s (0.03×). The
+report is a few tenths of one fit at most, well inside a study's budget of many fits.
 """
 
 from __future__ import annotations
