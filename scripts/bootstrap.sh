@@ -38,4 +38,16 @@ if [ ! -x "$venv/bin/python" ] || ! works "$venv/bin/python" || [ "$(cat "$venv/
   fi
   echo "$stamp" > "$venv/.stamp"
 fi
+# The report's browser test (tests/report/test_browser.py) needs a headless Chromium from the
+# distribution. Installed here when missing and possible (root with apt-get); otherwise a hint.
+if ! command -v chromium >/dev/null 2>&1 && ! command -v chromium-browser >/dev/null 2>&1; then
+  if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
+    echo "bootstrap: installing chromium (apt-get) for the report's browser test" >&2
+    { apt-get update -q && DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends chromium; } \
+      >"$here/.venv/chromium-install.log" 2>&1 \
+      || echo "bootstrap: could not install chromium (log: $here/.venv/chromium-install.log)" >&2
+  else
+    echo "bootstrap: no chromium; the browser test needs it (e.g. sudo apt-get install chromium)" >&2
+  fi
+fi
 echo "$venv/bin/python"

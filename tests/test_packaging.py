@@ -26,12 +26,14 @@ def test_an_installed_wheel_finds_the_builtin_data_and_studies(tmp_path):
     subprocess.run([sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--target", str(tmp_path / "site"),
                     str(wheel)], check=True, capture_output=True, timeout=300)
     code = ("import bayesfric, json; from bayesfric.datasets.registry import DATA_ROOT, builtin_names; "
-            "from bayesfric.study import STUDIES_DIR; "
+            "from bayesfric.study import STUDIES_DIR; from importlib.resources import files; "
             "print(json.dumps([bayesfric.__file__, str(DATA_ROOT), builtin_names(), "
-            "sorted(p.name for p in STUDIES_DIR.glob('*.toml'))]))")
+            "sorted(p.name for p in STUDIES_DIR.glob('*.toml')), "
+            "sorted(p.name for p in files('bayesfric.report').joinpath('templates').iterdir())]))")
     out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True, timeout=300,
                          cwd=tmp_path, env={"PYTHONPATH": str(tmp_path / "site"), "PATH": "/usr/bin:/bin"})
-    module, data_root, names, studies = json.loads(out.stdout.strip().splitlines()[-1])
+    module, data_root, names, studies, templates = json.loads(out.stdout.strip().splitlines()[-1])
+    assert templates == ["report.html.j2", "summary.md.j2"]  # the report templates are package data
     assert module.startswith(str(tmp_path / "site")) and data_root.startswith(str(tmp_path / "site"))
     assert names == ["dahl_duplex", "drum_rollout", "pitch_bearing", "robot_joint", "unwinder"]
     assert studies == ["dahl_duplex.toml", "drum_rollout.toml", "pitch_bearing.toml", "robot_joint.toml",

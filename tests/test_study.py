@@ -93,7 +93,7 @@ def test_end_to_end_tiny_study(tmp_path, data_csv):
         penalties = [float(v) for k, v in r.items() if k.startswith("penalty_per_point")]
         assert np.isfinite(float(r["elpd_loo"])) and len(penalties) == 1 and np.isfinite(penalties[0])
     text = (folder / "summary.md").read_text()
-    assert "SIMULATED data" in text and "## Ranking" in text and "stacking LOO" in text
+    assert "SIMULATED data" in text and "## Ranking" in text and "weight[stacking LOO]" in rows[0]
     assert not [p for p in folder.parent.iterdir() if p.name.startswith(".")]  # no temporary folder left
 
 
@@ -112,49 +112,7 @@ def test_evidence_pair_end_to_end(tmp_path, data_csv):
     assert "Highest log evidence (importance): **coulomb\\_viscous**" in (folder / "summary.md").read_text()
 
 
-def test_evidence_disagreement_keeps_a_law_out_of_the_evidence_ranking(tmp_path, data_csv):
-    from bayesfric.inference.diagnostics import Verdict
-    from bayesfric.study.outcome import Estimate, LawOutcome, StudyOutcome
-    from bayesfric.study.runner import _findings
-
-    (tmp_path / "tiny.toml").write_text(study_text())
-    study = load_study(tmp_path / "tiny.toml")
-    ok = Verdict(True, 1.0, 1000.0, 1000.0, 0, 1.0, 0.9)
-
-    def outcome(name, log_z, agree):
-        return LawOutcome(law=get_law(name), fit=None, fit_file=tmp_path, verdict=ok, loo=Estimate(-5.0, 1.0),
-                          evidence={"bridge": Estimate(log_z, 0.01), "importance": Estimate(log_z + 3, 0.01)},
-                          evidence_agree=agree)
-
-    out = StudyOutcome(study=study, data=None, schemes=[], blocked=[],
-                       laws=[outcome("coulomb", -1.0, False), outcome("coulomb_viscous", -4.0, True)])
-    assert out.winner("bridge") == out.winner("importance") == "coulomb_viscous"
-    line = next(x for x in _findings(out) if "disagree" in x)
-    assert "coulomb" in line and "coulomb_viscous" not in line and "left out of the evidence ranking" in line
-
-
-def test_winners_skip_unreliable_results_and_findings_name_them(tmp_path, data_csv):
-    """A law whose blocked fold failed the gate is not ranked, and the findings say it scored higher."""
-    from bayesfric.inference.diagnostics import Verdict
-    from bayesfric.study.outcome import Estimate, LawOutcome, StudyOutcome
-    from bayesfric.study.runner import _findings
-
-    (tmp_path / "tiny.toml").write_text(study_text())
-    study = load_study(tmp_path / "tiny.toml")
-    ok = Verdict(True, 1.0, 1000.0, 1000.0, 0, 1.0, 0.9)
-    label = "train inside, score outside"
-
-    def outcome(name, loo, blocked, blocked_ok):
-        return LawOutcome(law=get_law(name), fit=None, fit_file=tmp_path, verdict=ok, loo=Estimate(loo, 1.0),
-                          cv={label: Estimate(blocked, 1.0)}, cv_reliable={label: blocked_ok})
-
-    out = StudyOutcome(study=study, data=None, schemes=[label], blocked=[label],
-                       laws=[outcome("coulomb", -10.0, -5.0, False), outcome("coulomb_viscous", -2.0, -8.0, True)])
-    assert out.winner("loo") == "coulomb_viscous" and out.passed_over("loo") == []
-    assert out.winner(label) == "coulomb_viscous" and out.passed_over(label) == ["coulomb"]
-    blocked_line = next(line for line in _findings(out) if "blocked CV" in line)
-    assert "**coulomb_viscous**" in blocked_line
-    assert "coulomb scored higher but failed the diagnostics gate" in blocked_line
+# Winners, passed-over laws and evidence disagreement: tests/report/test_scores.py (the score table).
 
 
 @pytest.mark.parametrize(("sampler", "full", "quick"), [

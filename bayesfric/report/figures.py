@@ -1,5 +1,6 @@
-"""Figures of a study: data with each law's posterior predictive, residuals along an axis, and the
-sizing fan (predictive bands beyond the tested envelope)."""
+"""Figure helpers shared by the report (provenance label and banner, atomic PNG writing) and the
+sizing fan (predictive bands beyond the tested envelope); a study's other figures are in
+:mod:`bayesfric.report.study_figures`."""
 
 from __future__ import annotations
 
@@ -13,9 +14,7 @@ import numpy as np
 import xarray as xr
 from matplotlib.figure import Figure
 
-from bayesfric.quantities import QUANTITIES
-
-__all__ = ["plot_predictive", "plot_sizing_fan", "provenance_label"]
+__all__ = ["plot_sizing_fan", "provenance_label", "banner", "save"]
 
 
 def provenance_label(ds: xr.Dataset) -> str:
@@ -29,6 +28,25 @@ def provenance_label(ds: xr.Dataset) -> str:
     return f"measured data — {source}"
 
 
+def banner(fig: Figure, ds: xr.Dataset) -> None:
+    """Stamp the data's provenance on a figure: a red "RECONSTRUCTED DATA" banner when the data
+    set says it was reconstructed from a paper's figures (``ds.attrs["provenance"]``), a grey
+    provenance line otherwise."""
+    prov = ds.attrs.get("provenance", "?")
+    # As the figure's suptitle: a constrained layout keeps room for it above every panel title.
+    if prov == "reconstructed":
+        fig.suptitle("RECONSTRUCTED DATA — not measured", x=0.995, ha="right", fontsize=9, fontweight="bold",
+                     color="white", bbox={"facecolor": "crimson", "edgecolor": "none", "pad": 3})
+    else:
+        fig.suptitle("SIMULATED DATA" if prov == "simulated" else "measured data", x=0.995, ha="right",
+                     fontsize=8, color="0.3")
+
+
+def save(fig: Figure, path: Path) -> Path:
+    """Write ``fig`` as PNG atomically (temporary file, then rename)."""
+    return _save(fig, path)
+
+
 def _save(fig, path: Path) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(suffix=".png", dir=path.parent)
@@ -36,52 +54,6 @@ def _save(fig, path: Path) -> Path:
     fig.savefig(tmp, dpi=110, bbox_inches="tight")  # a bare Figure renders with Agg: no pyplot state
     os.replace(tmp, path)
     return path
-
-
-def plot_predictive(
-    ds: xr.Dataset,
-    fits: dict[str, xr.DataTree],
-    axis: str,
-    path: Path,
-    *,
-    heldout: np.ndarray | None = None,
-    title: str = "",
-) -> Path:
-    """Observed response and each law's posterior-predictive mean and 90 % band along ``axis``.
-
-    Upper panel: data (held-out points of the first blocked scheme marked) and, per law, the
-    posterior-predictive mean at each observation. Lower panel: standardised residuals
-    (observed − mean) / predictive sd, which shows where along the envelope each law fails.
-    """
-    x = np.asarray(ds[axis].values, dtype=float)
-    unit = QUANTITIES[axis].unit if axis in QUANTITIES else ""
-    y = np.asarray(ds[ds.attrs["response"]].values, dtype=float)
-    order = np.argsort(x, kind="stable")
-    fig = Figure(figsize=(8.5, 7.5))
-    top, bottom = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [3, 2]})
-    top.plot(x, y, "o", ms=3, color="0.35", alpha=0.6, label="data")
-    if heldout is not None and heldout.any():
-        top.plot(x[heldout], y[heldout], "o", ms=4, mfc="none", mec="crimson", label="held out (blocked CV)")
-    colours = mpl.rcParams["axes.prop_cycle"].by_key()["color"]
-    for i, (name, dt) in enumerate(fits.items()):
-        pp = np.asarray(dt["posterior_predictive"]["response"].values)
-        pp = pp.reshape(-1, pp.shape[-1])
-        mean, sd = pp.mean(axis=0), pp.std(axis=0)
-        lo, hi = np.quantile(pp, [0.05, 0.95], axis=0)
-        c = colours[i % len(colours)]
-        top.plot(x[order], mean[order], "-", lw=1.2, color=c, label=name)
-        top.fill_between(x[order], lo[order], hi[order], color=c, alpha=0.12, lw=0)
-        bottom.plot(x, (y - mean) / np.where(sd > 0, sd, 1.0), ".", ms=3, color=c, alpha=0.7)
-    bottom.axhline(0, color="k", lw=0.8)
-    for level in (-2, 2):
-        bottom.axhline(level, color="k", lw=0.5, ls=":")
-    response = ds.attrs["response"]
-    top.set_ylabel(f"{response} [{ds[response].attrs.get('units', '')}]")
-    bottom.set_ylabel("standardised residual")
-    bottom.set_xlabel(f"{axis} [{unit}]")
-    top.legend(fontsize=7, ncol=2)
-    top.set_title((title + "\n" if title else "") + provenance_label(ds), fontsize=8)
-    return _save(fig, path)
 
 
 def plot_sizing_fan(result, answer, path: Path, *, title: str = "") -> Path:

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from bayesfric.quantities import QUANTITIES
+from bayesfric.report.findings import Finding, plain
 from bayesfric.report.tables import format_table
 from bayesfric.sizing import EXTRAPOLATION_WARN, LEVELS, RANGE_POINTS, Answer, SizingResult
 
@@ -221,24 +222,24 @@ def sections(result: SizingResult, figures: dict[int, str] | None = None) -> lis
     return out
 
 
-def headlines(result: SizingResult) -> list[str]:
-    """One finding per question: the averaged required capacity at its governing point."""
+def headlines(result: SizingResult) -> list[Finding]:
+    """One finding per question: the averaged required capacity at its governing point (emphasised)."""
     lines = []
     for answer in result.answers:
         q, j = answer.question, answer.governing
         unit, scale = result.response_unit, result.response_scale
         if answer.average is None:
-            lines.append(f"Sizing '{q.label}': no model average ({answer.no_average}).")
+            lines.append(plain(f"Sizing '{q.label}': no model average ({answer.no_average})."))
             continue
-        text = (f"Sizing '{q.label}': required |{result.response}| **{_g(float(answer.average.required[j]) / scale)} "
-                f"{unit}** at confidence {q.confidence:g} (model average, {_point_text(answer, j)})")
+        tail = f" at confidence {q.confidence:g} (model average, {_point_text(answer, j)})"
         if q.energy_rotation is not None:
             energy = float(answer.energy(answer.average.noisy, q.confidence)[j])
             e_unit, e_scale = _energy_unit(energy)
-            text += f"; friction energy of one {q.energy_rotation.text} rotation {_g(energy / e_scale)} {e_unit}"
+            tail += f"; friction energy of one {q.energy_rotation.text} rotation {_g(energy / e_scale)} {e_unit}"
         if answer.warnings:
-            text += f" — {len(answer.warnings)} warning(s), see Sizing"
-        lines.append(text + ".")
+            tail += f" — {len(answer.warnings)} warning(s), see Sizing"
+        lines.append(Finding(((f"Sizing '{q.label}': required |{result.response}| ", False),
+                              (f"{_g(float(answer.average.required[j]) / scale)} {unit}", True), (tail + ".", False))))
     return lines
 
 

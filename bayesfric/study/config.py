@@ -53,6 +53,15 @@ sampler settings, comparison methods and extrapolation folds::
     capacity = "40 N*m"                # optional: available drive torque (or force): P(|T| > it)
     # energy_rotation = "90 deg"       # optional (torque data): friction energy of one rotation
 
+    [[claims]]                         # optional, repeatable: a claim of the source paper
+    text = "Eq. 41 predicts above 0.5 rad/s"
+    source = "seed 004 §3.3"
+    kind = "best"                      # ratio | parameter | score | best (bayesfric.study.claims)
+    law = "joint_tribological"
+    metric = "elpd_cv"                 # a metric of bayesfric.study.scores.METRICS
+    scheme = "train ≤ 0.5 rad/s, score above"
+    # expect = [low, high]             # ratio, parameter, score: the claimed range
+
 Sizing (``bayesfric size``, :mod:`bayesfric.sizing`): each ``at`` value is a string with its
 unit, ``"8 MN*m"``, ``"1.04 rpm"``, ``"5 degC"``, or a range ``"<low>..<high> <unit>"`` (smaller
 first) sized at :data:`bayesfric.sizing.RANGE_POINTS` evenly spaced points; at most one input per
@@ -76,7 +85,7 @@ inputs against the data and the laws) are in :func:`bayesfric.study.runner.valid
 
 Every error is a :class:`StudyError` with one line naming the file and the key:
 ``path: [section] key: problem``, ``path: laws[i].key: problem`` or
-``path: sizing[i].at.velocity: problem``.
+``path: sizing[i].at.velocity: problem`` or ``path: claims[i].at.velocity: problem``.
 """
 
 from __future__ import annotations
@@ -97,6 +106,8 @@ from bayesfric.laws import get_law
 from bayesfric.model import Noise, Program
 from bayesfric.priors import Prior, PriorError
 from bayesfric.sizing.points import SizingError, SizingQuestion, make_question
+from bayesfric.study.claims import KINDS as CLAIM_KINDS
+from bayesfric.study.claims import Claim, ClaimError, make_claim
 from bayesfric.study.schema import REQUIRED, Field, Schema, SchemaError, parse
 
 __all__ = [
@@ -163,6 +174,7 @@ class Study:
     blocked: list[BlockedSpec] = field(default_factory=list)
     include_failed: bool = False
     sizing: list[SizingQuestion] = field(default_factory=list)
+    claims: list[Claim] = field(default_factory=list)
     raw: dict[str, Any] = field(default_factory=dict)
 
 
@@ -244,6 +256,28 @@ SIZING = Schema((
     Field("capacity", "str", None, doc="available drive torque or force, with its unit"),
     Field("energy_rotation", "str", None, doc="angle of one rotation whose friction energy is asked (torque)"),
 ))
+def _claimed_range(value) -> str | None:
+    ok = isinstance(value, list) and len(value) == 2 and all(
+        isinstance(v, int | float) and not isinstance(v, bool) for v in value)
+    return None if ok and value[0] <= value[1] else "must be [low, high]: two numbers, low ≤ high"
+
+
+CLAIM = Schema((
+    Field("text", "str", REQUIRED, doc="the claim, as the paper states it"),
+    Field("source", "str", REQUIRED, doc="where the paper states it (seed, section, figure)"),
+    Field("kind", "str", REQUIRED, choices=CLAIM_KINDS, doc="ratio | parameter | score | best"),
+    Field("law", "str", REQUIRED, rule=_known_law, doc="the law the claim is about (best: the claimed winner)"),
+    Field("expect", "value", None, rule=_claimed_range, doc="claimed range [low, high] (not for best)"),
+    Field("at", "table", {}, items="value", doc='ratio: numerator point, input -> "<value> <unit>"'),
+    Field("minus", "table", {}, items="value", doc="ratio: subtract the law at this point (a chord)"),
+    Field("fixed", "table", {}, items="number", doc="ratio: numerator parameters/constants fixed (SI)"),
+    Field("reference", "str", None, rule=_known_law, doc="ratio: denominator law (default: law)"),
+    Field("reference_at", "table", {}, items="value", doc="ratio: denominator point (default: at)"),
+    Field("reference_minus", "table", {}, items="value", doc="ratio: denominator chord start (default: minus)"),
+    Field("parameter", "str", None, doc="parameter: the law's parameter"),
+    Field("metric", "str", None, doc="score, best: a metric of bayesfric.study.scores.METRICS"),
+    Field("scheme", "text", "", doc="score, best: CV scheme label or evidence estimator ('' for LOO)"),
+))
 FILE = Schema((
     Field("study", "table", {}, schema=STUDY),
     Field("data", "table", REQUIRED, schema=DATA),
@@ -252,6 +286,7 @@ FILE = Schema((
     Field("laws", "tables", REQUIRED, min=1, schema=LAW),
     Field("compare", "table", {}, schema=COMPARE),
     Field("sizing", "tables", [], schema=SIZING, doc="actuator sizing questions"),
+    Field("claims", "tables", [], schema=CLAIM, doc="claims of the source paper checked against the posterior"),
 ))
 
 
@@ -322,6 +357,14 @@ def _sizing_question(path: Path, i: int, entry: dict[str, Any]) -> SizingQuestio
         raise StudyError(f"{path}: sizing[{i}].{exc}") from None
 
 
+def _claim(path: Path, i: int, entry: dict[str, Any]) -> Claim:
+    """Data-independent checks of a parsed ``[[claims]]`` entry (:func:`bayesfric.study.claims.make_claim`)."""
+    try:
+        return make_claim(entry)
+    except ClaimError as exc:
+        raise StudyError(f"{path}: claims[{i}].{exc}") from None
+
+
 def _check_evidence_draws(path: Path, sampler: dict[str, Any]) -> None:
     per_chain = sampler["draws"] // sampler.get("thin", 1)
     if per_chain < EVIDENCE_MIN_DRAWS:
@@ -374,6 +417,7 @@ def load_study(path: str | Path) -> Study:
     blocked = [BlockedSpec(b["axis"], b["direction"], b["threshold"], b["quantile"], b["label"], b["future"])
                for b in compare["blocked"]]
     sizing = [_sizing_question(path, i, entry) for i, entry in enumerate(spec["sizing"])]
+    claims = [_claim(path, i, entry) for i, entry in enumerate(spec["claims"])]
     return Study(
         path=path, name=name, title=meta["title"] if meta["title"] is not None else name,
         question=meta["question"], dataset=dataset, select=data["select"], noise=noise,
@@ -381,5 +425,5 @@ def load_study(path: str | Path) -> Study:
         grouped=compare["grouped"], evidence=compare["evidence"], smc=compare["smc"],
         smc_particles=compare["smc_particles"],
         smc_runs=compare["smc_runs"], blocked=blocked, include_failed=compare["include_failed"], sizing=sizing,
-        raw=raw,
+        claims=claims, raw=raw,
     )

@@ -1,4 +1,5 @@
-"""What a study run produces, as plain data: per-law results and the ranking table."""
+"""What a study run produces, as plain data: per-law results; the law × metric table of scores is
+derived from them once (:mod:`bayesfric.study.scores`)."""
 
 from __future__ import annotations
 
@@ -55,6 +56,7 @@ class LawOutcome:
     weight_exclusions: dict[str, str] = field(default_factory=dict)  # method -> why the weighting left it out
     prior_implausible: float = math.nan  # fraction of prior draws with unphysical friction
     loo_pit_pvalue: float = math.nan
+    loo_pit_ok: bool = True  # False: the LOO-PIT ECDF leaves its simultaneous band (miscalibrated)
     prior_sensitivity: str = ""
     flags: list[str] = field(default_factory=list)
     results: dict[str, Any] = field(default_factory=dict)  # "loo" / scheme label -> LooResult / CVResult
@@ -80,43 +82,11 @@ class StudyOutcome:
     schemes: list[str]  # CV scheme labels in display order
     blocked: list[str]  # the blocked-extrapolation labels among them
     heldout: dict[str, np.ndarray] = field(default_factory=dict)
-    findings: list[str] = field(default_factory=list)
+    findings: list[Any] = field(default_factory=list)  # bayesfric.report.findings.Finding
     ranking_sensitivity: str = ""
+    ranking_changed: bool = False  # the LOO ranking changes under power-scaled priors
     seconds: float = 0.0
     extra: dict[str, Any] = field(default_factory=dict)
     sizing: Any = None  # bayesfric.sizing.SizingResult when the study asks sizing questions
-
-    def winner(self, key: str) -> str | None:
-        """Best reliable law by ``"loo"``, a CV scheme label, or an evidence estimator."""
-        best, best_value = None, -math.inf
-        for w in self.laws:
-            if not w.reliable and not self.study.include_failed:
-                continue
-            if key == "loo":
-                value = w.loo.value
-            elif key in w.cv:
-                value = w.cv[key].value if w.cv_reliable.get(key, True) else math.nan
-            elif w.evidence_agree:
-                value = w.evidence.get(key, Estimate()).value
-            else:
-                value = math.nan  # estimators disagree: listed in the findings, never ranked
-            if math.isfinite(value) and value > best_value:
-                best, best_value = w.name, value
-        return best
-
-    def passed_over(self, key: str) -> list[str]:
-        """Laws that score above :meth:`winner` under ``key`` but are not ranked: their fit or a
-        fold of the scheme failed the diagnostics gate (the findings name them)."""
-        winner = self.winner(key)
-        if winner is None:
-            return []
-
-        def score(w) -> float:
-            if key == "loo":
-                return w.loo.value
-            if key in w.cv:
-                return w.cv[key].value
-            return w.evidence.get(key, Estimate()).value
-
-        top = score(next(w for w in self.laws if w.name == winner))
-        return [w.name for w in self.laws if w.name != winner and math.isfinite(score(w)) and score(w) > top]
+    table: Any = None  # the law × metric table (bayesfric.study.scores.score_table), computed once
+    claims: list[Any] = field(default_factory=list)  # bayesfric.report.claims.ClaimResult per [[claims]] entry

@@ -27,11 +27,10 @@ from bayesfric.inference import SAMPLERS, release_compiled_code, save_fit
 from bayesfric.laws import get_law
 from bayesfric.model import build_program
 from bayesfric.priors import PriorError
-from bayesfric.report.figures import plot_predictive, plot_sizing_fan
-from bayesfric.report.sizing import headlines as sizing_headlines
-from bayesfric.report.summary import write_reports
+from bayesfric.study.claims import ClaimError, check_claim, evaluate_claims
 from bayesfric.study.config import Study, StudyError, load_study, sampler_settings, walkers_problem
 from bayesfric.study.outcome import Estimate, LawOutcome, StudyOutcome
+from bayesfric.study.scores import score_table
 
 __all__ = ["run_study", "validate_against_data", "sizing_questions", "load_study_data"]
 
@@ -250,7 +249,7 @@ def _run_law(study: Study, spec, ds, folder: Path, schemes, settings: dict, seed
             lap("SMC reference")
     out.prior_implausible = compare.prior_predictive_check(program, seed=seed).implausible
     pit = compare.loo_pit_check(dt, seed=seed)
-    out.loo_pit_pvalue = pit.ks_pvalue
+    out.loo_pit_pvalue, out.loo_pit_ok = pit.ks_pvalue, bool(pit.within_band)
     if not pit.within_band:
         out.flags.append(f"LOO-PIT outside the {pit.ci_prob:.0%} band (KS p = {pit.ks_pvalue:.3f}): miscalibrated")
     sens = compare.prior_sensitivity(dt)
@@ -278,7 +277,7 @@ def _assign_weights(out: StudyOutcome) -> None:
             weights = compare.model_weights(results, method=method, include_failed=out.study.include_failed,
                                             fits=fits)
         except ValueError as exc:  # e.g. every fit excluded
-            out.findings.append(f"{label} weights not computed: {exc}")
+            out.extra.setdefault("weight_errors", []).append((label, str(exc)))
             continue
         for w in out.laws:
             w.weights[label] = weights.weights.get(w.name, 0.0 if w.name in weights.excluded else float("nan"))
@@ -289,46 +288,11 @@ def _assign_weights(out: StudyOutcome) -> None:
         if len(reliable) > 1:
             sens = compare.ranking_sensitivity(reliable)
             order = " > ".join(sens.ranking[1.0])
+            out.ranking_changed = bool(sens.changed)
             out.ranking_sensitivity = (
                 f"LOO ranking {order}; under prior powers α = 0.5 and 2 it "
                 + ("CHANGES: " + "; ".join(f"α={a}: {' > '.join(r)}" for a, r in sens.ranking.items() if a != 1.0)
                    if sens.changed else "is unchanged") + " (PSIS reweighting, no refits).")
-
-
-def _findings(out: StudyOutcome) -> list[str]:
-    lines = []
-    def unranked(key: str) -> str:
-        above = out.passed_over(key)
-        return (f" ({', '.join(above)} scored higher but failed the diagnostics gate, in the fit or a fold, "
-                "so is not ranked)" if above else "")
-
-    loo_winner = out.winner("loo")
-    if loo_winner:
-        lines.append(f"Best under PSIS-LOO (interpolation): **{loo_winner}**{unranked('loo')}.")
-    for label in out.blocked:
-        w = out.winner(label)
-        if w:
-            same = "the same law" if w == loo_winner else f"a different law from LOO ({loo_winner})"
-            lines.append(f"Best under blocked CV '{label}' (extrapolation): **{w}** — {same}{unranked(label)}.")
-    for key in ("bridge", "importance", "SMC"):
-        w = out.winner(key)
-        if w:
-            lines.append(f"Highest log evidence ({key}): **{w}**.")
-    failed = [w.name for w in out.laws if not w.reliable]
-    if failed:
-        lines.append("Fits that FAILED the diagnostics gate (excluded from weights, marked in tables): "
-                     f"{', '.join(failed)}.")
-    disagree = [w.name for w in out.laws if not w.evidence_agree]
-    if disagree:
-        lines.append("Evidence estimators disagree beyond their combined error for: "
-                     f"{', '.join(disagree)} (left out of the evidence ranking, never averaged).")
-    if out.extra.get("quick"):
-        quick = out.extra["quick"]
-        used = ", ".join(f"{k}={v}" for k, v in quick["settings"].items() if k in ("draws", "tune", "chains", "thin"))
-        asked, folds = quick["kfold"]
-        kfold = f"; random K-fold with {folds} folds (the study asks {asked})" if asked else ""
-        lines.append(f"QUICK MODE: sampler {used}{kfold} — a pipeline smoke test, not a basis for decisions.")
-    return lines
 
 
 def _run_settings(study: Study, quick: bool) -> tuple[dict, int]:
@@ -340,6 +304,16 @@ def _run_settings(study: Study, quick: bool) -> tuple[dict, int]:
     caps = QUICK[study.sampler["name"]]
     return settings | {k: min(settings[k], cap) for k, cap in caps.items() if k in settings}, \
         min(study.kfold, QUICK_KFOLD)
+
+
+def _check_claims(study: Study, labels: list[str]) -> None:
+    """The ``[[claims]]`` checked against the study's laws, schemes and evidence estimators."""
+    estimators = (["bridge", "importance"] + (["SMC"] if study.smc else [])) if study.evidence else []
+    for i, claim in enumerate(study.claims):
+        try:
+            check_claim(claim, [spec.name for spec in study.laws], labels, estimators)
+        except ClaimError as exc:
+            raise StudyError(f"{study.path}: claims[{i}].{exc}") from None
 
 
 def _prepare(path: str | Path, out_root: str | Path, quick: bool):
@@ -354,6 +328,7 @@ def _prepare(path: str | Path, out_root: str | Path, quick: bool):
     validate_against_data(study, ds)
     settings, kfold = _run_settings(study, quick)
     schemes = _fold_schemes(study, ds, study.sampler["seed"], kfold)
+    _check_claims(study, [label for label, _, _ in schemes])
     return study, final, ds, settings, kfold, schemes, sizing_questions(study, ds)
 
 
@@ -407,12 +382,12 @@ def run_study(path: str | Path, out_root: str | Path = "reports", quick: bool = 
             law_sources = sizing.sources(record, work, [w.name for w in outcome.laws],
                                          fits={w.name: w.fit for w in outcome.laws})
             outcome.sizing = sizing.size_study(questions, ds, law_sources, record, study_name=study.name, seed=seed)
+        outcome.table = score_table(outcome)
+        outcome.claims = evaluate_claims(study.claims, outcome, outcome.table)
         outcome.seconds = time.perf_counter() - start
-        outcome.findings = _findings(outcome) + outcome.findings
-        if outcome.sizing is not None:
-            outcome.findings += sizing_headlines(outcome.sizing)
-        figures = _figures(outcome, work)
-        write_reports(outcome, work, figures)
+        from bayesfric.report.summary import write_reports  # here: bayesfric.report reads bayesfric.study
+
+        write_reports(outcome, work)
         try:
             fsutil.install_folder(work, final, study.name)
         except fsutil.PathError as exc:
@@ -422,21 +397,3 @@ def run_study(path: str | Path, out_root: str | Path = "reports", quick: bool = 
         raise
     print(f"[{study.name}] report written to {final} ({time.perf_counter() - start:.0f} s)")
     return final
-
-
-def _figures(out: StudyOutcome, folder: Path) -> list[Path]:
-    inputs = [k for k, v in out.data.coords.items() if v.attrs.get("role") == "input"]
-    axes = list(dict.fromkeys([b.axis for b in out.study.blocked] + inputs))
-    fits = {w.name: w.fit for w in out.laws}
-    paths = []
-    for axis in axes[:2]:
-        pairs = zip(out.blocked, out.study.blocked, strict=False)
-        held = next((out.heldout[s] for s, b in pairs if b.axis == axis), None)
-        paths.append(plot_predictive(out.data, fits, axis, folder / "figures" / f"predictive_{axis}.png",
-                                     heldout=held, title=out.study.title))
-    if out.sizing is not None:
-        for i, answer in enumerate(out.sizing.answers):
-            if answer.fan is not None:
-                paths.append(plot_sizing_fan(out.sizing, answer, folder / "figures" / f"sizing_{i + 1}.png",
-                                             title=out.study.title))
-    return paths

@@ -1,0 +1,170 @@
+"""Findings and the top summary block of a study report, as structured data.
+
+A :class:`Finding` is a sentence made of parts, each plain or emphasised (a law's name, a
+headline number); the Markdown and HTML renderings decide how emphasis looks, so no Markdown is
+written here and parsed back. Every verdict comes from the law × metric table
+(:mod:`bayesfric.study.scores`) or a boolean field of the outcome, never from text.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import pandas as pd
+
+from bayesfric.study import scores as sc
+
+if TYPE_CHECKING:
+    from bayesfric.study.outcome import StudyOutcome
+
+__all__ = ["Finding", "Summary", "findings", "summary_block", "plain", "RECOMMEND_WEIGHT"]
+
+#: A law is recommended alone when its stacking weight on the deciding criterion is at least
+#: this; below it the report recommends the stacking-averaged prediction.
+RECOMMEND_WEIGHT = 0.9
+
+
+@dataclass(frozen=True)
+class Finding:
+    """A sentence of parts ``(text, emphasised)``; ``warning`` marks a decision-changing one."""
+
+    parts: tuple[tuple[str, bool], ...]
+    warning: bool = False
+
+    @property
+    def text(self) -> str:
+        """The sentence without emphasis."""
+        return "".join(t for t, _ in self.parts)
+
+
+def plain(text: str, warning: bool = False) -> Finding:
+    """A finding of one plain part."""
+    return Finding(((text, False),), warning)
+
+
+def _f(*parts: str | tuple[str, bool], warning: bool = False) -> Finding:
+    return Finding(tuple((p, False) if isinstance(p, str) else p for p in parts), warning)
+
+
+def _law(name: str) -> tuple[str, bool]:
+    return (name, True)
+
+
+@dataclass
+class Summary:
+    """The top block: question, one answer per criterion, recommendation, warnings."""
+
+    question: str
+    answers: list[Finding] = field(default_factory=list)
+    recommendation: Finding | None = None
+    warnings: list[Finding] = field(default_factory=list)
+
+
+def _unranked(table: pd.DataFrame, c: sc.Criterion) -> str:
+    above = sc.passed_over(table, c.metric, c.scheme)
+    return (f" ({', '.join(above)} scored higher but is not ranked: its fit or a fold failed the diagnostics gate, "
+            "or its evidence estimators disagree)" if above else "")
+
+
+def _answer(table: pd.DataFrame, c: sc.Criterion, loo_winner: str | None) -> Finding | None:
+    winner = sc.best(table, c.metric, c.scheme)
+    if winner is None:
+        return _f(f"{c.label}: no law could be ranked (every result unreliable or missing).", warning=True)
+    row = sc.value(table, winner, c.metric, c.scheme)
+    number = f"{row['estimate']:.1f} ± {row['se']:.1f} nats"
+    if c.kind == "extrapolation":
+        same = ("the same law as under LOO" if winner == loo_winner or loo_winner is None
+                else f"a different law from LOO ({loo_winner})")
+        return _f(f"Best outside the tested envelope (blocked CV '{c.scheme}'): ", _law(winner),
+                  f", elpd {number} — {same}{_unranked(table, c)}.")
+    if c.kind == "interpolation":
+        return _f("Best inside the tested envelope (PSIS-LOO): ", _law(winner),
+                  f", elpd {number}{_unranked(table, c)}.")
+    if c.kind == "evidence":
+        return _f(f"Highest log evidence ({c.scheme}): ", _law(winner), f", log Z {number}{_unranked(table, c)}.")
+    return _f(f"Best under {c.scheme}: ", _law(winner), f", elpd {number}{_unranked(table, c)}.")
+
+
+def findings(outcome: StudyOutcome, table: pd.DataFrame) -> list[Finding]:
+    """The study's findings: the best law per criterion and the problems that limit them."""
+    crits = sc.criteria(outcome)
+    loo_winner = sc.best(table, "elpd_loo") if outcome.study.loo else None
+    lines = [a for c in crits if (a := _answer(table, c, loo_winner)) is not None]
+    lines += _warnings(outcome)
+    for label, reason in outcome.extra.get("weight_errors", []):
+        lines.append(plain(f"{label} weights not computed: {reason}", warning=True))
+    if outcome.extra.get("quick"):
+        quick = outcome.extra["quick"]
+        used = ", ".join(f"{k}={v}" for k, v in quick["settings"].items() if k in ("draws", "tune", "chains", "thin"))
+        asked, folds = quick["kfold"]
+        kfold = f"; random K-fold with {folds} folds (the study asks {asked})" if asked else ""
+        lines.append(plain(f"QUICK MODE: sampler {used}{kfold} — a pipeline smoke test, not a basis for decisions.",
+                           warning=True))
+    return lines
+
+
+def _warnings(outcome: StudyOutcome) -> list[Finding]:
+    out = []
+    failed = [w.name for w in outcome.laws if not w.reliable]
+    if failed:
+        out.append(plain("Fits that FAILED the diagnostics gate (excluded from weights, marked in tables): "
+                         f"{', '.join(failed)}.", warning=True))
+    disagree = [w.name for w in outcome.laws if not w.evidence_agree]
+    if disagree:
+        out.append(plain("Evidence estimators disagree beyond their combined error for: "
+                         f"{', '.join(disagree)} (left out of the evidence ranking, never averaged).", warning=True))
+    pit = [w.name for w in outcome.laws if not w.loo_pit_ok]
+    if pit:
+        out.append(plain(f"LOO-PIT miscalibrated (predictive intervals too narrow or too wide): {', '.join(pit)}.",
+                         warning=True))
+    if outcome.ranking_changed:
+        out.append(plain("The LOO ranking CHANGES when the priors are scaled (α = 0.5 or 2): the ranking is "
+                         "prior-sensitive.", warning=True))
+    unreliable_cv = sorted({w.name for w in outcome.laws if w.reliable and not all(w.cv_reliable.values())})
+    if unreliable_cv:
+        out.append(plain(f"Some cross-validation folds failed the gate for: {', '.join(unreliable_cv)} "
+                         "(those scores are not ranked).", warning=True))
+    return out
+
+
+def _deciding(outcome: StudyOutcome) -> sc.Criterion | None:
+    crits = sc.criteria(outcome)
+    return next((c for c in crits if c.kind in ("extrapolation", "interpolation")), crits[0] if crits else None)
+
+
+def _weight_key(c: sc.Criterion) -> str:
+    return f"stacking {c.scheme}" if c.kind == "extrapolation" else "stacking LOO"
+
+
+def recommendation(outcome: StudyOutcome, table: pd.DataFrame) -> Finding:
+    """The law to use (or the stacking average), with the reason, from the deciding criterion:
+    the first blocked-extrapolation scheme (the study's question), else PSIS-LOO."""
+    c = _deciding(outcome)
+    winner = sc.best(table, c.metric, c.scheme) if c is not None else None
+    if winner is None:
+        return _f("No recommendation: no law passed the checks on the deciding criterion.", warning=True)
+    weights = table[(table["metric"] == "weight") & (table["scheme"] == _weight_key(c))]
+    weights = weights[weights["estimate"].fillna(0.0) > 0.01]
+    top = float(weights["estimate"].max()) if not weights.empty else 1.0
+    why = f"highest {c.label}" + (" (prediction outside the tested envelope, the study's question)"
+                                  if c.kind == "extrapolation" else " (no extrapolation scheme in this study)")
+    if top >= RECOMMEND_WEIGHT or len(weights) < 2:
+        return _f("Recommended: ", _law(winner), f" — {why}.")
+    mix = ", ".join(f"{r.law} {r.estimate:.2f}" for r in weights.sort_values("estimate", ascending=False).itertuples())
+    return _f("Recommended: the ", ("stacking-averaged prediction", True), f" ({_weight_key(c)}: {mix}) — no single "
+              f"law carries ≥ {RECOMMEND_WEIGHT:.0%} of the weight; ", _law(winner), f" alone has the {why}.")
+
+
+def summary_block(outcome: StudyOutcome, table: pd.DataFrame, extra_warnings: list[Finding] | None = None) -> Summary:
+    """The top summary: question, one answer per criterion, recommendation, decision warnings."""
+    loo_winner = sc.best(table, "elpd_loo") if outcome.study.loo else None
+    answers = [a for c in sc.criteria(outcome) if (a := _answer(table, c, loo_winner)) is not None]
+    warnings = _warnings(outcome) + list(extra_warnings or [])
+    blocked_winners = {sc.best(table, "elpd_cv", s) for s in outcome.blocked}
+    if loo_winner and blocked_winners and loo_winner not in blocked_winners:
+        warnings.insert(0, _f("The best law inside the tested envelope (", _law(loo_winner), ") is not the best "
+                              "outside it: choose by the extrapolation criterion for sizing.", warning=True))
+    if outcome.extra.get("quick"):
+        warnings.append(plain("QUICK MODE: short chains and few folds — not a basis for decisions.", warning=True))
+    return Summary(outcome.study.question, answers, recommendation(outcome, table), warnings)

@@ -1,0 +1,311 @@
+"""The figures of a study report, drawn from the outcome and its law × metric table.
+
+Every figure is a bare matplotlib :class:`~matplotlib.figure.Figure` (Agg canvas, no pyplot
+state, the user's backend untouched), carries the data's provenance banner
+(:func:`bayesfric.report.figures.banner`) and units on its axes, and comes with a caption that
+says what to read from it (:class:`bayesfric.report.content.FigureRef`).
+
+Why not arviz-plots. arviz-plots 1.3 has ``plot_compare`` and ``plot_pair``, but its matplotlib
+backend makes every figure through ``matplotlib.pyplot.subplots`` (``arviz_plots/backend/
+matplotlib/core.py``): importing pyplot selects a process-wide backend and registers figures in
+pyplot's global manager, which this package must not do to its user. ``plot_compare`` also takes
+LOO objects only, while this ranking puts blocked CV and log evidence (other scales, other
+reliability rules from the score table) beside LOO. So the compare-style and pair plots are drawn
+here with bare matplotlib, in the same layout.
+
+Cost. Figures read stored draws only (no sampling). The pair plots and the predictive bands are
+thinned to :data:`MAX_DRAWS` draws; the trajectory panels evaluate nothing (they plot the fits'
+stored posterior-predictive draws). Measured with ``benchmarks/bench_figures.py`` (2026-11-23,
+2-core machine shared with other jobs, load 5-7): on the shipped robot_joint study (6 laws,
+``--quick``) the figures took 23.8 s and the whole report 24.8 s against a median fit of 80.7 s,
+0.30× and 0.31× one fit; on pitch_bearing reduced to 3 laws 3.9 s against 131 s (0.03×). The
+report is a few tenths of one fit at most, well inside a study's budget of many fits.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import matplotlib as mpl
+import numpy as np
+from matplotlib.figure import Figure
+
+from bayesfric.quantities import QUANTITIES, UnitError, conversion
+from bayesfric.report.content import FigureRef
+from bayesfric.report.figures import banner, plot_sizing_fan, save
+from bayesfric.study import scores as sc
+
+if TYPE_CHECKING:
+    from bayesfric.study.outcome import LawOutcome, StudyOutcome
+
+__all__ = ["draw", "plot_ranking", "plot_penalty", "plot_bands", "plot_pairs", "plot_trajectories", "MAX_DRAWS"]
+
+#: Posterior draws used by the pair plots and bands (evenly thinned).
+MAX_DRAWS = 400
+#: Most laws drawn as separate panels of the predictive bands; trajectories shown per study.
+MAX_PANELS, MAX_TRAJECTORIES = 6, 6
+
+
+def _colours() -> list[str]:
+    return mpl.rcParams["axes.prop_cycle"].by_key()["color"]
+
+
+def _display(ds, name: str) -> tuple[str, float, float]:
+    """(unit, scale, offset) to show ``name`` in the unit of the data file (MN·m, rpm, °C), with
+    ``shown = (si − offset) / scale``; SI when the data set does not record its original unit."""
+    attrs = ds[name].attrs
+    unit, quantity = attrs.get("original_unit"), attrs.get("quantity", name)
+    if unit and quantity in QUANTITIES:
+        try:
+            scale, offset = conversion(unit, quantity)
+            return str(unit), float(scale), float(offset)
+        except UnitError:
+            pass
+    return str(attrs.get("units") or (QUANTITIES[name].unit if name in QUANTITIES else "")), 1.0, 0.0
+
+
+def _shown(ds, name: str, values) -> np.ndarray:
+    _, scale, offset = _display(ds, name)
+    return (np.asarray(values, dtype=float) - offset) / scale
+
+
+def plot_ranking(outcome: StudyOutcome, path: Path) -> Path:
+    """One panel per criterion (blocked elpd, LOO elpd, other CV, log evidence): each law's
+    estimate ± 1 se, the best law's value as a dashed line, unreliable results as red crosses
+    (the layout of ``arviz`` compare plots, one panel per scale)."""
+    table, crits = outcome.table, sc.criteria(outcome)
+    order = sc.ranking_order(table, [w.name for w in outcome.laws], crits[0] if crits else None)
+    fig = Figure(figsize=(3.1 * max(1, len(crits)) + 1.6, 0.42 * len(order) + 1.6), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(1, max(1, len(crits)), sharey=True))
+    y = np.arange(len(order))[::-1]
+    for ax, c in zip(axes, crits, strict=False):
+        for yi, name in zip(y, order, strict=True):
+            row = sc.value(table, name, c.metric, c.scheme)
+            if row is None:
+                continue
+            se = row["se"] if math.isfinite(row["se"]) else 0.0
+            if row["reliable"]:
+                ax.errorbar(row["estimate"], yi, xerr=se, fmt="o", color="k", ms=5, capsize=3)
+            else:
+                ax.errorbar(row["estimate"], yi, xerr=se, fmt="x", color="crimson", ms=7, capsize=3)
+        winner = sc.best(table, c.metric, c.scheme)
+        if winner is not None:
+            ax.axvline(float(sc.value(table, winner, c.metric, c.scheme)["estimate"]), color="0.4", ls="--", lw=1)
+        ax.set_title(c.label if len(c.label) < 40 else c.label[:38] + "…", fontsize=8)
+        ax.set_xlabel("log evidence [nats]" if c.metric == "log_evidence" else "elpd [nats]", fontsize=8)
+        ax.tick_params(labelsize=7)
+        ax.grid(axis="x", lw=0.3)
+    axes[0].set_yticks(y, order, fontsize=8)
+    banner(fig, outcome.data)
+    return save(fig, path)
+
+
+def plot_penalty(outcome: StudyOutcome, path: Path) -> Path:
+    """Extrapolation penalty per law and blocked scheme: nats per held-out point lost outside
+    the tested envelope relative to inside it (0 = extrapolates as well as it interpolates)."""
+    table = outcome.table
+    order = sc.ranking_order(table, [w.name for w in outcome.laws], sc.criteria(outcome)[0])
+    fig = Figure(figsize=(8.5, 0.42 * len(order) + 1.6), layout="constrained")
+    ax = fig.subplots()
+    y = np.arange(len(order))[::-1]
+    step = 0.8 / max(1, len(outcome.blocked))
+    for k, (scheme, colour) in enumerate(zip(outcome.blocked, _colours(), strict=False)):
+        for yi, name in zip(y, order, strict=True):
+            row = sc.value(table, name, "penalty", scheme)
+            if row is None:
+                continue
+            yy = yi + 0.4 - step * (k + 0.5)
+            ax.plot([0, row["estimate"]], [yy, yy], color=colour, lw=2)
+            ok = bool(row["reliable"])
+            ax.plot(row["estimate"], yy, "o" if ok else "x", color=colour if ok else "crimson", ms=6,
+                    label=scheme if yi == y[0] else None)
+    ax.axvline(0, color="k", lw=0.8)
+    ax.set_yticks(y, order, fontsize=8)
+    ax.set_xlabel("extrapolation penalty [nats per held-out point] (lower is better)")
+    ax.legend(fontsize=7, loc="lower right")
+    banner(fig, outcome.data)
+    return save(fig, path)
+
+
+def _draws(dt, group: str, name: str) -> np.ndarray:
+    v = np.asarray(dt[group][name].values, dtype=float)
+    v = v.reshape(v.shape[0] * v.shape[1], -1)
+    return v[np.linspace(0, len(v) - 1, min(MAX_DRAWS, len(v))).astype(int)]
+
+
+def plot_bands(outcome: StudyOutcome, axis: str, path: Path, heldout: np.ndarray | None) -> Path:
+    """One panel per law (best first, at most :data:`MAX_PANELS`): data against ``axis``, the
+    law's posterior-predictive mean and 90 % band, the trained region shaded, held-out points
+    marked. With several inputs the band is drawn per observation (vertical bars)."""
+    ds = outcome.data
+    response = ds.attrs["response"]
+    x, y = _shown(ds, axis, ds[axis].values), _shown(ds, response, ds[response].values)
+    order = sc.ranking_order(outcome.table, [w.name for w in outcome.laws], sc.criteria(outcome)[0])[:MAX_PANELS]
+    fits = {w.name: w.fit for w in outcome.laws}
+    one_input = sum(v.attrs.get("role") == "input" for v in ds.coords.values()) == 1
+    cols = min(3, len(order))
+    rows = math.ceil(len(order) / cols)
+    fig = Figure(figsize=(4.0 * cols, 3.0 * rows + 0.5), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(rows, cols, sharex=True, sharey=True, squeeze=False)).ravel()
+    trained = ~heldout if heldout is not None else np.ones_like(x, dtype=bool)
+    s = np.argsort(x, kind="stable")
+    for ax, name, colour in zip(axes, order, _colours() * 3, strict=False):
+        pp = _shown(ds, response, _draws(fits[name], "posterior_predictive", "response"))
+        lo, mid, hi = np.quantile(pp, [0.05, 0.5, 0.95], axis=0)
+        ax.axvspan(x[trained].min(), x[trained].max(), color="#e6f2e6", lw=0, zorder=0)  # trained region
+        ax.plot(x[trained], y[trained], ".", ms=3, color="0.35")
+        if heldout is not None and heldout.any():
+            ax.plot(x[heldout], y[heldout], "o", ms=4, mfc="none", mec="crimson")
+        if one_input:
+            ax.fill_between(x[s], lo[s], hi[s], color=colour, alpha=0.25, lw=0)
+            ax.plot(x[s], mid[s], "-", color=colour, lw=1.3)
+        else:
+            ax.vlines(x, lo, hi, color=colour, alpha=0.25, lw=2)
+            ax.plot(x, mid, "_", color=colour, ms=6)
+        ax.set_title(name, fontsize=9)
+        ax.tick_params(labelsize=7)
+    for ax in axes[len(order):]:
+        ax.set_visible(False)
+    fig.supxlabel(f"{axis} [{_display(ds, axis)[0]}]   (green: trained region; red circles: held out)", fontsize=8)
+    fig.supylabel(f"{response} [{_display(ds, response)[0]}]", fontsize=8)
+    banner(fig, ds)
+    return save(fig, path)
+
+
+def plot_pairs(outcome: StudyOutcome, w: LawOutcome, path: Path) -> Path | None:
+    """Pairwise scatter of a law's scalar coefficients (at most 5, :data:`MAX_DRAWS` draws), with
+    units; correlated coefficients show as slanted clouds. None for a one-parameter law."""
+    post = w.fit["posterior"]
+    names = [k for k, p in w.law.params.items() if not p.shape and k in post][:5]
+    if len(names) < 2:
+        return None
+    draws = {k: _draws(w.fit, "posterior", k)[:, 0] for k in names}
+    n = len(names)
+    fig = Figure(figsize=(1.9 * n + 0.6, 1.9 * n + 0.4), layout="constrained")
+    axes = fig.subplots(n, n, squeeze=False)
+    for i, a in enumerate(names):
+        for j, b in enumerate(names):
+            ax = axes[i, j]
+            if j > i:
+                ax.set_visible(False)
+                continue
+            if i == j:
+                ax.hist(draws[a], bins=30, color="0.5")
+                ax.set_yticks([])
+            else:
+                ax.plot(draws[b], draws[a], ".", ms=1.5, alpha=0.4, color="tab:blue")
+                r = np.corrcoef(draws[b], draws[a])[0, 1]
+                ax.text(0.03, 0.92, f"r = {r:+.2f}", transform=ax.transAxes, fontsize=7,
+                        color="crimson" if abs(r) > 0.7 else "k")
+            ax.tick_params(labelsize=6)
+            if i == n - 1:
+                ax.set_xlabel(f"{b} [{w.law.params[b].unit}]", fontsize=7)
+            if j == 0 and i > 0:
+                ax.set_ylabel(f"{a} [{w.law.params[a].unit}]", fontsize=7)
+    banner(fig, outcome.data)
+    return save(fig, path)
+
+
+def _path_axis(ds, law) -> str:
+    inputs = [k for k, v in ds.coords.items() if v.attrs.get("role") == "input"]
+    return next((k for k in ("angle", "displacement", "time") if k in inputs and k in law.operating_inputs),
+                next(k for k in ("angle", "displacement", "time") if k in inputs))
+
+
+def plot_trajectories(outcome: StudyOutcome, path: Path) -> Path | None:
+    """Measured vs predicted trajectories (hysteresis loops, coast-downs) for the best two laws,
+    one panel per trajectory (at most :data:`MAX_TRAJECTORIES`, evenly chosen); held-out
+    trajectories say so in their title. None when the data have no trajectories."""
+    ds = outcome.data
+    key = ds.attrs.get("trajectory")
+    if not key:
+        return None
+    order = sc.ranking_order(outcome.table, [w.name for w in outcome.laws], sc.criteria(outcome)[0])[:2]
+    laws = {w.name: w for w in outcome.laws}
+    axis = _path_axis(ds, laws[order[0]].law)
+    ids = list(dict.fromkeys(np.asarray(ds[key].values).tolist()))
+    ids = [ids[i] for i in np.unique(np.linspace(0, len(ids) - 1, min(MAX_TRAJECTORIES, len(ids))).astype(int))]
+    held = outcome.heldout.get(outcome.blocked[0]) if outcome.blocked else None
+    response = ds.attrs["response"]
+    cols = min(3, len(ids))
+    fig = Figure(figsize=(4.0 * cols, 3.0 * math.ceil(len(ids) / cols) + 0.6), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(math.ceil(len(ids) / cols), cols, squeeze=False)).ravel()
+    bands = {name: np.quantile(_shown(ds, response, _draws(laws[name].fit, "posterior_predictive", "response")),
+                               [0.05, 0.5, 0.95], axis=0) for name in order}
+    values = np.asarray(ds[key].values)
+    for ax, tid in zip(axes, ids, strict=False):
+        m = values == tid
+        x = _shown(ds, axis, ds[axis].values)[m]
+        ax.plot(x, _shown(ds, response, ds[response].values)[m], ".", ms=3, color="0.3", label="measured")
+        for name, colour in zip(order, _colours(), strict=False):
+            lo, mid, hi = (b[m] for b in bands[name])
+            ax.fill_between(x, lo, hi, color=colour, alpha=0.2, lw=0) if axis == "time" else None
+            ax.plot(x, mid, "-", color=colour, lw=1.1, label=name)
+        out = held is not None and bool(held[m].any())
+        ax.set_title(f"{key} {tid}" + (" (held out)" if out else ""), fontsize=8, color="crimson" if out else "k")
+        ax.tick_params(labelsize=7)
+    for ax in axes[len(ids):]:
+        ax.set_visible(False)
+    axes[0].legend(fontsize=7)
+    fig.supxlabel(f"{axis} [{_display(ds, axis)[0]}]", fontsize=8)
+    fig.supylabel(f"{response} [{_display(ds, response)[0]}]", fontsize=8)
+    banner(fig, ds)
+    return save(fig, path)
+
+
+def _band_axes(outcome: StudyOutcome) -> list[tuple[str, np.ndarray | None]]:
+    ds = outcome.data
+    inputs = [k for k, v in ds.coords.items() if v.attrs.get("role") == "input"]
+    if ds.attrs.get("trajectory"):  # along a path the trajectory panels say more; bands over condition inputs
+        inputs = [k for k in inputs if k not in ("angle", "displacement", "time", "velocity")] or inputs
+    axes = list(dict.fromkeys([b.axis for b in outcome.study.blocked if b.axis in inputs] + inputs))
+    held = {b.axis: outcome.heldout.get(label) for label, b in zip(outcome.blocked, outcome.study.blocked,
+                                                                      strict=False)}
+    return [(a, held.get(a)) for a in axes[:2]]
+
+
+def draw(outcome: StudyOutcome, folder: Path) -> tuple[list[FigureRef], dict[int, Path]]:
+    """Every figure of the report into ``folder/figures``: (references with captions, sizing fans
+    by question index)."""
+    fdir = folder / "figures"
+    refs = []
+    crit = sc.criteria(outcome)
+    if crit:
+        plot_ranking(outcome, fdir / "ranking.png")
+        refs.append(FigureRef("ranking", "figures/ranking.png",
+                              "Each law's score ± 1 standard error per criterion, best first; the dashed line is the "
+                              "best ranked law. Read: is the leader separated from the next by more than the error "
+                              "bars? Red crosses are unreliable results, never ranked.", "ranking plot"))
+    if outcome.blocked and outcome.study.loo:
+        plot_penalty(outcome, fdir / "penalty.png")
+        refs.append(FigureRef("extrapolation", "figures/penalty.png",
+                              "Nats per held-out point each law loses outside the tested envelope compared with "
+                              "inside it. Read: a long bar means the law fits the tested range but should not be "
+                              "trusted beyond it.", "extrapolation penalty"))
+    for axis, held in _band_axes(outcome):
+        plot_bands(outcome, axis, fdir / f"bands_{axis}.png", held)
+        refs.append(FigureRef("extrapolation", f"figures/bands_{axis}.png",
+                              f"Posterior-predictive median and 90 % band of each law over {axis}; green: the region "
+                              "the blocked fit trained on, red circles: held-out points (bands are from the full "
+                              "fit). Read: where the bands leave the data, the law fails.", f"bands over {axis}"))
+    if plot_trajectories(outcome, fdir / "trajectories.png") is not None:
+        refs.append(FigureRef("trajectories", "figures/trajectories.png",
+                              "Measured trajectories (dots) against the two best-ranked laws' posterior-predictive "
+                              "medians (from the full fit), per condition; conditions held out by the first blocked "
+                              "scheme are titled in red. Read: does the law follow the loop or coast-down shape, "
+                              "and does it keep doing so at the held-out conditions?", "trajectories"))
+    for w in outcome.laws:
+        if plot_pairs(outcome, w, fdir / f"pairs_{w.name}.png") is not None:
+            refs.append(FigureRef(f"parameters:{w.name}", f"figures/pairs_{w.name}.png",
+                                  "Posterior draws of each pair of coefficients, r = correlation (red when |r| > 0.7)."
+                                  " Read: strongly correlated coefficients are not identified separately — quote "
+                                  "their combination, not each alone.", f"pair plot {w.name}"))
+    fans = {}
+    if outcome.sizing is not None:
+        for i, answer in enumerate(outcome.sizing.answers):
+            if answer.fan is not None:
+                fans[i] = plot_sizing_fan(outcome.sizing, answer, fdir / f"sizing_{i + 1}.png",
+                                          title=outcome.study.title)
+    return refs, fans

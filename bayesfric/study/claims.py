@@ -1,0 +1,257 @@
+"""Claims of a source paper, declared in the study file and checked against the posterior.
+
+A study's ``[[claims]]`` entries state what the paper says in a small declarative vocabulary
+(``kind``):
+
+``ratio``
+    The relative difference ``of / to − 1`` of two predictions of mean-function torque (or
+    force): the numerator is ``law`` at the point ``at`` (minus its value at ``minus``: a
+    chord, i.e. a slope times a span), optionally with some parameters or constants ``fixed``
+    (e.g. a catalogue coefficient instead of the posterior); the denominator is ``reference``
+    (default: ``law``) at ``reference_at`` / ``reference_minus`` (default: ``at`` / ``minus``)
+    from its posterior. ``expect`` is the claimed range of the relative difference (−0.35 =
+    35 % below).
+``parameter``
+    A posterior parameter (or constant-free derived quantity) of ``law``: ``parameter``,
+    ``expect`` its claimed range in SI units.
+``score``
+    A row of the law × metric table (:mod:`bayesfric.study.scores`): ``law``, ``metric``,
+    ``scheme``; ``expect`` the claimed range of its estimate.
+``best``
+    ``law`` is the best reliable law under ``metric`` / ``scheme``.
+
+Each claim gets a :class:`ClaimResult`: the posterior median and 90 % equal-tailed interval (or
+the estimate ± standard error), and a verdict: ``reproduced`` when the posterior median (or
+estimate, or winner) falls within the claimed range, ``not reproduced`` when it does not, and
+``not testable`` with the reason (a law not fitted, a fit that failed the diagnostics gate, a
+score not computed). The claimed range is the study author's reading of the paper (the papers
+state no uncertainty); the study file says how it was chosen.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from bayesfric.laws import get_law
+from bayesfric.sizing.points import SizingError, parse_value
+from bayesfric.study import scores as sc
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from bayesfric.study.outcome import StudyOutcome
+
+__all__ = ["KINDS", "Claim", "ClaimResult", "make_claim", "check_claim", "evaluate_claims", "VERDICTS"]
+
+KINDS = ("ratio", "parameter", "score", "best")
+VERDICTS = ("reproduced", "not reproduced", "not testable")
+#: Equal-tailed posterior interval shown with each claim.
+INTERVAL = (0.05, 0.95)
+
+
+class ClaimError(ValueError):
+    """A claim that cannot be checked: ``key`` (relative to ``claims[i]``) and a one-line problem."""
+
+    def __init__(self, key: str, problem: str):
+        super().__init__(f"{key}: {problem}")
+        self.key, self.problem = key, problem
+
+
+@dataclass(frozen=True)
+class Claim:
+    """A parsed ``[[claims]]`` entry (points in SI units)."""
+
+    text: str
+    source: str
+    kind: str
+    law: str
+    expect: tuple[float, float]
+    at: dict[str, float] = field(default_factory=dict)
+    minus: dict[str, float] = field(default_factory=dict)
+    fixed: dict[str, float] = field(default_factory=dict)
+    reference: str = ""
+    reference_at: dict[str, float] = field(default_factory=dict)
+    reference_minus: dict[str, float] = field(default_factory=dict)
+    parameter: str = ""
+    metric: str = ""
+    scheme: str = ""
+
+
+@dataclass(frozen=True)
+class ClaimResult:
+    """A claim with what the posterior says: ``value`` (median or estimate), ``lo``/``hi`` (90 %
+    interval, or ± one standard error for scores), ``winner`` for ``best``, the verdict and why."""
+
+    claim: Claim
+    verdict: str
+    value: float = math.nan
+    lo: float = math.nan
+    hi: float = math.nan
+    winner: str = ""
+    why: str = ""
+
+
+def _points(table: Mapping[str, Any], key: str) -> dict[str, float]:
+    out = {}
+    for name, text in table.items():
+        try:
+            value = parse_value(text, name, key=f"{key}.{name}", allow_range=False)
+        except SizingError as exc:
+            raise ClaimError(exc.key, exc.problem) from None
+        out[name] = float(value.lo)
+    return out
+
+
+def make_claim(entry: Mapping[str, Any]) -> Claim:
+    """A :class:`Claim` from a schema-parsed entry; data-independent checks of its keys.
+
+    Raises
+    ------
+    ClaimError
+        A key missing for the kind or given for another kind, an unknown law or parameter, a
+        reversed ``expect`` range, a point that cannot be read.
+    """
+    kind = entry["kind"]
+    needs = {"ratio": ("law", "at"), "parameter": ("law", "parameter"), "score": ("law", "metric"),
+             "best": ("law", "metric")}[kind]
+    for key in needs:
+        if not entry.get(key):
+            raise ClaimError(key, f"is required for kind {kind!r}")
+    allowed = {"ratio": {"at", "minus", "fixed", "reference", "reference_at", "reference_minus"},
+               "parameter": {"parameter"}, "score": {"metric", "scheme"}, "best": {"metric", "scheme"}}[kind]
+    for key in ("at", "minus", "fixed", "reference", "reference_at", "reference_minus", "parameter", "metric",
+                "scheme"):
+        if entry.get(key) and key not in allowed:
+            raise ClaimError(key, f"does not apply to kind {kind!r} (keys of {kind!r}: {', '.join(sorted(allowed))})")
+    expect = entry.get("expect")
+    if kind != "best":
+        if expect is None or len(expect) != 2 or not expect[0] <= expect[1]:
+            raise ClaimError("expect", f"kind {kind!r} needs the claimed range as [low, high] with low ≤ high, "
+                                       f"got {expect!r}")
+    law = get_law(entry["law"])
+    if kind == "parameter" and entry["parameter"] not in law.params:
+        raise ClaimError("parameter", f"law {law.name!r} has no parameter {entry['parameter']!r} "
+                                      f"(parameters: {', '.join(law.params)})")
+    if entry.get("metric") and entry["metric"] not in sc.METRICS:
+        raise ClaimError("metric", f"unknown metric {entry['metric']!r} (metrics: {', '.join(sc.METRICS)})")
+    for name in entry.get("fixed") or {}:
+        if name not in law.params and name not in law.constants:
+            raise ClaimError(f"fixed.{name}", f"law {law.name!r} has no parameter or constant {name!r}")
+    at = _points(entry.get("at") or {}, "at")
+    minus = _points(entry.get("minus") or {}, "minus")
+    return Claim(
+        text=entry["text"], source=entry["source"], kind=kind, law=law.name,
+        expect=(float(expect[0]), float(expect[1])) if expect is not None else (math.nan, math.nan),
+        at=at, minus=minus, fixed={k: float(v) for k, v in (entry.get("fixed") or {}).items()},
+        reference=entry.get("reference") or "",
+        reference_at=_points(entry.get("reference_at") or {}, "reference_at") or at,
+        reference_minus=_points(entry.get("reference_minus") or {}, "reference_minus") or minus,
+        parameter=entry.get("parameter") or "", metric=entry.get("metric") or "", scheme=entry.get("scheme") or "",
+    )
+
+
+def check_claim(claim: Claim, laws: list[str], schemes: list[str], estimators: list[str]) -> None:
+    """Checks of a claim against the study: its laws are candidates, its points give every input
+    the laws read, its scheme exists.
+
+    Raises
+    ------
+    ClaimError
+    """
+    for key, name in (("law", claim.law), ("reference", claim.reference)):
+        if name and name not in laws:
+            raise ClaimError(key, f"{name!r} is not a candidate law of the study ({', '.join(laws)})")
+    if claim.kind == "ratio":
+        for key, name in (("law", claim.law), ("reference", claim.reference)):
+            if name and get_law(name).trajectory:
+                raise ClaimError(key, f"law {name!r} is a trajectory (stateful) law: it has no value at a point")
+        for key, name, points in (("at", claim.law, claim.at), ("minus", claim.law, claim.minus),
+                                  ("reference_at", claim.reference or claim.law, claim.reference_at),
+                                  ("reference_minus", claim.reference or claim.law, claim.reference_minus)):
+            if key.endswith("minus") and not points:
+                continue
+            missing = [q for q in get_law(name).operating_inputs if q not in points]
+            if missing:
+                raise ClaimError(key, f"law {name!r} reads {', '.join(missing)}; give it in {key}")
+    if claim.metric:
+        known = {"elpd_loo": [""], "elpd_cv": schemes, "penalty": schemes, "log_evidence": estimators,
+                 "weight": None}[claim.metric]
+        if known is not None and claim.scheme not in known:
+            raise ClaimError("scheme", f"{claim.scheme!r} is not a scheme of metric {claim.metric!r} in this study "
+                                       f"({', '.join(repr(k) for k in known) or 'none'})")
+
+
+def _mean_draws(fit, points: Mapping[str, float], fixed: Mapping[str, float]) -> np.ndarray:
+    """Mean-function draws of a fit's law at one point; ``fixed`` parameters/constants replace
+    the posterior's (a fully fixed law gives the same value for every draw)."""
+    law = get_law(fit.attrs["law"])
+    post = fit["posterior"].to_dataset()
+    s = post.sizes["chain"] * post.sizes["draw"]
+    params = {k: jnp.full((s,), fixed[k]) if k in fixed else
+              jnp.asarray(np.asarray(post[k].values, dtype=float).reshape(s, *post[k].shape[2:]))
+              for k in law.params}
+    constants = json.loads(fit.attrs.get("constants", "{}")) | {k: v for k, v in fixed.items() if k in law.constants}
+    inputs = {k: jnp.asarray([points[k]]) for k in law.operating_inputs}
+    mu = jax.vmap(lambda p: law.mean(inputs, p, constants or None))(params)
+    return np.asarray(mu, dtype=float).reshape(s, -1)[:, 0]
+
+
+def _term(fit, at, minus, fixed) -> np.ndarray:
+    value = _mean_draws(fit, at, fixed)
+    return value - _mean_draws(fit, minus, fixed) if minus else value
+
+
+def _interval(draws: np.ndarray) -> tuple[float, float, float]:
+    lo, mid, hi = np.quantile(draws, [INTERVAL[0], 0.5, INTERVAL[1]])
+    return float(mid), float(lo), float(hi)
+
+
+def _verdict(claim: Claim, value: float) -> str:
+    return "reproduced" if claim.expect[0] <= value <= claim.expect[1] else "not reproduced"
+
+
+def _evaluate(claim: Claim, outcome: StudyOutcome, table: pd.DataFrame) -> ClaimResult:
+    laws = {w.name: w for w in outcome.laws}
+    if claim.kind in ("ratio", "parameter"):
+        used = [claim.law] if set(laws[claim.law].law.params) - set(claim.fixed) else []  # posterior read?
+        if claim.kind == "ratio":
+            used.append(claim.reference or claim.law)
+        for name in dict.fromkeys(used):
+            if not laws[name].reliable:
+                return ClaimResult(claim, "not testable", why=f"the fit of {name} failed the diagnostics gate")
+    if claim.kind == "ratio":
+        num = _term(laws[claim.law].fit, claim.at, claim.minus, claim.fixed)
+        ref = laws[claim.reference or claim.law].fit
+        den = _term(ref, claim.reference_at, claim.reference_minus, {})
+        mid, lo, hi = _interval(num / den - 1.0)
+        return ClaimResult(claim, _verdict(claim, mid), mid, lo, hi)
+    if claim.kind == "parameter":
+        draws = np.asarray(laws[claim.law].fit["posterior"][claim.parameter].values, dtype=float).ravel()
+        mid, lo, hi = _interval(draws)
+        return ClaimResult(claim, _verdict(claim, mid), mid, lo, hi)
+    if claim.kind == "score":
+        row = sc.value(table, claim.law, claim.metric, claim.scheme)
+        if row is None:
+            return ClaimResult(claim, "not testable", why=f"{claim.metric} {claim.scheme} was not computed for "
+                                                          f"{claim.law}")
+        if not row["reliable"]:
+            return ClaimResult(claim, "not testable", value=float(row["estimate"]), why=str(row["reason"]))
+        est, se = float(row["estimate"]), float(row["se"])
+        return ClaimResult(claim, _verdict(claim, est), est, est - se, est + se)
+    winner = sc.best(table, claim.metric, claim.scheme)
+    if winner is None:
+        return ClaimResult(claim, "not testable", why="no law could be ranked under this criterion")
+    return ClaimResult(claim, "reproduced" if winner == claim.law else "not reproduced", winner=winner)
+
+
+def evaluate_claims(claims: list[Claim], outcome: StudyOutcome, table: pd.DataFrame) -> list[ClaimResult]:
+    """Every claim checked against the posterior (fits) and the law × metric table."""
+    return [_evaluate(c, outcome, table) for c in claims]

@@ -1,0 +1,191 @@
+"""The one law × metric table of a study: every score with its standard error, whether it may be
+ranked, and why not.
+
+A study's comparison is a loop over scorers (PSIS-LOO, each cross-validation scheme, the
+extrapolation penalty of each blocked scheme, each log-evidence estimator, each weighting); each
+scorer adds rows to one tidy table (:func:`score_table`), with columns
+
+``law, metric, scheme, estimate, se, reliable, reason``
+
+- ``metric``: one of :data:`METRICS` (``elpd_loo``, ``elpd_cv``, ``penalty``, ``log_evidence``,
+  ``weight``);
+- ``scheme``: the CV scheme label, the evidence estimator or the weighting; ``""`` for LOO;
+- ``reliable``: the row may be ranked under this study's rules (a fit that failed the
+  diagnostics gate is ranked only when the study sets ``include_failed``); ``reason`` says why a
+  row is not reliable, or what was overridden.
+
+The winner per metric (:func:`best`), the laws that scored higher but may not be ranked
+(:func:`passed_over`), the ranking order (:func:`ranking_order`), ``ranking.csv``,
+``scores.csv``, ``summary.md`` and ``report.html`` all read this table: no verdict is written as
+text and searched back.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+import pandas as pd
+
+if TYPE_CHECKING:
+    from bayesfric.study.outcome import StudyOutcome
+
+__all__ = ["METRICS", "COLUMNS", "Criterion", "score_table", "best", "passed_over", "ranking_order", "criteria",
+           "value"]
+
+#: metric -> (display name, higher is better, unit)
+METRICS = {
+    "elpd_loo": ("elpd PSIS-LOO", True, "nats"),
+    "elpd_cv": ("elpd", True, "nats"),
+    "penalty": ("extrapolation penalty", False, "nats per held-out point"),
+    "log_evidence": ("log evidence", True, "nats"),
+    "weight": ("weight", True, "1"),
+}
+COLUMNS = ["law", "metric", "scheme", "estimate", "se", "reliable", "reason"]
+
+
+@dataclass(frozen=True)
+class Criterion:
+    """A ranking criterion of the study: a metric under a scheme, with how to read it."""
+
+    metric: str
+    scheme: str
+    kind: str  # "interpolation", "extrapolation", "cross-validation", "evidence"
+
+    @property
+    def label(self) -> str:
+        name = METRICS[self.metric][0]
+        return f"{name} {self.scheme}".strip() if self.metric != "elpd_loo" else name
+
+
+def _gate(w, include_failed: bool) -> tuple[bool, str]:
+    if w.reliable:
+        return True, ""
+    if include_failed:
+        return True, "fit failed the diagnostics gate; ranked because the study sets include_failed"
+    return False, "fit failed the diagnostics gate"
+
+
+def _loo_rows(w, gate) -> list[tuple]:
+    if not math.isfinite(w.loo.value):
+        return []
+    ok, why = gate
+    loo = w.results.get("loo")
+    if ok and loo is not None and not loo.reliable:
+        ok, why = False, f"high Pareto k not resolved ({loo.handling})"
+    return [(w.name, "elpd_loo", "", w.loo.value, w.loo.error, ok, why)]
+
+
+def _cv_rows(w, gate, blocked: list[str]) -> list[tuple]:
+    rows = []
+    for label, est in w.cv.items():
+        ok, why = gate
+        if ok and not w.cv_reliable.get(label, True):
+            failed = getattr(w.results.get(label), "failed_folds", None)
+            ok, why = False, f"folds {failed} failed the diagnostics gate" if failed else "a fold failed the gate"
+        rows.append((w.name, "elpd_cv", label, est.value, est.error, ok, why))
+        if label in blocked and label in w.penalty:
+            # No standard error: the penalty is a difference of two estimates on the same points,
+            # whose errors are strongly correlated (approximate: reported as NaN, not guessed).
+            rows.append((w.name, "penalty", label, w.penalty[label], math.nan, ok, why))
+    return rows
+
+
+def _evidence_rows(w, gate) -> list[tuple]:
+    rows = []
+    for estimator, est in w.evidence.items():
+        ok, why = gate
+        if ok and not w.evidence_agree:
+            ok, why = False, (f"evidence estimators disagree by {abs(w.evidence_disagreement):.2f} nat: "
+                              "left out of the evidence ranking")
+        rows.append((w.name, "log_evidence", estimator, est.value, est.error, ok, why))
+    return rows
+
+
+def _weight_rows(w) -> list[tuple]:
+    return [(w.name, "weight", method, weight, math.nan, method not in w.weight_exclusions,
+             w.weight_exclusions.get(method, "")) for method, weight in w.weights.items()]
+
+
+def score_table(outcome: StudyOutcome) -> pd.DataFrame:
+    """The tidy law × metric table of a :class:`~bayesfric.study.outcome.StudyOutcome`.
+
+    Parameters
+    ----------
+    outcome : StudyOutcome
+        Per-law results (after the weights were assigned).
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns :data:`COLUMNS`, one row per law, metric and scheme that was computed.
+    """
+    rows: list[tuple] = []
+    for w in outcome.laws:
+        gate = _gate(w, outcome.study.include_failed)
+        rows += _loo_rows(w, gate) + _cv_rows(w, gate, outcome.blocked) + _evidence_rows(w, gate)
+        rows += _weight_rows(w)
+    table = pd.DataFrame(rows, columns=COLUMNS)
+    return table.astype({"estimate": float, "se": float, "reliable": bool})
+
+
+def _select(table: pd.DataFrame, metric: str, scheme: str) -> pd.DataFrame:
+    rows = table[(table["metric"] == metric) & (table["scheme"] == scheme)]
+    return rows[np.isfinite(rows["estimate"].to_numpy(dtype=float))]
+
+
+def value(table: pd.DataFrame, law: str, metric: str, scheme: str = "") -> pd.Series | None:
+    """The row of ``law`` under ``metric`` and ``scheme``, or None when it was not computed."""
+    rows = _select(table, metric, scheme)
+    rows = rows[rows["law"] == law]
+    return None if rows.empty else rows.iloc[0]
+
+
+def best(table: pd.DataFrame, metric: str, scheme: str = "") -> str | None:
+    """The best reliable law under ``metric`` and ``scheme`` (lowest penalty, highest otherwise)."""
+    rows = _select(table, metric, scheme)
+    rows = rows[rows["reliable"]]
+    if rows.empty:
+        return None
+    higher = METRICS[metric][1]
+    return str(rows.loc[rows["estimate"].idxmax() if higher else rows["estimate"].idxmin(), "law"])
+
+
+def passed_over(table: pd.DataFrame, metric: str, scheme: str = "") -> list[str]:
+    """Laws that score better than :func:`best` under ``metric`` but may not be ranked."""
+    winner = best(table, metric, scheme)
+    if winner is None:
+        return []
+    rows = _select(table, metric, scheme)
+    top = float(rows.loc[rows["law"] == winner, "estimate"].iloc[0])
+    better = rows["estimate"] > top if METRICS[metric][1] else rows["estimate"] < top
+    return [str(x) for x in rows.loc[better & ~rows["reliable"], "law"]]
+
+
+def ranking_order(table: pd.DataFrame, laws: list[str], criterion: Criterion | None) -> list[str]:
+    """``laws`` ordered by ``criterion``: reliable rows best first, then unreliable, then unscored."""
+    if criterion is None:
+        return list(laws)
+    rows = _select(table, criterion.metric, criterion.scheme).set_index("law")
+    sign = -1.0 if METRICS[criterion.metric][1] else 1.0
+
+    def key(name: str) -> tuple:
+        if name not in rows.index:
+            return (2, 0.0)
+        return (0 if rows.loc[name, "reliable"] else 1, sign * float(rows.loc[name, "estimate"]))
+
+    return sorted(laws, key=key)
+
+
+def criteria(outcome: StudyOutcome) -> list[Criterion]:
+    """The study's ranking criteria in display order: blocked schemes (the question), LOO, the
+    other CV schemes, the log-evidence estimators."""
+    out = [Criterion("elpd_cv", s, "extrapolation") for s in outcome.blocked]
+    if outcome.study.loo:
+        out.append(Criterion("elpd_loo", "", "interpolation"))
+    out += [Criterion("elpd_cv", s, "cross-validation") for s in outcome.schemes if s not in outcome.blocked]
+    estimators = list(dict.fromkeys(k for w in outcome.laws for k in w.evidence))
+    out += [Criterion("log_evidence", e, "evidence") for e in estimators]
+    return out

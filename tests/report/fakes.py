@@ -1,0 +1,62 @@
+"""Study outcomes without sampling, for fast report tests: posterior draws are drawn around given
+values with numpy (not a posterior of the data — stated here, used only to exercise renderings)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from bayesfric.datasets.synthetic import simulate
+from bayesfric.inference.diagnostics import Verdict
+from bayesfric.laws import get_law
+from bayesfric.study.outcome import Estimate, LawOutcome, StudyOutcome
+from bayesfric.study.scores import score_table
+
+OK = Verdict(True, 1.0, 1000.0, 1000.0, 0, 1.0, 0.9)
+BAD = Verdict(False, 1.2, 50.0, 40.0, 12, 0.2, 0.9, problems=["R-hat 1.2 > 1.01"])
+
+
+def data(n: int = 40) -> xr.Dataset:
+    """Simulated Coulomb + viscous torque over ±4 rad/s (sigma 0.2 N·m)."""
+    speeds = np.geomspace(0.005, 4.0, n // 2)
+    v = np.concatenate([-speeds[::-1], speeds])
+    return simulate(get_law("coulomb_viscous"), {"velocity": v}, {"T_C": 5.0, "c_v": 2.0}, sigma=0.2, seed=5)
+
+
+def fake_fit(name: str, ds: xr.Dataset, centre: dict[str, float], sd: float = 0.05, seed: int = 0) -> xr.DataTree:
+    """A DataTree laid out like a fit: posterior draws N(centre, sd·|centre|), 2 chains × 200."""
+    law = get_law(name)
+    rng = np.random.default_rng(seed)
+    post = {k: (("chain", "draw"), c + sd * abs(c) * rng.standard_normal((2, 200))) for k, c in centre.items()}
+    post["sigma"] = (("chain", "draw"), 0.2 + 0.01 * rng.standard_normal((2, 200)))
+    v = ds["velocity"].values
+    mean = np.asarray(law.mean({"velocity": v[None, None, :]}, {k: post[k][1][..., None] for k in law.params}))
+    pp = mean + 0.2 * rng.standard_normal(mean.shape)
+    tree = xr.DataTree.from_dict({
+        "posterior": xr.Dataset(post),
+        "posterior_predictive": xr.Dataset({"response": (("chain", "draw", "obs"), pp)}),
+    })
+    tree.attrs.update(law=name, constants="{}", noise=json.dumps({"kind": "normal"}))
+    return tree
+
+
+def outcome(study, tmp: Path, *, failed: str | None = None) -> StudyOutcome:
+    """Two laws (coulomb, coulomb_viscous) with LOO, one blocked scheme and stacking weights;
+    ``failed`` names a law whose fit failed the gate."""
+    ds = data()
+    label = study.blocked[0].describe() if study.blocked else "blocked"
+    held = np.abs(ds["velocity"].values) > 1.0
+    laws = []
+    for name, centre, loo, cv, pen, w in (("coulomb", {"T_C": 6.3}, -90.0, -160.0, 15.0, 0.0),
+                                          ("coulomb_viscous", {"T_C": 5.0, "c_v": 2.0}, 9.0, -4.0, 0.5, 1.0)):
+        laws.append(LawOutcome(
+            law=get_law(name), fit=fake_fit(name, ds, centre), fit_file=tmp / f"{name}.nc",
+            verdict=BAD if name == failed else OK, loo=Estimate(loo, 3.0), p_loo=2.0, pareto_k_max=0.3,
+            cv={label: Estimate(cv, 2.0)}, cv_reliable={label: True}, penalty={label: pen},
+            weights={f"stacking {label}": w, "stacking LOO": w}, loo_pit_pvalue=0.4))
+    out = StudyOutcome(study=study, data=ds, laws=laws, schemes=[label], blocked=[label], heldout={label: held})
+    out.table = score_table(out)
+    return out

@@ -1,0 +1,87 @@
+"""The law × metric table: one row per score, reliability as a field, winners read from it."""
+
+import math
+
+import pytest
+
+from bayesfric.inference.diagnostics import Verdict
+from bayesfric.laws import get_law
+from bayesfric.study import load_study
+from bayesfric.study import scores as sc
+from bayesfric.study.outcome import Estimate, LawOutcome, StudyOutcome
+from tests.report.fakes import OK
+
+LABEL = "train inside, score outside"
+STUDY = ('[study]\nname = "tiny"\n[data]\ndataset = "robot_joint"\n[[laws]]\nname = "coulomb"\n'
+         '[[laws]]\nname = "coulomb_viscous"\n[compare]\nloo = true\nevidence = false\n'
+         '[[compare.blocked]]\naxis = "velocity"\nthreshold = 1.0\n')
+
+
+@pytest.fixture
+def study(tmp_path):
+    (tmp_path / "tiny.toml").write_text(STUDY)
+    return load_study(tmp_path / "tiny.toml")
+
+
+def law(tmp_path, name, loo, blocked=None, blocked_ok=True, verdict=OK, evidence=None, agree=True):
+    cv = {LABEL: Estimate(blocked, 1.0)} if blocked is not None else {}
+    return LawOutcome(law=get_law(name), fit=None, fit_file=tmp_path, verdict=verdict, loo=Estimate(loo, 1.0),
+                      cv=cv, cv_reliable={LABEL: blocked_ok} if cv else {}, penalty={LABEL: 0.5} if cv else {},
+                      evidence=evidence or {}, evidence_agree=agree, evidence_disagreement=3.0)
+
+
+def test_table_is_tidy_one_row_per_law_metric_scheme(study, tmp_path):
+    out = StudyOutcome(study=study, data=None, schemes=[LABEL], blocked=[LABEL],
+                       laws=[law(tmp_path, "coulomb", -10.0, -5.0), law(tmp_path, "coulomb_viscous", -2.0, -8.0)])
+    table = sc.score_table(out)
+    assert list(table.columns) == sc.COLUMNS
+    assert not table.duplicated(["law", "metric", "scheme"]).any()
+    assert set(table["metric"]) == {"elpd_loo", "elpd_cv", "penalty"}
+    row = sc.value(table, "coulomb", "elpd_cv", LABEL)
+    assert (row["estimate"], row["se"], row["reliable"], row["reason"]) == (-5.0, 1.0, True, "")
+    assert math.isnan(sc.value(table, "coulomb", "penalty", LABEL)["se"])  # not computed: NaN, never guessed
+
+
+def test_winner_skips_unreliable_fold_and_names_it(study, tmp_path):
+    """A law whose blocked fold failed the gate is not ranked; passed_over names it."""
+    out = StudyOutcome(study=study, data=None, schemes=[LABEL], blocked=[LABEL],
+                       laws=[law(tmp_path, "coulomb", -10.0, -5.0, blocked_ok=False),
+                             law(tmp_path, "coulomb_viscous", -2.0, -8.0)])
+    table = sc.score_table(out)
+    assert sc.best(table, "elpd_loo") == "coulomb_viscous" and sc.passed_over(table, "elpd_loo") == []
+    assert sc.best(table, "elpd_cv", LABEL) == "coulomb_viscous"
+    assert sc.passed_over(table, "elpd_cv", LABEL) == ["coulomb"]
+    assert "failed the gate" in sc.value(table, "coulomb", "elpd_cv", LABEL)["reason"]
+    assert sc.ranking_order(table, ["coulomb", "coulomb_viscous"], sc.Criterion("elpd_cv", LABEL, "x")) == [
+        "coulomb_viscous", "coulomb"]  # the unreliable higher score sinks below
+
+
+def test_evidence_disagreement_keeps_a_law_out_of_the_evidence_ranking(study, tmp_path):
+    def ev(z):
+        return {"bridge": Estimate(z, 0.01), "importance": Estimate(z + 3, 0.01)}
+
+    out = StudyOutcome(study=study, data=None, schemes=[], blocked=[],
+                       laws=[law(tmp_path, "coulomb", -5.0, evidence=ev(-1.0), agree=False),
+                             law(tmp_path, "coulomb_viscous", -5.0, evidence=ev(-4.0))])
+    table = sc.score_table(out)
+    assert sc.best(table, "log_evidence", "bridge") == sc.best(table, "log_evidence", "importance") == "coulomb_viscous"
+    assert sc.passed_over(table, "log_evidence", "bridge") == ["coulomb"]
+    assert "disagree" in sc.value(table, "coulomb", "log_evidence", "bridge")["reason"]
+
+
+def test_failed_fit_is_ranked_only_with_include_failed(study, tmp_path):
+    bad = Verdict(False, 1.3, 10.0, 10.0, 5, 0.1, 0.9, problems=["R-hat"])
+    laws = [law(tmp_path, "coulomb", 0.0, verdict=bad), law(tmp_path, "coulomb_viscous", -2.0)]
+    out = StudyOutcome(study=study, data=None, schemes=[], blocked=[], laws=laws)
+    assert sc.best(sc.score_table(out), "elpd_loo") == "coulomb_viscous"
+    study.include_failed = True
+    table = sc.score_table(out)
+    assert sc.best(table, "elpd_loo") == "coulomb"
+    assert "include_failed" in sc.value(table, "coulomb", "elpd_loo")["reason"]
+
+
+def test_penalty_best_is_the_lowest(study, tmp_path):
+    a, b = law(tmp_path, "coulomb", -1.0, -5.0), law(tmp_path, "coulomb_viscous", -1.0, -6.0)
+    a.penalty[LABEL], b.penalty[LABEL] = 2.0, 0.1
+    table = sc.score_table(StudyOutcome(study=study, data=None, schemes=[LABEL], blocked=[LABEL], laws=[a, b]))
+    assert sc.best(table, "penalty", LABEL) == "coulomb_viscous"
