@@ -230,7 +230,7 @@ def _size_fit(args: argparse.Namespace, question):
 
     from bayesfric import sizing
     from bayesfric.inference import load_fit
-    from bayesfric.laws import get_law
+    from bayesfric.laws.variants import law_of_fit
 
     path = Path(args.target)
     if question is None:
@@ -245,7 +245,7 @@ def _size_fit(args: argparse.Namespace, question):
             fit.children):
         raise UserError(f"{path}: not a bayesfric fit (no law, noise model or posterior recorded)")
     try:
-        law = get_law(str(fit.attrs["law"]))
+        law = law_of_fit(fit.attrs)
     except KeyError as exc:
         raise UserError(f"{path}: {exc.args[0]}") from None
     if law.trajectory:

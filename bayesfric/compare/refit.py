@@ -42,7 +42,7 @@ from blackjax.adaptation.window_adaptation import base as window_adaptation_base
 from bayesfric.compare.folds import Folds
 from bayesfric.density import build_density
 from bayesfric.inference.diagnostics import GATE, Gate, Verdict, check
-from bayesfric.laws.base import get_law
+from bayesfric.laws.variants import law_of_fit
 from bayesfric.model import Noise, Program, build_program
 
 __all__ = [
@@ -72,7 +72,7 @@ def program_from_fit(fit: xr.DataTree, ds: xr.Dataset) -> Program:
     if noise["kind"] == "normal" and "sigma" not in priors and sigma is None:
         raise ValueError(f"fit of {fit.attrs['law']!r} used a known noise sigma, which its attrs "
                          "do not record; pass the fit's program (or engine) explicitly")
-    return build_program(get_law(fit.attrs["law"]), ds, priors=priors,
+    return build_program(law_of_fit(fit.attrs), ds, priors=priors,
                          noise=Noise(kind=noise["kind"], group=noise.get("group"), sigma=sigma),
                          constants=json.loads(fit.attrs["constants"]))
 

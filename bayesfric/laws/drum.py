@@ -41,6 +41,9 @@ from bayesfric.laws.base import (
 )
 from bayesfric.priors import DataScale, Prior
 
+#: Why these laws run on rotary (torque) data only (bayesfric.laws.variants).
+_ROTARY = "the drum motor's rolling bearings and O-rings (seed 003): ball geometry, shaft speed"
+
 __all__ = [
     "DRUM_INERTIA",
     "DRUM_BEARING",
@@ -84,6 +87,7 @@ tau_o0 = Param(
 @law(
     name="oring",
     family="drum",
+    rotary_only=_ROTARY,
     inputs=("velocity",),
     response="torque",
     source=f"{SEED}, Eq. 6 (O-ring friction)",
@@ -144,6 +148,7 @@ def seed_ball_normal_forces(radial_force, angle, n_balls: int):
 @law(
     name="drum_ball_rolling",
     family="drum",
+    rotary_only=_ROTARY,
     inputs=("radial_force", "angle"),
     response="torque",
     source=f"{SEED}, Eq. 1–4 (Hertz ball loads, rolling friction per ball), Eq. 5 (ball angle)",
@@ -243,6 +248,7 @@ def pchip(x, knots, values):
 @law(
     name="drum_torque_spline",
     family="drum",
+    rotary_only=_ROTARY,
     inputs=("velocity",),
     response="torque",
     source=f"{SEED}, §3.2 and §4 (look-up tables of measured torque over speed)",

@@ -24,7 +24,7 @@ import numpy as np
 from bayesfric import compare, fsutil, sizing
 from bayesfric.datasets import DataError, load_dataset, resolve, select
 from bayesfric.inference import SAMPLERS, release_compiled_code, save_fit
-from bayesfric.laws import get_law
+from bayesfric.laws.variants import for_data
 from bayesfric.model import build_program
 from bayesfric.priors import PriorError
 from bayesfric.report.figures import plot_predictive, plot_sizing_fan
@@ -75,7 +75,10 @@ def validate_against_data(study: Study, ds) -> None:
         except ValueError as exc:
             raise StudyError(f"{where}: [compare] kfold: {exc}") from None
     for i, spec in enumerate(study.laws):
-        law = get_law(spec.name)
+        try:  # the law as it runs on this data: its motion kind, without optional inputs it lacks
+            law = for_data(spec.build(), ds)
+        except DataError as exc:
+            raise StudyError(f"{where}: laws[{i}] ({spec.name}): {exc}") from None
         missing = [q for q in law.operating_inputs if q not in inputs]
         if missing:
             raise StudyError(f"{where}: laws[{i}] ({spec.name}) reads {missing}, which the data lacks")
@@ -110,7 +113,7 @@ def sizing_questions(study: Study, ds, questions: list[sizing.SizingQuestion] | 
     if not questions:
         return []
     inputs = [k for k, v in ds.coords.items() if v.attrs.get("role") == "input"]
-    laws = [get_law(spec.name) for spec in study.laws]
+    laws = [spec.build() for spec in study.laws]
     for i, law in enumerate(laws):
         if law.trajectory:
             raise StudyError(f"{where}: laws[{i}] ({law.name}): a trajectory (stateful) law cannot be sized at an "
@@ -180,8 +183,8 @@ def _run_law(study: Study, spec, ds, folder: Path, schemes, settings: dict, seed
         out.timings[stage] = now - clock[0]
         clock[0] = now
 
-    law = get_law(spec.name)
-    program = build_program(law, ds, priors=spec.priors, noise=study.noise, constants=spec.constants)
+    program = build_program(spec.build(), ds, priors=spec.priors, noise=study.noise, constants=spec.constants)
+    law = program.law  # as it runs on this data (motion kind, units), named by the entry's label
     sampler = study.sampler.get("name", "nuts")
     dt = SAMPLERS[sampler](program, ds, seed=seed, **settings)
     fit_file = save_fit(dt, folder / "fits" / f"{law.name}.nc")
