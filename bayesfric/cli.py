@@ -79,6 +79,27 @@ def _parse_priors(items: list[str] | None, known: list[str], law: str) -> dict[s
     return out
 
 
+def _parse_fix(items: list[str] | None, law):
+    """``--fix NAME=VALUE`` options: the law with each named parameter (or constant) held at VALUE (SI)."""
+    from bayesfric.laws.variants import VariantError, vary
+
+    fixed: dict[str, float] = {}
+    for item in items or []:
+        name, sep, text = item.partition("=")
+        if not sep or not name:
+            raise UserError(f"--fix {item!r}: expected NAME=VALUE, e.g. --fix i=1.5")
+        try:
+            value = float(text)
+        except ValueError:
+            raise UserError(f"--fix {name}: {text!r} is not a number") from None
+        try:
+            vary(law, fixed={name: value})  # each option checked alone, so the error names it
+        except VariantError as exc:
+            raise UserError(f"--fix {name}: {exc.problem}") from None
+        fixed[name] = value
+    return vary(law, fixed=fixed)
+
+
 def _parse_select(items: list[str] | None) -> dict[str, object]:
     """``--select COORD=VALUE`` options; VALUE is read as an integer, a number or else a string."""
     out: dict[str, object] = {}
@@ -124,6 +145,7 @@ def _cmd_fit(args: argparse.Namespace) -> None:
     from bayesfric.fsutil import PathError, check_output_file
     from bayesfric.inference import fit, save_fit
     from bayesfric.laws import get_law
+    from bayesfric.laws.variants import for_data
     from bayesfric.model import Noise, build_program
     from bayesfric.report.tables import fit_report
     from bayesfric.study.config import walkers_problem
@@ -138,7 +160,9 @@ def _cmd_fit(args: argparse.Namespace) -> None:
         law = get_law(args.law)
     except KeyError as exc:
         raise UserError(exc.args[0]) from None
+    law = _parse_fix(args.fix, law)
     ds = _load_selected(args.data, args.select)
+    law = for_data(law, ds)  # its motion kind and units as they run on this data
     noise = Noise(kind=args.noise, group=args.group)
     if args.group is not None and args.group not in ds.coords:
         raise UserError(f"--group {args.group}: not a coordinate of the data ({', '.join(ds.coords)})")
@@ -300,6 +324,8 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--group", help="group coordinate for partial-pooled offsets (series, run ...)")
     q.add_argument("--select", action="append", metavar="COORD=VALUE", help="use only these rows")
     q.add_argument("--prior", action="append", metavar="NAME=JSON", help="override a prior")
+    q.add_argument("--fix", action="append", metavar="NAME=VALUE",
+                   help="hold a parameter (or constant) at VALUE in SI units instead of sampling it, e.g. i=1.5")
     q.add_argument("--quiet", action="store_true", help="no progress bar")
     q.set_defaults(func=_cmd_fit)
 

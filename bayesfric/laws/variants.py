@@ -76,7 +76,15 @@ _GENERIC = "generic coefficient, data-scaled weakly-informative prior (bayesfric
 
 
 class VariantError(LawDeclarationError):
-    """A variant the law cannot take (unknown parameter, asymmetry of a trajectory law ...)."""
+    """A variant the law cannot take (unknown parameter, asymmetry of a trajectory law ...).
+
+    ``key`` is the option it concerns (``"fixed.i"``, ``"asymmetric"``, ``"add"``), ``problem``
+    the message without it, so callers name the option in their own terms (study key, CLI flag).
+    """
+
+    def __init__(self, problem: str, key: str = ""):
+        super().__init__(f"{key}: {problem}" if key else problem)
+        self.key, self.problem = key, problem
 
 
 def motion_of_response(response: str) -> str | None:
@@ -160,7 +168,8 @@ def _reads(d: Derived) -> set[str]:
 # -- the operations ------------------------------------------------------------------------------
 def _add(law: Law, part: Law) -> Law:
     if part.response != law.response:
-        raise VariantError(f"cannot add {part.name!r} ({part.response}) to law {law.name!r} ({law.response})")
+        raise VariantError(f"cannot add {part.name!r} ({part.response}) to law {law.name!r} ({law.response})",
+                           "add")
     taken = set(law.params) | set(law.constants) | set(law.derived) | set(law.inputs)
     rename = {k: (f"{k}_{part.name}" if k in taken else k)
               for k in list(part.params) + list(part.constants) + list(part.derived)}
@@ -186,14 +195,14 @@ def _add(law: Law, part: Law) -> Law:
 
 def _asymmetric(law: Law, names: Sequence[str]) -> Law:
     if law.trajectory or "velocity" not in law.inputs:
-        raise VariantError(f"asymmetric: law {law.name!r} must be a steady law that reads velocity "
-                           "(a trajectory law would mix the two parameter sets along its state)")
+        raise VariantError(f"law {law.name!r} must be a steady law that reads velocity "
+                           "(a trajectory law would mix the two parameter sets along its state)", "asymmetric")
     unknown = [n for n in names if n not in law.params]
     if unknown:
-        raise VariantError(f"asymmetric: law {law.name!r} has no parameter {unknown[0]!r} "
-                           f"(parameters: {', '.join(law.params)})")
+        raise VariantError(f"law {law.name!r} has no parameter {unknown[0]!r} "
+                           f"(parameters: {', '.join(law.params)})", "asymmetric")
     if any(law.params[n].shape for n in names):
-        raise VariantError("asymmetric: vector-valued parameters cannot be split by direction")
+        raise VariantError("vector-valued parameters cannot be split by direction", "asymmetric")
     params: dict[str, Param] = {}
     for k, p in law.params.items():
         if k in names:
@@ -230,22 +239,22 @@ def _fix(law: Law, values: Mapping[str, float]) -> Law:
     params, constants, fixed_params = dict(law.params), dict(law.constants), {}
     for name, value in values.items():
         if not isinstance(value, int | float) or isinstance(value, bool) or not math.isfinite(value):
-            raise VariantError(f"fixed {name}: must be a finite number, got {value!r}")
+            raise VariantError(f"must be a finite number, got {value!r}", f"fixed.{name}")
         value = float(value)
         if name in constants:
             constants[name] = dataclasses.replace(constants[name], value=value)
         elif name in params:
             p = params.pop(name)
             if p.shape:
-                raise VariantError(f"fixed {name}: a vector-valued parameter cannot be fixed")
+                raise VariantError("a vector-valued parameter cannot be fixed", f"fixed.{name}")
             if problem := _support_problem(p, value):
-                raise VariantError(f"fixed {name}: {value:g} is {problem}")
+                raise VariantError(f"{value:g} is {problem}", f"fixed.{name}")
             constants[name] = Constant(value, p.unit, f"{p.meaning} (fixed)")
             fixed_params[name] = value
         else:
-            raise VariantError(f"fixed {name}: law {law.name!r} has no parameter or constant {name!r} "
+            raise VariantError(f"law {law.name!r} has no parameter or constant {name!r} "
                                f"(parameters: {', '.join(law.params) or 'none'}; constants: "
-                               f"{', '.join(law.constants) or 'none'})")
+                               f"{', '.join(law.constants) or 'none'})", f"fixed.{name}")
     derived = {k: _rewire(d, {}, fixed_params) for k, d in law.derived.items() if _reads(d) - set(fixed_params)}
     own = list(law.inputs) + list(law.params) + list(law.constants)
     text = ", ".join(f"{k} = {v:g}" for k, v in values.items())
@@ -354,7 +363,7 @@ def _part(name: str) -> Law:
     try:
         return get_law(name)
     except KeyError:
-        raise VariantError(f"add {name!r}: not a term ({', '.join(TERMS)}) or a registered law") from None
+        raise VariantError(f"{name!r} is not a term ({', '.join(TERMS)}) or a registered law", "add") from None
 
 
 # -- recipes -------------------------------------------------------------------------------------

@@ -335,8 +335,9 @@ def _variant(where: str, entry: dict[str, Any]) -> Law:
                              f"(constants: {', '.join(law.constants) or 'none'})")
         try:
             law = vary(law, **options)
-        except VariantError as exc:
-            raise StudyError(f"{where}.{key}: {exc}") from None
+        except VariantError as exc:  # exc.key names the option within the entry (fixed.i)
+            sub = exc.key.split(".", 1)[1] if "." in exc.key else ""
+            raise StudyError(f"{where}.{key}{'.' + sub if sub else ''}: {exc.problem}") from None
     return law
 
 
@@ -415,8 +416,8 @@ def load_study(path: str | Path) -> Study:
     for i, label in enumerate(names):
         if label in names[:i]:
             key = "label" if spec["laws"][i]["label"] else "name"
-            raise StudyError(f"{path}: laws[{i}].{key}: {label!r} names another entry already; give each entry "
-                             "of the same law its own label")
+            raise StudyError(f"{path}: laws[{i}].{key}: {label!r} is listed twice: give each entry of the "
+                             "same law its own label")
     if compare["evidence"]:
         _check_evidence_draws(path, spec["sampler"])
     blocked = [BlockedSpec(b["axis"], b["direction"], b["threshold"], b["quantile"], b["label"])

@@ -27,6 +27,7 @@ from bayesfric.inference import SAMPLERS, release_compiled_code, save_fit
 from bayesfric.laws.variants import for_data
 from bayesfric.model import build_program
 from bayesfric.priors import PriorError
+from bayesfric.quantities import QUANTITIES
 from bayesfric.report.figures import plot_predictive, plot_sizing_fan
 from bayesfric.report.sizing import headlines as sizing_headlines
 from bayesfric.report.summary import write_reports
@@ -79,9 +80,10 @@ def validate_against_data(study: Study, ds) -> None:
             law = for_data(spec.build(), ds)
         except DataError as exc:
             raise StudyError(f"{where}: laws[{i}] ({spec.name}): {exc}") from None
-        missing = [q for q in law.operating_inputs if q not in inputs]
+        missing = [f"{q} ({QUANTITIES[q].meaning})" for q in law.operating_inputs if q not in inputs]
         if missing:
-            raise StudyError(f"{where}: laws[{i}] ({spec.name}) reads {missing}, which the data lacks")
+            raise StudyError(f"{where}: laws[{i}] ({spec.name}) reads {'; '.join(missing)}, which the data lacks "
+                             f"(its inputs: {', '.join(sorted(inputs)) or 'none'})")
         if law.response != ds.attrs["response"]:
             raise StudyError(f"{where}: laws[{i}] ({spec.name}) predicts {law.response}, the data has "
                              f"{ds.attrs['response']}")
