@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from bayesfric import compare, fsutil, sizing
+from bayesfric.compare.asymmetry import asymmetry
 from bayesfric.datasets import DataError, load_dataset, resolve, select
 from bayesfric.inference import SAMPLERS, release_compiled_code, save_fit
 from bayesfric.laws.variants import for_data
@@ -315,6 +316,8 @@ def _findings(out: StudyOutcome) -> list[str]:
         w = out.winner(key)
         if w:
             lines.append(f"Highest log evidence ({key}): **{w}**.")
+    for w in out.laws:  # direction-dependent coefficients (laws.variants): is the asymmetry supported?
+        lines += [f"Direction asymmetry of {w.name}: {a.text()}." for a in asymmetry(w.fit)]
     failed = [w.name for w in out.laws if not w.reliable]
     if failed:
         lines.append("Fits that FAILED the diagnostics gate (excluded from weights, marked in tables): "
