@@ -33,6 +33,7 @@ def test_an_installed_wheel_finds_the_builtin_data_and_studies(tmp_path):
                          cwd=tmp_path, env={"PYTHONPATH": str(tmp_path / "site"), "PATH": "/usr/bin:/bin"})
     module, data_root, names, studies = json.loads(out.stdout.strip().splitlines()[-1])
     assert module.startswith(str(tmp_path / "site")) and data_root.startswith(str(tmp_path / "site"))
-    assert names == ["dahl_duplex", "drum_rollout", "pitch_bearing", "robot_joint", "unwinder"]
+    assert names == ["asym_joint", "dahl_duplex", "drum_rollout", "pitch_bearing", "robot_joint", "tribo_loops",
+                     "unwinder"]
     assert studies == ["dahl_duplex.toml", "drum_rollout.toml", "pitch_bearing.toml", "robot_joint.toml",
                        "unwinder.toml"]
