@@ -198,18 +198,15 @@ def dahl_torque(angle, preload, trajectory_start, F_c0, gamma, x_c0, kappa, i, P
     return F_c * phi
 
 
-def _dahl_law(name: str, i_fixed: float | None, knee_by_preload: bool):
-    """Declare one Dahl variant: i free or fixed (a Constant), x_c shared or preload-dependent."""
+def _dahl_law(name: str, knee_by_preload: bool):
+    """Declare one Dahl law: x_c shared or preload-dependent (the exponent i is fixed by aliases)."""
     params = {"F_c0": F_c0, "gamma": gamma, "x_c0": x_c0}
     constants = {}
     if knee_by_preload:
         params["kappa"] = kappa
     else:
         constants["kappa"] = Constant(0.0, "1", "knee independent of preload (seed 001 §V)")
-    if i_fixed is None:
-        params["i"] = exponent_i
-    else:
-        constants["i"] = Constant(i_fixed, "1", "SFM exponent i, fixed (seed 001 Eq. 6-8)")
+    params["i"] = exponent_i
     constants["P_ref"] = P_REF
     constants["F_start"] = F_START
     inputs = ("angle", "preload", TRAJECTORY_START)
@@ -221,11 +218,10 @@ def _dahl_law(name: str, i_fixed: float | None, knee_by_preload: bool):
     def fn(*args, **kwargs):
         return dahl_torque(**signature.bind(*args, **kwargs).arguments)
 
-    i_text = "i free" if i_fixed is None else f"i = {i_fixed:g}"
     knee_text = "x_c ∝ P^κ per preload" if knee_by_preload else "one x_c for all preloads"
     fn.__signature__ = signature
     fn.__name__ = fn.__qualname__ = name
-    fn.__doc__ = (f"Dahl solid friction, {i_text}, {knee_text}: dF/dx = σ|1 − (F/F_c) sgn ẋ|^i "
+    fn.__doc__ = (f"Dahl solid friction, {knee_text}: dF/dx = σ|1 − (F/F_c) sgn ẋ|^i "
                   "sgn(1 − (F/F_c) sgn ẋ), F_c = F_c0 (P/P_ref)^γ.")
     return law(
         name=name,
@@ -242,12 +238,17 @@ def _dahl_law(name: str, i_fixed: float | None, knee_by_preload: bool):
     )(fn)
 
 
-#: name -> Law for every Dahl variant: i ∈ {free, 1, 1.5, 2} × knee shared / per preload.
-DAHL_LAWS = {
-    f"dahl{i_tag}{knee_tag}": _dahl_law(f"dahl{i_tag}{knee_tag}", i_fixed, by_preload)
-    for i_tag, i_fixed in (("", None), ("_i1", 1.0), ("_i1p5", 1.5), ("_i2", 2.0))
-    for knee_tag, by_preload in (("", False), ("_xc_preload", True))
+_dahl_law("dahl", knee_by_preload=False)
+_dahl_law("dahl_xc_preload", knee_by_preload=True)
+#: Names users already type for Dahl with a fixed exponent: thin aliases (registered by
+#: bayesfric.laws with :func:`bayesfric.laws.variants.alias`), the same as ``fixed = { i = ... }``.
+DAHL_ALIASES = {
+    f"dahl{i_tag}{knee_tag}": {"base": f"dahl{knee_tag}", "fixed": {"i": value}}
+    for i_tag, value in (("_i1", 1.0), ("_i1p5", 1.5), ("_i2", 2.0))
+    for knee_tag in ("", "_xc_preload")
 }
+#: Every Dahl law name: i ∈ {free, 1, 1.5, 2} × knee shared / per preload.
+DAHL_LAWS = ("dahl", "dahl_xc_preload", *DAHL_ALIASES)
 
 # --- LuGre -----------------------------------------------------------------------------------
 _LUGRE_NOTES = (

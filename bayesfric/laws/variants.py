@@ -50,6 +50,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from bayesfric.laws.base import (
+    REGISTRY,
     TRAJECTORY_START,
     Constant,
     Derived,
@@ -64,7 +65,7 @@ from bayesfric.quantities import parse_unit
 
 __all__ = [
     "VariantError", "TERMS", "TRANSLATIONAL", "vary", "build", "for_data", "translation_problem",
-    "translational_unit", "law_of_fit", "describe", "motion_of_response",
+    "translational_unit", "law_of_fit", "describe", "motion_of_response", "alias",
 ]
 
 #: Rotary quantity -> its translational counterpart.
@@ -456,6 +457,20 @@ def for_data(law: Law, ds) -> Law:
     if motion is None and not without:
         return law
     return vary(law, without=without, motion=motion)
+
+
+def alias(name: str, recipe: Mapping[str, Any]) -> Law:
+    """Register ``name`` as a thin alias: the variant ``recipe`` of a registered law.
+
+    Raises
+    ------
+    LawDeclarationError
+        The name is taken, or the recipe is not a valid variant.
+    """
+    if name in REGISTRY:
+        raise LawDeclarationError(f"alias {name!r}: a law named {name!r} is already registered")
+    REGISTRY[name] = build(recipe, name)
+    return REGISTRY[name]
 
 
 def law_of_fit(attrs: Mapping[str, Any]) -> Law:

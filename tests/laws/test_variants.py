@@ -13,6 +13,7 @@ from bayesfric.datasets import DataError
 from bayesfric.datasets.synthetic import make_dataset
 from bayesfric.laws import get_law
 from bayesfric.laws.base import TRAJECTORY_START
+from bayesfric.laws.hysteresis import dahl_torque
 from bayesfric.laws.variants import (
     VariantError,
     build,
@@ -81,14 +82,20 @@ def _loops(n=60, amplitude=0.02):
     return angle, start
 
 
-def test_fixed_exponent_is_the_registered_dahl_variant():
-    """dahl with fixed i = 1.5 reproduces the separately registered dahl_i1p5 exactly."""
+def test_fixed_exponent_and_the_alias_users_type():
+    """dahl with fixed i = 1.5 is Dahl's torque function at i = 1.5; ``dahl_i1p5`` is that alias."""
     angle, start = _loops()
-    inputs = {"angle": angle, "preload": np.full(angle.size, 60.0), TRAJECTORY_START: start}
+    preload = np.full(angle.size, 60.0)
+    inputs = {"angle": angle, "preload": preload, TRAJECTORY_START: start}
     p = {"F_c0": 0.01, "gamma": 0.8, "x_c0": 4e-3}
     fixed = vary(get_law("dahl"), fixed={"i": 1.5})
     assert "i" not in fixed.params and fixed.constants["i"].value == 1.5
-    np.testing.assert_allclose(fixed.mean(inputs, p), get_law("dahl_i1p5").mean(inputs, p), rtol=1e-12)
+    direct = dahl_torque(angle, preload, start, i=1.5, kappa=0.0, P_ref=get_law("dahl").constants["P_ref"].value,
+                         F_start=1.0, **p)
+    np.testing.assert_allclose(fixed.mean(inputs, p), direct, rtol=1e-12)
+    alias = get_law("dahl_i1p5")
+    assert alias.recipe == {"base": "dahl", "fixed": {"i": 1.5}} and list(alias.params) == list(fixed.params)
+    np.testing.assert_allclose(alias.mean(inputs, p), direct, rtol=1e-12)
 
 
 def test_dahl_without_preload_holds_it_at_the_reference():
