@@ -95,8 +95,13 @@ tau_o0 = Param(
     notes="Same form as Coulomb + viscous; both parameters are identified from a speed sweep.",
 )
 def oring(velocity, k_o, tau_o0):
-    """O-ring friction: τ = k_o ω + τ_o0 sign(ω)."""
-    return k_o * velocity + tau_o0 * jnp.sign(velocity)
+    """O-ring friction: τ = k_o ω + τ_o0 sign(ω).
+
+    The formula is ``coulomb_viscous``'s (called, not restated); the law stays registered under
+    seed 003's name because its parameters carry that seed's names, meanings and reported values,
+    which the closed-form O-ring coast-down and the drum study read.
+    """
+    return classical.coulomb_viscous.fn(velocity, T_C=tau_o0, c_v=k_o)
 
 
 # --- rolling friction of a radially loaded ball bearing (Eq. 1–5) ---------------------------------
