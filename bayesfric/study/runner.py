@@ -116,7 +116,7 @@ def sizing_questions(study: Study, ds, questions: list[sizing.SizingQuestion] | 
     if not questions:
         return []
     inputs = [k for k, v in ds.coords.items() if v.attrs.get("role") == "input"]
-    laws = [spec.build() for spec in study.laws]
+    laws = [for_data(spec.build(), ds) for spec in study.laws]  # inputs as the laws read this data
     for i, law in enumerate(laws):
         if law.trajectory:
             raise StudyError(f"{where}: laws[{i}] ({law.name}): a trajectory (stateful) law cannot be sized at an "
