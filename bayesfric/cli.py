@@ -27,6 +27,7 @@ USER_ERRORS = (DataError, PriorError, UnitError, UserError, LawDeclarationError)
 
 def _cmd_laws(args: argparse.Namespace) -> None:
     from bayesfric.laws import all_laws
+    from bayesfric.laws.variants import translation_problem
     from bayesfric.report.tables import format_table, law_rows
 
     laws = [w for w in all_laws() if args.family in (None, w.family)]
@@ -44,7 +45,9 @@ def _cmd_laws(args: argparse.Namespace) -> None:
             rows += law_rows(w)
         print(format_table(header, rows, markdown=args.markdown))
         for w in (w for w in laws if w.family == family):
-            print(f"  {w.name}: {w.summary}  [{w.source}; response {w.response}]")
+            problem = translation_problem(w)
+            motion = "also force data (translational)" if problem is None else f"rotary only: {problem}"
+            print(f"  {w.name}: {w.summary}  [{w.source}; response {w.response}; {motion}]")
 
 
 class UsageError(UserError):
