@@ -164,3 +164,27 @@ def test_variant_errors_name_their_option():
     assert err.value.key == "asymmetric"
     with pytest.raises(VariantError, match="unknown variant key"):
         build({"base": "coulomb", "mirror": True})
+
+
+def test_cli_fix_builds_the_fixed_variant():
+    from bayesfric.cli import _parse_fix
+
+    law = _parse_fix(["i=1.5", "F_start=0"], get_law("dahl"))
+    assert law.constants["i"].value == 1.5 and law.constants["F_start"].value == 0.0 and "i" not in law.params
+    assert _parse_fix(None, get_law("dahl")) is get_law("dahl")
+
+
+def test_study_entry_builds_its_variant(tmp_path):
+    from bayesfric.study import load_study
+
+    (tmp_path / "s.toml").write_text(
+        '[data]\ndataset = "robot_joint"\n[compare]\nevidence = false\n'
+        '[[laws]]\nname = "stribeck"\n'
+        '[[laws]]\nname = "stribeck"\nlabel = "stribeck_plus"\nadd = "viscous"\noffset = true\n'
+        'asymmetric = "T_C"\nfixed = { delta = 1.0 }\nconstants = {}\n')
+    a, b = load_study(tmp_path / "s.toml").laws
+    assert (a.name, a.law, a.build()) == ("stribeck", "stribeck", get_law("stribeck"))
+    law = b.build()
+    assert law.name == "stribeck_plus" and b.law == "stribeck"
+    assert law.recipe == {"base": "stribeck", "add": ["viscous", "offset"], "asymmetric": ["T_C"],
+                          "fixed": {"delta": 1.0}}
