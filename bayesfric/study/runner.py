@@ -317,7 +317,8 @@ def _findings(out: StudyOutcome) -> list[str]:
         if w:
             lines.append(f"Highest log evidence ({key}): **{w}**.")
     for w in out.laws:  # direction-dependent coefficients (laws.variants): is the asymmetry supported?
-        lines += [f"Direction asymmetry of {w.name}: {a.text()}." for a in asymmetry(w.fit)]
+        if w.law.recipe.get("asymmetric"):
+            lines += [f"Direction asymmetry of {w.name}: {a.text()}." for a in asymmetry(w.fit)]
     failed = [w.name for w in out.laws if not w.reliable]
     if failed:
         lines.append("Fits that FAILED the diagnostics gate (excluded from weights, marked in tables): "
