@@ -57,12 +57,20 @@ def table() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def toml_text() -> str:
     truth = ", ".join(f"{k} = {v:g}" for k, v in TRUTH.items())
+    source = (
+        f"data/asym_joint/generate.py: Armstrong-Helouvry law with direction-dependent dT_s and c_v "
+        f"plus a constant offset; truth {truth} (SI); noise sd {SIGMA:g} N*m; seed {SEED}"
+    )
+    description = (
+        "Steady friction torque against joint speed in both directions, two series. SIMULATED, not "
+        "measured: see data/asym_joint/README.md."
+    )
     return f'''[dataset]
 name = "{NAME}"
 title = "SIMULATED asymmetric joint with a torque offset (known truth, issue 13)"
 provenance = "simulated"
-source = "data/asym_joint/generate.py: Armstrong-Helouvry law with direction-dependent dT_s and c_v plus a constant offset; truth {truth} (SI); noise sd {SIGMA:g} N*m; seed {SEED}"
-description = "Steady friction torque against joint speed in both directions, two series. SIMULATED, not measured: see data/asym_joint/README.md."
+source = "{source}"
+description = "{description}"
 
 [columns.speed]
 role = "input"

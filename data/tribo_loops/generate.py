@@ -53,12 +53,20 @@ def table() -> dict[str, np.ndarray]:
 
 def toml_text() -> str:
     truth = ", ".join(f"{k} = {v:g}" for k, v in TRUTH.items())
+    source = (
+        f"data/tribo_loops/generate.py: Dahl model on translational quantities, strokes of 10/20/30 "
+        f"um at 1 Hz; truth {truth} (SI); noise sd {SIGMA:g} N; seed {SEED}"
+    )
+    description = (
+        "Friction force against displacement of a reciprocating tribometer, three stroke "
+        "amplitudes. SIMULATED, not measured: see data/tribo_loops/README.md."
+    )
     return f'''[dataset]
 name = "{NAME}"
 title = "SIMULATED tribometer loops at µm scale (known truth, issue 13)"
 provenance = "simulated"
-source = "data/tribo_loops/generate.py: Dahl model on translational quantities, strokes of 10/20/30 um at 1 Hz; truth {truth} (SI); noise sd {SIGMA:g} N; seed {SEED}"
-description = "Friction force against displacement of a reciprocating tribometer, three stroke amplitudes. SIMULATED, not measured: see data/tribo_loops/README.md."
+source = "{source}"
+description = "{description}"
 trajectory = "run"
 
 [columns.x_um]
