@@ -19,6 +19,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from functools import partial
 from typing import TYPE_CHECKING, Any
 
 import jax
@@ -31,7 +32,7 @@ from numpyro.infer.util import constrain_fn, log_likelihood, potential_energy, u
 if TYPE_CHECKING:
     from bayesfric.model import Program
 
-__all__ = ["Density", "build_density", "OBS_SITE"]
+__all__ = ["Density", "build_density", "median_starts", "OBS_SITE"]
 
 #: The observation site of every program (over dimension ``obs``).
 OBS_SITE = "response"
@@ -99,12 +100,30 @@ class Density:
         return jax.vmap(lambda p: ravel_pytree(unconstrain_fn(model, (), kwargs, p))[0])(draws)
 
 
-def build_density(program: Program, seed: int = 0) -> Density:
-    """Find the latent sites of ``program`` by one plain execution (nothing is compiled)."""
+def _median_start(program: Program, key: jax.Array) -> dict[str, jax.Array]:
+    """Unconstrained latent sites at a prior median (numpyro's ``init_to_median(num_samples=15)``)."""
     model, kwargs = program.model, program.model_kwargs
-    substituted = handlers.substitute(handlers.seed(model, seed), substitute_fn=init_to_median(num_samples=15))
+    substituted = handlers.substitute(handlers.seed(model, key), substitute_fn=init_to_median(num_samples=15))
     trace = handlers.trace(substituted).get_trace(**kwargs)
     latent = {name: site["value"] for name, site in trace.items()
               if site["type"] == "sample" and not site["is_observed"]}
-    flat, unravel = ravel_pytree(unconstrain_fn(model, (), kwargs, latent))
-    return Density(program=program, sites=sorted(latent), dim=int(flat.size), unravel=unravel, x0=flat)
+    return unconstrain_fn(model, (), kwargs, latent)
+
+
+def median_starts(program: Program, seeds: list[int]) -> jax.Array:
+    """Flat prior-median starting points ``(len(seeds), dim)``, one per seed, in ONE compiled call.
+
+    Executing the model eagerly instead dispatches (and, the first time in a process, compiles)
+    each of its few hundred operations one by one.
+    """
+    keys = jnp.stack([jax.random.PRNGKey(s) for s in seeds])
+    starts = jax.jit(jax.vmap(partial(_median_start, program)))(keys)
+    return jax.vmap(lambda tree: ravel_pytree(tree)[0])(starts)
+
+
+def build_density(program: Program, seed: int = 0) -> Density:
+    """The density of ``program``; its latent sites are found by an abstract trace (no compilation)."""
+    shapes = jax.eval_shape(partial(_median_start, program), jax.random.PRNGKey(seed))
+    _, unravel = ravel_pytree(jax.tree.map(lambda s: jnp.zeros(s.shape, s.dtype), shapes))
+    x0 = median_starts(program, [seed])[0]
+    return Density(program=program, sites=sorted(shapes), dim=int(x0.size), unravel=unravel, x0=x0)

@@ -58,9 +58,11 @@ def test_a_second_fit_in_a_new_process_compiles_nothing(tmp_path):
     """Two processes fit the same law to the same data: the second loads every program from disk."""
     first = json.loads(_run(PROBE, BAYESFRIC_CACHE_DIR=str(tmp_path)))
     second = json.loads(_run(PROBE, BAYESFRIC_CACHE_DIR=str(tmp_path)))
-    assert first.get("cache_misses", 0) > 50  # a fit is many small programs, all written
+    assert first.get("cache_misses", 0) > 20  # a fit is tens of small programs (38 in Nov 2026), all written
     assert second.get("cache_misses", 0) == 0, second
-    assert second["cache_hits"] == first["compile_requests_use_cache"]
+    # every program the first process wrote, the second read back. (blackjax compiles one tiny
+    # program at import, before bayesfric configures the cache: it counts as neither, in both.)
+    assert second["cache_hits"] == first["cache_misses"], (first, second)
 
 
 @pytest.mark.slow
@@ -68,3 +70,12 @@ def test_the_off_switch_writes_no_cache(tmp_path):
     events = json.loads(_run(PROBE, BAYESFRIC_CACHE_DIR=str(tmp_path / "c"), BAYESFRIC_NO_CACHE="1"))
     assert "cache_hits" not in events and "cache_misses" not in events
     assert not (tmp_path / "c").exists()
+
+
+def test_the_fit_command_imports_only_what_it_uses():
+    """``bayesfric fit`` needs no plotting, no ODE solver, no comparison or study-runner code."""
+    code = ("import sys; import bayesfric.cli, bayesfric.inference, bayesfric.datasets, bayesfric.laws; "
+            "from bayesfric.study.config import SAMPLER; from bayesfric.report.tables import fit_report; "
+            "print(sorted(m for m in ('matplotlib', 'arviz', 'arviz_plots', 'diffrax', 'bayesfric.study.runner', "
+            "'bayesfric.compare') if m in sys.modules))")
+    assert _run(code) == "[]"

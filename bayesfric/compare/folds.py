@@ -13,6 +13,16 @@ trajectories, grouped folds require every trajectory to lie inside one group lev
 folds block on the per-trajectory value of the axis (its maximum for ``direction="upper"``, its
 minimum for ``direction="lower"``), so a training trajectory lies entirely inside the envelope.
 
+Leave-future-out
+----------------
+``blocked_masks(ds, "time", threshold=12.0, future=True)`` is the one exception to the trajectory
+rule: it splits *inside* each trajectory, at the first sample (in recording order) beyond the cut,
+trains on the past and scores the future. The likelihood mask only drops terms: a stateful law
+still integrates every trajectory from its start, so the state at the split is the one the past
+inputs produced, and the scored predictive is that of the future given the past. A single long
+recording can so be cross-validated. (With AR(1) residuals the first future point is scored given
+the last past residual, the model's own conditional.)
+
 Blocked extrapolation folds
 ---------------------------
 ``blocked_masks(ds, "velocity", quantile=0.8)`` trains on the inner part of the operating
@@ -73,6 +83,35 @@ class Folds:
     @property
     def n_folds(self) -> int:
         return int(self.train.shape[0])
+
+
+def _future_fold(ds: xr.Dataset, axis: str, values: np.ndarray, threshold: float | None,
+                 quantile: float | None, direction: str, use_abs: bool) -> Folds:
+    """The leave-future-out fold of :func:`blocked_masks` (``future=True``)."""
+    if use_abs:
+        values = np.abs(values)
+    if quantile is not None:
+        if not 0 < quantile < 1:
+            raise ValueError(f"quantile must lie in (0, 1); got {quantile}")
+        threshold = float(np.quantile(values, quantile))
+    key = ds.attrs.get("trajectory")
+    unit = (np.unique(np.asarray(ds[key].values), return_inverse=True)[1] if key
+            else np.zeros(values.size, dtype=int))
+    beyond = values > threshold if direction == "upper" else values < threshold
+    heldout = np.zeros(values.size, dtype=bool)
+    for u in np.unique(unit):
+        rows = np.flatnonzero(unit == u)  # a trajectory's rows are contiguous, in time order (loader)
+        crossed = np.flatnonzero(beyond[rows])
+        if crossed.size:
+            heldout[rows[crossed[0]:]] = True
+    name = f"|{axis}|" if use_abs else axis
+    sign = ">" if direction == "upper" else "<"
+    units = ds[axis].attrs.get("units", "")
+    how = f" (q={quantile})" if quantile is not None else ""
+    where = "each trajectory" if key else "the record"
+    scheme = (f"leave-future-out: {where} split where {name} first {sign} {threshold:.4g} {units}{how}"
+              .replace("  ", " "))
+    return Folds(~heldout[None], heldout[None], scheme, [f"{name} {sign} {threshold:.4g}, future"])
 
 
 def _units(ds: xr.Dataset) -> tuple[np.ndarray, int]:
@@ -144,6 +183,7 @@ def blocked_masks(
     quantile: float | None = None,
     direction: Literal["upper", "lower"] = "upper",
     use_abs: bool | None = None,
+    future: bool = False,
 ) -> Folds:
     """One blocked extrapolation fold along an operating input (see the module docstring).
 
@@ -161,7 +201,13 @@ def blocked_masks(
     direction : {"upper", "lower"}
         ``"upper"``: train at or below, score above; ``"lower"``: train at or above, score below.
     use_abs : bool, optional
-        Block on ``|axis|``; default: automatically when the axis has both signs.
+        Block on ``|axis|``; default: automatically when the axis has both signs (never under
+        ``future``, where the sign is part of the path).
+    future : bool
+        Leave-future-out: split *inside* every trajectory, at its first sample beyond the cut in
+        recording order; train on what came before, score that sample and everything after it
+        (see "Leave-future-out" in the module docstring). Data without trajectories are one
+        sequence in row order.
 
     Raises
     ------
@@ -176,6 +222,8 @@ def blocked_masks(
     if direction not in ("upper", "lower"):
         raise ValueError(f"direction must be 'upper' or 'lower'; got {direction!r}")
     values = np.asarray(ds[axis].values, dtype=float)
+    if future:
+        return _future_fold(ds, axis, values, threshold, quantile, direction, bool(use_abs))
     if use_abs is None:
         use_abs = bool((values < 0).any() and (values > 0).any())
     if use_abs:

@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import json
+from functools import partial
 from importlib.metadata import version
 from typing import Any
 
-import arviz as az
+import arviz_base
 import jax
 import numpy as np
 import xarray as xr
@@ -52,11 +53,12 @@ def provenance(program: Program, ds: xr.Dataset, sampler: str, settings: dict, s
     }
 
 
-def log_prior_draws(program: Program, flat: dict[str, Any]) -> dict[str, np.ndarray]:
+def log_prior_draws(program: Program, flat: dict[str, Any], compiled: bool = True) -> dict[str, Any]:
     """Per-draw log prior density of every sampled latent site (summed over its elements).
 
     ``flat`` holds constrained draws shaped (n, ...). The densities are of the constrained
     parameters, as declared (no Jacobian): what power-scaling sensitivity (``psense``) scales.
+    ``compiled=False`` returns JAX arrays, for use inside a traced function.
     """
     kwargs = program.model_kwargs
 
@@ -66,7 +68,19 @@ def log_prior_draws(program: Program, flat: dict[str, Any]) -> dict[str, np.ndar
                 for name, site in tr.items()
                 if site["type"] == "sample" and not site["is_observed"]}
 
-    return {k: np.asarray(v) for k, v in jax.vmap(one)(flat).items()}
+    tables = jax.vmap(one)(flat)
+    return {k: np.asarray(v) for k, v in tables.items()} if compiled else tables
+
+
+def _draw_tables(program: Program, n_prior: int, flat: dict, key_pp, key_prior):
+    """Pointwise log-likelihood, log prior per site, posterior predictive and prior draws."""
+    kwargs = program.model_kwargs
+    pp_kwargs = dict(kwargs, response=None)
+    ll = log_likelihood(program.model, flat, parallel=True, **kwargs)[OBS_SITE]
+    log_prior = log_prior_draws(program, flat, compiled=False)
+    pp = Predictive(program.model, posterior_samples=flat, return_sites=[OBS_SITE], parallel=True)(key_pp, **pp_kwargs)
+    prior = Predictive(program.model, num_samples=n_prior, parallel=True)(key_prior, **pp_kwargs)
+    return ll, log_prior, pp, prior
 
 
 def assemble(
@@ -89,14 +103,10 @@ def assemble(
     """
     n_chains = next(iter(samples.values())).shape[0]
     flat = _flatten(samples)
-    kwargs = program.model_kwargs
     key_pp, key_prior = jax.random.split(jax.random.PRNGKey(seed + 1))
 
-    ll = log_likelihood(program.model, flat, **kwargs)[OBS_SITE]
-    log_prior = log_prior_draws(program, flat)
-    pp_kwargs = dict(kwargs, response=None)
-    pp = Predictive(program.model, posterior_samples=flat, return_sites=[OBS_SITE])(key_pp, **pp_kwargs)
-    prior = Predictive(program.model, num_samples=n_prior)(key_prior, **pp_kwargs)
+    # one compiled program for every per-draw table (it used to be three scans, compiled apart)
+    ll, log_prior, pp, prior = jax.jit(partial(_draw_tables, program, n_prior))(flat, key_pp, key_prior)
     prior_pred = {OBS_SITE: prior.pop(OBS_SITE)}
     # posterior keeps sampled + derived sites; drop nothing the sampler returned
     posterior = {k: v for k, v in samples.items()}
@@ -112,7 +122,7 @@ def assemble(
         dims.update(group_z=["group"], group_offset=["group"], group_index=[OBS_DIM])
         coords["group"] = [str(g) for g in program.group_labels]
         constant["group_index"] = np.asarray(program.group_index)
-    dt = az.from_dict(
+    dt = arviz_base.from_dict(
         {
             "posterior": posterior,
             "sample_stats": sample_stats,
@@ -127,7 +137,7 @@ def assemble(
         coords=coords,
     )
     # one log density per site and draw: built without the site dims of vector-valued parameters
-    dt["log_prior"] = az.from_dict({"log_prior": _chains(log_prior, n_chains)})["log_prior"]
+    dt["log_prior"] = arviz_base.from_dict({"log_prior": _chains(log_prior, n_chains)})["log_prior"]
     # group coordinates of the data (series, run ...) travel with the observations
     for name, coord in ds.coords.items():
         if coord.attrs.get("role") == "group":

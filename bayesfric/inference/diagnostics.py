@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 from dataclasses import asdict, dataclass, field
 
-import arviz as az
+import arviz_stats
 import numpy as np
 import xarray as xr
 
@@ -79,9 +79,9 @@ def check(dt: xr.DataTree, var_names: list[str] | None = None, gate: Gate = GATE
     post = dt["posterior"].to_dataset()
     names = var_names or [v for v in post.data_vars if v != "group_offset"]
     sub = post[names]
-    rhat = _max_over(az.rhat(sub))
-    ess_bulk = _min_over(az.ess(sub, method="bulk"))
-    ess_tail = _min_over(az.ess(sub, method="tail"))
+    rhat = _max_over(arviz_stats.rhat(sub))
+    ess_bulk = _min_over(arviz_stats.ess(sub, method="bulk"))
+    ess_tail = _min_over(arviz_stats.ess(sub, method="tail"))
     problems = []
     if not rhat <= gate.rhat_max:
         problems.append(f"R-hat {rhat:.3f} > {gate.rhat_max}")
@@ -96,7 +96,7 @@ def check(dt: xr.DataTree, var_names: list[str] | None = None, gate: Gate = GATE
         if divergences > gate.divergences_max:
             problems.append(f"{divergences} divergent transitions")
     if "energy" in stats:
-        ebfmi = float(np.min(np.asarray(az.bfmi(dt)["energy"].values)))
+        ebfmi = float(np.min(np.asarray(arviz_stats.bfmi(dt)["energy"].values)))
         if not ebfmi >= gate.ebfmi_min:
             problems.append(f"E-BFMI {ebfmi:.2f} < {gate.ebfmi_min}")
     if "acceptance_fraction" in stats:

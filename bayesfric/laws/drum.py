@@ -24,7 +24,6 @@ import math
 from collections.abc import Callable
 from dataclasses import replace
 
-import diffrax
 import jax
 import jax.numpy as jnp
 
@@ -412,6 +411,8 @@ def integrate_coastdown(torque: Callable, time, initial_velocity, inertia, *,
     jax.Array
         ω(t) in rad/s, shape of the broadcast inputs.
     """
+    import diffrax  # here, not at module level: ~0.8 s of import that only coast-down laws use
+
     time, initial_velocity = jnp.broadcast_arrays(jnp.asarray(time, float),
                                                   jnp.asarray(initial_velocity, float))
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass
 
-import arviz as az
+import arviz_stats
 import numpy as np
 import xarray as xr
 
@@ -68,8 +68,8 @@ def parameter_rows(dt: xr.DataTree, law: Law) -> list[ParameterRow]:
     noise = list(json.loads(dt.attrs["priors"]).keys()) if "priors" in dt.attrs else []
     order = list(law.params) + list(law.derived) + [n for n in noise if n not in law.params]
     order = [n for n in order if n in post]
-    rhat = az.rhat(post[order])
-    ess = az.ess(post[order], method="bulk")
+    rhat = arviz_stats.rhat(post[order])
+    ess = arviz_stats.ess(post[order], method="bulk")
     rows = []
     for name in order:
         values = np.asarray(post[name].values)

@@ -57,7 +57,7 @@ import zlib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
-import arviz as az
+import arviz_stats
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -340,7 +340,8 @@ def _exceedance(y_abs: np.ndarray, capacity: float | None) -> tuple[np.ndarray, 
     bound = np.full(n, np.nan)
     for j in range(n):
         if 0 < p[j] < 1:
-            e = float(az.ess(hit[:, :, j], method="mean")) if hit.shape[0] > 1 or hit.shape[1] > 3 else float(s)
+            enough = hit.shape[0] > 1 or hit.shape[1] > 3
+            e = float(arviz_stats.ess(hit[:, :, j], method="mean")) if enough else float(s)
             ess[j] = e if math.isfinite(e) and e > 0 else float(s)
         else:
             bound[j] = 3.0 / s

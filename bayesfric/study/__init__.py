@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
+from typing import Any
 
 from bayesfric.builtin import builtin_folder
 from bayesfric.study.config import Study, StudyError, load_study
-from bayesfric.study.runner import run_study
 
 __all__ = ["Study", "StudyError", "load_study", "run_study", "run_flagship", "STUDIES_DIR"]
 
@@ -15,11 +15,23 @@ __all__ = ["Study", "StudyError", "load_study", "run_study", "run_flagship", "ST
 STUDIES_DIR = builtin_folder("bayesfric.builtin_studies", "studies")
 
 
+def __getattr__(name: str) -> Any:
+    # The runner pulls in every comparison, report and sizing module; commands that only read
+    # the study schema (``bayesfric fit``) should not pay for importing them.
+    if name == "run_study":
+        from bayesfric.study.runner import run_study
+
+        return run_study
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
 def run_flagship(out_root: str | Path = "reports", quick: bool = False) -> list[Path]:
     """The main job: run every study in ``studies/`` (one per seed experiment) and write reports.
 
     Prints each study's headline findings and the total wall time.
     """
+    from bayesfric.study.runner import run_study
+
     start = time.perf_counter()
     folders = []
     files = sorted(STUDIES_DIR.glob("*.toml"))

@@ -51,6 +51,8 @@ sampler settings, comparison methods and extrapolation folds::
     axis = "velocity"                  # any input coordinate of the data
     threshold = 0.5                    # SI units; or quantile = 0.7
     direction = "upper"                # train below, score above; "lower" for high -> low
+    future = false                     # true: leave-future-out, split each trajectory at the cut
+                                       # (e.g. axis = "time"): train on its past, score its future
 
     [[sizing]]                         # optional, repeatable: actuator sizing questions
     label = "top speed, cold joint"    # label in reports (default: the point)
@@ -150,10 +152,13 @@ class BlockedSpec:
     threshold: float | None = None
     quantile: float | None = None
     label: str = ""
+    future: bool = False  # leave-future-out: split inside each trajectory (compare.folds)
 
     def describe(self) -> str:
         cut = f"{self.threshold:g}" if self.threshold is not None else f"q{self.quantile:g}"
         arrow = "train ≤ cut, score above" if self.direction == "upper" else "train ≥ cut, score below"
+        if self.future:
+            arrow = "each trajectory's past trains, its future beyond the cut is scored"
         return self.label or f"{self.axis} {cut} ({arrow})"
 
 
@@ -252,6 +257,7 @@ BLOCKED = Schema((
     Field("threshold", "number", None, doc="cut in SI units"),
     Field("quantile", "number", None, gt=0, lt=1, doc="cut as a quantile of the axis"),
     Field("label", "text", "", doc="label in reports"),
+    Field("future", "bool", False, doc="leave-future-out: split each trajectory at the cut, train on its past"),
 ), exactly_one=(("threshold", "quantile"),))
 COMPARE = Schema((
     Field("loo", "bool", True, doc="PSIS-LOO"),
@@ -420,7 +426,7 @@ def load_study(path: str | Path) -> Study:
                              "same law its own label")
     if compare["evidence"]:
         _check_evidence_draws(path, spec["sampler"])
-    blocked = [BlockedSpec(b["axis"], b["direction"], b["threshold"], b["quantile"], b["label"])
+    blocked = [BlockedSpec(b["axis"], b["direction"], b["threshold"], b["quantile"], b["label"], b["future"])
                for b in compare["blocked"]]
     sizing = [_sizing_question(path, i, entry) for i, entry in enumerate(spec["sizing"])]
     return Study(

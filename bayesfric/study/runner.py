@@ -164,7 +164,7 @@ def _fold_schemes(study: Study, ds, seed: int, kfold: int) -> list[tuple[str, ob
     for i, b in enumerate(study.blocked):
         try:
             folds = compare.blocked_masks(ds, b.axis, threshold=b.threshold, quantile=b.quantile,
-                                          direction=b.direction)
+                                          direction=b.direction, future=b.future)
         except (DataError, ValueError) as exc:
             raise StudyError(f"{where}: compare.blocked[{i}]: {exc}") from None
         schemes.append((b.label or folds.scheme, folds, "blocked"))
@@ -188,23 +188,27 @@ def _run_law(study: Study, spec, ds, folder: Path, schemes, settings: dict, seed
 
     program = build_program(spec.build(), ds, priors=spec.priors, noise=study.noise, constants=spec.constants)
     law = program.law  # as it runs on this data (motion kind, units), named by the entry's label
-    sampler = study.sampler.get("name", "nuts")
-    dt = SAMPLERS[sampler](program, ds, seed=seed, **settings)
+    if study.sampler.get("name", "nuts") == "nuts":
+        # One compiled engine per law: the full fit is its all-true mask, and the same compiled
+        # sampler refits every fold -- cold (the full warm-up from the prior median) for folds
+        # that remove a whole region or series, warm-started from the full fit's draws and mass
+        # matrix (a 250-step warm-up) for folds that drop a few points (PSIS-LOO's high-k
+        # points, random K-fold), when the full fit passed the gate.
+        engine = compare.RefitEngine(program, seed=seed, **settings)
+        dt = engine.fit(ds)
+    else:
+        dt = SAMPLERS[study.sampler["name"]](program, ds, seed=seed, **settings)
+        # folds of an emcee study are refitted with NUTS, at the NUTS defaults' length
+        engine = compare.RefitEngine(program, draws=1000, tune=500, chains=4, seed=seed)
     fit_file = save_fit(dt, folder / "fits" / f"{law.name}.nc")
     verdict = compare.verdict_of(dt)
     out = LawOutcome(law=law, fit=dt, fit_file=fit_file, verdict=verdict)
     lap("fit")
     if not verdict.passed:
         out.flags.append("diagnostics FAILED: " + "; ".join(verdict.problems))
-
-    # Refits that drop a few points (PSIS-LOO's high-k points, random K-fold) start from the full
-    # fit's draws and mass matrix when it passed the gate: a shorter warm-up suffices. Grouped and
-    # blocked folds remove a whole series or region, so their posteriors can differ much from the
-    # full one; they start cold with the full Stan warm-up. Engines compile on first use only.
-    engine_settings = dict(draws=settings["draws"], tune=min(500, settings["tune"]),
-                           chains=settings.get("chains", 4), seed=seed)
-    cold_engine = compare.RefitEngine(program, **engine_settings)
-    near_engine = compare.RefitEngine(program, warm_start=dt, **engine_settings) if verdict.passed else cold_engine
+    cold_engine = engine
+    warm_tune = min(250, engine.tune)  # a warm start needs ≥ 120 warm-up steps within the engine's
+    near_engine = engine.warm_started(dt, warm_tune) if verdict.passed and warm_tune >= 120 else engine
     loo = None
     if study.loo:
         loo = compare.psis_loo(dt, program=program, engine=near_engine, seed=seed)

@@ -122,3 +122,30 @@ def test_bad_arguments(speeds):
         blocked_masks(speeds, "velocity", threshold=10.0)
     with pytest.raises(ValueError):
         kfold_masks(speeds, k=1)
+
+
+def test_leave_future_out_splits_each_trajectory_at_its_first_sample_beyond_the_cut(loops):
+    """Angle runs -a .. +a along each loop: the future starts at the first angle above the cut."""
+    folds = blocked_masks(loops, "angle", threshold=1.5e-3, future=True)
+    # per loop the angles are a·[-1, -0.5, 0, 0.5, 1]; a·0.5 > 1.5e-3 for a = 4e-3, a·1 for a ≥ 2e-3
+    expected = np.zeros(40, dtype=bool)
+    for loop, amplitude in enumerate([1e-3, 2e-3, 3e-3, 4e-3] * 2):
+        first = {1e-3: None, 2e-3: 4, 3e-3: 4, 4e-3: 3}[amplitude]
+        if first is not None:
+            expected[loop * 5 + first: loop * 5 + 5] = True
+    np.testing.assert_array_equal(folds.heldout[0], expected)
+    np.testing.assert_array_equal(folds.train[0], ~expected)
+    assert folds.scheme.startswith("leave-future-out: each trajectory split where angle first > 0.0015")
+
+
+def test_leave_future_out_on_one_record_is_the_tail_in_row_order(speeds):
+    folds = blocked_masks(speeds, "velocity", quantile=0.75, future=True)
+    cut = np.quantile(speeds["velocity"].values, 0.75)
+    first = int(np.argmax(speeds["velocity"].values > cut))
+    np.testing.assert_array_equal(folds.heldout[0], np.arange(37) >= first)
+    assert "the record" in folds.scheme
+
+
+def test_leave_future_out_that_never_crosses_is_an_error(loops):
+    with pytest.raises(DataError, match="no training or no held-out point"):
+        blocked_masks(loops, "angle", threshold=1.0, future=True)

@@ -106,7 +106,7 @@ def test_warm_start_begins_at_the_full_posterior(viscous_data, full_fit):
     warm = RefitEngine(program, warm_start=full_fit, warm_tune=150, **SMALL)
     assert warm.tune == 150 and warm.settings["warm_start"] != "no"
     # the 150-step schedule: fast 50, one slow window of 50 ending in a mass-matrix update, fast 50
-    stages, ends = warm._schedule[:, 0], warm._schedule[:, 1]
+    stages, ends = warm._schedule[:150, 0], warm._schedule[:150, 1]
     assert stages.tolist() == [0] * 50 + [1] * 50 + [0] * 50 and ends.sum() == 1 and ends[99]
     # initial points are posterior draws (T_C and c_v are positive: log-transformed)
     post = full_fit["posterior"]
@@ -142,3 +142,20 @@ def test_warm_start_rejects_a_mismatched_fit_or_too_short_warm_up(viscous_data, 
     program = build_program(get_law("coulomb_viscous"), viscous_data)
     with pytest.raises(ValueError, match="warm_tune must be at least 120"):
         RefitEngine(program, warm_start=full_fit, warm_tune=100, **SMALL)
+
+
+def test_full_fit_and_every_fold_share_one_compilation(viscous_data):
+    """The full fit is the all-true mask of the engine that runs cold and warm-started folds."""
+    engine = RefitEngine(build_program(get_law("coulomb_viscous"), viscous_data), seed=1, **SMALL)
+    dt = engine.fit(viscous_data)
+    assert dt["posterior"]["T_C"].shape == (2, 300)
+    assert {"diverging", "energy", "n_steps", "acceptance_rate"} <= set(dt["sample_stats"].data_vars)
+    assert (dt["sample_stats"]["n_steps"].values >= 1).all()
+    blocked = cross_validate(engine, blocked_masks(viscous_data, "velocity", quantile=0.8))
+    near = engine.warm_started(dt, warm_tune=150)
+    kfold = cross_validate(near, kfold_masks(viscous_data, k=3, seed=0))
+    assert engine.compilations == 1 and engine._sampler._cache_size() == 1
+    assert near.settings["tune"] == 150 and engine.settings["tune"] == 300
+    assert np.isfinite(blocked.elpd) and np.isfinite(kfold.elpd) and kfold.heldout.all()
+    with pytest.raises(ValueError, match="exceeds the engine's warm-up"):
+        engine.warm_started(dt, warm_tune=301)

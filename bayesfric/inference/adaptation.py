@@ -1,0 +1,125 @@
+"""One NUTS chain with Stan's windowed warm-up and the sampling phase in ONE ``lax.scan``.
+
+Built from blackjax's public primitives only (present unchanged since blackjax 1.2):
+``blackjax.nuts.init`` / ``blackjax.nuts.build_kernel`` for the transition,
+``dual_averaging_adaptation`` for the step size and ``mass_matrix_adaptation`` (Welford
+variance) for the diagonal inverse mass matrix, stepped along a schedule from
+``build_schedule``. ``blackjax.window_adaptation(...).run`` followed by a sampling loop would
+trace the NUTS kernel twice (once in each loop) and so compile it twice; stepping one kernel
+through both phases compiles it once. The rules are Stan's, as in blackjax's own window
+adaptation: fast windows adapt the step size by dual averaging; slow windows also accumulate
+the Welford variance; at the end of each slow window the inverse mass matrix is replaced by the
+window's (regularised) variance and dual averaging restarts from the current step size; the
+sampling phase uses the averaged step size.
+
+The schedule is *data*, not a constant of the compiled code: a ``(steps + draws, 4)`` integer
+array of (stage 0 fast / 1 slow, slow-window end, active, sampling). Inactive steps leave the chain untouched
+(a real ``lax.cond``, not evaluated work: the schedule is the same for every chain), so one
+compiled sampler runs both a full Stan warm-up and a shorter warm-up that starts from a
+previous posterior, with the same number of scan steps.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import blackjax
+import jax
+import jax.numpy as jnp
+import numpy as np
+from blackjax.adaptation.mass_matrix import mass_matrix_adaptation
+from blackjax.adaptation.step_size import dual_averaging_adaptation
+from blackjax.adaptation.window_adaptation import build_schedule
+
+__all__ = ["ChainDraws", "sampling_schedule", "nuts_chain"]
+
+
+class ChainDraws(NamedTuple):
+    """Post-warm-up output of one chain (leading axis: draw)."""
+
+    position: jax.Array
+    diverging: jax.Array
+    energy: jax.Array
+    n_steps: jax.Array
+    acceptance_rate: jax.Array
+
+
+def sampling_schedule(steps: int, draws: int, active: int | None = None) -> np.ndarray:
+    """``(steps + draws, 4)`` rows (stage, slow-window end, active, sampling) for :func:`nuts_chain`.
+
+    The first ``steps`` rows are the warm-up, the last ``draws`` the sampling phase.
+    ``active=None``: Stan's default warm-up over all ``steps`` (75-step fast window, doubling
+    slow windows from 25 steps, 50-step final fast window). ``active=m ≤ steps``: the first
+    ``steps - m`` rows are inactive and the last ``m`` form a short warm-up for chains that
+    start inside the posterior: a 50-step fast window, one slow window that re-estimates the
+    mass matrix, and a 50-step fast window (``m`` ≥ 120).
+    """
+    sampling = np.column_stack([np.zeros((draws, 2), dtype=int), np.ones((draws, 2), dtype=int)])
+    if active is None:
+        rows = np.asarray(build_schedule(steps), dtype=int).reshape(-1, 2)
+        warm = np.column_stack([rows, np.ones(steps, dtype=int), np.zeros(steps, dtype=int)])
+        return np.vstack([warm, sampling])
+    if not 120 <= active <= steps:
+        raise ValueError(f"a short warm-up needs 120 to {steps} steps (got {active})")
+    short = np.asarray(build_schedule(active, initial_buffer_size=50, final_buffer_size=50,
+                                      first_window_size=active - 100), dtype=int).reshape(-1, 2)
+    idle = np.zeros((steps - active, 2), dtype=int)
+    warm = np.column_stack([np.vstack([idle, short]),
+                            np.r_[np.zeros(steps - active, dtype=int), np.ones(active, dtype=int)],
+                            np.zeros(steps, dtype=int)])
+    return np.vstack([warm, sampling])
+
+
+class _Adaptation(NamedTuple):
+    step_size: jax.Array
+    inverse_mass_matrix: jax.Array
+    dual_averaging: tuple
+    mass_matrix: tuple
+
+
+def nuts_chain(key, z0, logdensity, schedule, init_imm, target_accept: float, depth: int) -> ChainDraws:
+    """Warm up and sample one chain along ``schedule`` (rows of :func:`sampling_schedule`).
+
+    ``init_imm`` is the initial diagonal inverse mass matrix (ones, or a previous posterior's
+    unconstrained variances). Returns every step's output; the caller keeps the sampling rows
+    (inactive rows return zeros).
+    """
+    da_init, da_update, da_final = dual_averaging_adaptation(target_accept)
+    mm_init, mm_update, mm_final = mass_matrix_adaptation(True)
+    kernel = blackjax.nuts.build_kernel()
+
+    def adapt_step(adapt: _Adaptation, row, position, acceptance_rate) -> _Adaptation:
+        da = da_update(adapt.dual_averaging, acceptance_rate)
+        mm = jax.lax.cond(row[0] == 1, lambda m: mm_update(m, position), lambda m: m, adapt.mass_matrix)
+        adapt = _Adaptation(jnp.exp(da.log_step_size), adapt.inverse_mass_matrix, da, mm)
+
+        def close_window(a: _Adaptation) -> _Adaptation:
+            mm_closed = mm_final(a.mass_matrix)
+            da_restart = da_init(da_final(a.dual_averaging))
+            return _Adaptation(jnp.exp(da_restart.log_step_size), mm_closed.inverse_mass_matrix,
+                               da_restart, mm_closed)
+
+        return jax.lax.cond(row[1] == 1, close_window, lambda a: a, adapt)
+
+    def move(carry, k, row):
+        state, adapt = carry
+        sampling = row[3] == 1  # adaptation frozen; the averaged step size of the warm-up
+        step_size = jnp.where(sampling, da_final(adapt.dual_averaging), adapt.step_size)
+        state, info = kernel(k, state, logdensity, step_size, adapt.inverse_mass_matrix, max_num_doublings=depth)
+        updated = adapt_step(adapt, row, state.position, info.acceptance_rate)
+        adapt = jax.tree.map(lambda old, new: jnp.where(sampling, old, new), adapt, updated)
+        out = ChainDraws(state.position, info.is_divergent, info.energy, info.num_integration_steps,
+                         info.acceptance_rate)
+        return (state, adapt), out
+
+    def step(carry, xs):
+        k, row = xs
+        shapes = jax.eval_shape(lambda c: move(c, k, row)[1], carry)
+        return jax.lax.cond(row[2] == 1, lambda c: move(c, k, row),
+                            lambda c: (c, jax.tree.map(lambda s: jnp.zeros(s.shape, s.dtype), shapes)), carry)
+
+    mm0 = mm_init(z0.shape[0])._replace(inverse_mass_matrix=init_imm)
+    adapt0 = _Adaptation(jnp.asarray(1.0, dtype=z0.dtype), init_imm, da_init(1.0), mm0)
+    keys = jax.random.split(key, schedule.shape[0])
+    _, out = jax.lax.scan(step, (blackjax.nuts.init(z0, logdensity), adapt0), (keys, schedule))
+    return out

@@ -1,0 +1,288 @@
+"""The compiled, masked NUTS sampler of one program: the full fit, every fold refit, one compilation.
+
+A program's likelihood takes a 0/1 ``mask`` *as data* (:class:`bayesfric.model.Program`), so
+the sampler below is one ``jax.jit`` function of ``(keys, masks, initial points, inverse mass
+matrix, schedule, data)``: the full fit is its all-true mask, a fold refit any other mask, and
+changing the fold, the seed, the warm-up length or even the dataset (same shapes) reuses the
+compiled code. Every chain is :func:`bayesfric.inference.adaptation.nuts_chain` (blackjax NUTS,
+Stan's window adaptation from blackjax's public primitives) on the program's one log density
+(:mod:`bayesfric.density`), vectorised with ``jax.vmap`` over chains and optionally over a
+fixed-size batch of folds (``fold_batch``; the last batch is padded with copies of its first
+fold so the batch shape, and so the compilation, never changes).
+
+Warm starts: :meth:`NutsEngine.warm_started` returns a view of the same compiled sampler whose
+chains start at draws of a full fit, with its unconstrained posterior variance as the initial
+inverse mass matrix and a 250-step warm-up (the schedule is data: the skipped warm-up steps
+are idle). Folds that drop a few points (PSIS-LOO refits, random K-fold) use it; folds that
+remove a whole region or series start cold with the full warm-up.
+
+Every fold fit goes through the diagnostics gate of :mod:`bayesfric.inference.diagnostics`
+(R-hat, bulk/tail ESS, divergences, E-BFMI on the fold's own draws, thresholds unchanged). A
+fold that fails is *flagged* in the result, never silently used as if healthy.
+
+>>> engine = NutsEngine(build_program(law, ds))                        # doctest: +SKIP
+>>> dt = engine.fit(ds)                    # the full fit: the all-true mask  # doctest: +SKIP
+>>> folds = engine.warm_started(dt).run(kfold_masks(ds, k=10).train)   # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import copy
+import time
+from dataclasses import dataclass, field
+
+import arviz_base
+import jax
+import jax.numpy as jnp
+import numpy as np
+import xarray as xr
+
+from bayesfric.density import median_starts
+from bayesfric.inference.adaptation import nuts_chain, sampling_schedule
+from bayesfric.inference.datatree import assemble
+from bayesfric.inference.diagnostics import GATE, Gate, Verdict, check
+from bayesfric.model import Program
+
+__all__ = ["NutsEngine", "FoldFits"]
+
+@dataclass
+class FoldFits:
+    """Raw output of one :meth:`NutsEngine.run` call.
+
+    Attributes
+    ----------
+    samples : dict of str to ndarray
+        Constrained draws (sampled and deterministic sites) shaped ``(fold, chain, draw, ...)``.
+    lpd : ndarray
+        ``(fold, n_obs)``: log pointwise predictive density of *every* observation under each
+        fold's posterior (held-out points are the ones cross-validation scores).
+    verdicts : list of Verdict
+        Diagnostics gate per fold.
+    seconds : float
+        Wall time of the call (compilation included when it happened).
+    stats : dict of str to ndarray
+        Per-draw sampler statistics shaped ``(fold, chain, draw)``: ``diverging``, ``energy``,
+        ``n_steps`` (leapfrog steps) and ``acceptance_rate``.
+    """
+
+    samples: dict[str, np.ndarray]
+    lpd: np.ndarray
+    verdicts: list[Verdict]
+    seconds: float
+    stats: dict[str, np.ndarray] = field(default_factory=dict)
+
+    @property
+    def failed(self) -> list[int]:
+        """Indices of folds whose posterior failed the gate."""
+        return [i for i, v in enumerate(self.verdicts) if not v.passed]
+
+
+class NutsEngine:
+    """The compiled NUTS sampler of one :class:`~bayesfric.model.Program`, full fit and folds.
+
+    Parameters
+    ----------
+    program : Program
+        The law bound to the *full* dataset (its data scale fixes the priors of every fold).
+    draws, tune, chains : int
+        Per fit or fold. ``tune`` is the length of the compiled warm-up: a full Stan warm-up
+        from the prior median (the full fit and folds that start cold), or the frame within
+        which a warm start's shorter warm-up runs. The gate's R-hat and ESS thresholds apply in
+        full; a fold that misses them is flagged. With 500 draws, R-hat of 1.011-1.013 flagged
+        about one fold in ten on simple laws, hence the full 1000.
+    target_accept, max_tree_depth
+        Target acceptance of the step-size adaptation and the largest tree depth (doublings).
+    fold_batch : int
+        Number of folds sampled together in one vectorised call (``vmap`` over
+        ``fold_batch × chains`` NUTS chains). Fixed per engine so one compilation serves any K.
+        Default 1 (chains vectorised, folds in sequence): on the 2-core CPU a 10-fold refit of
+        the stribeck law took 17 s warm with ``fold_batch=1`` against 35 s with 10, because
+        vmapped NUTS steps wait for the longest trajectory of all ``fold_batch × chains``
+        chains (``benchmarks/bench_refit.py``).
+    gate : Gate
+        Diagnostics thresholds (default: the project gate, unchanged).
+    seed : int
+        Seed of the chains' initial points (prior median, as the full fit uses), or of the
+        draws picked as initial points under ``warm_start``.
+    warm_start : xarray.DataTree, optional
+        Start every chain from this full fit (see :meth:`warm_started`); the engine's compiled
+        warm-up is then ``warm_tune`` steps long. A study instead builds one engine for its full
+        fit and takes ``engine.warm_started(fit)``, which shares the compiled sampler.
+    warm_tune : int
+        Warm-up steps per chain under ``warm_start`` (default 250; at least 120).
+
+    Notes
+    -----
+    ``compilations`` counts how often the sampler was traced (i.e. compiled): it stays at 1 for
+    every later call with the same data shapes.
+    """
+
+    def __init__(
+        self,
+        program: Program,
+        *,
+        draws: int = 1000,
+        tune: int = 500,
+        chains: int = 4,
+        target_accept: float = 0.9,
+        max_tree_depth: int = 10,
+        fold_batch: int = 1,
+        gate: Gate = GATE,
+        seed: int = 0,
+        warm_start: xr.DataTree | None = None,
+        warm_tune: int = 250,
+    ):
+        self.program = program
+        self.draws, self.chains = int(draws), int(chains)
+        self.target_accept, self.max_tree_depth = float(target_accept), int(max_tree_depth)
+        self.fold_batch = int(fold_batch)
+        self.gate = gate
+        self.seed = int(seed)
+        self.compilations = 0
+        self._density = program.density(seed)
+        # the warm-up length is the compiled scan's; a warm start idles through part of it
+        self.tune = int(warm_tune) if warm_start is not None else int(tune)
+        self.warm = False
+        self._schedule = sampling_schedule(self.tune, self.draws)
+        # prior-median starts (numpyro's init_to_median), from different prior draws per chain
+        self._init_z = median_starts(program, [seed * 7919 + c for c in range(self.chains)])
+        self._init_imm = jnp.ones(self._density.dim)
+        self._sampler = jax.jit(self._sample_batch)
+        if warm_start is not None:
+            self._start_from(warm_start, int(warm_tune))
+
+    def warm_started(self, fit: xr.DataTree, warm_tune: int = 250) -> NutsEngine:
+        """This engine (same compiled sampler) with chains started from the full fit ``fit``.
+
+        Each chain starts at a draw of that posterior (from different chains where possible)
+        with its unconstrained posterior variance as the initial diagonal inverse mass matrix,
+        and the warm-up shrinks to ``warm_tune`` steps (the rest of the compiled warm-up idles):
+        a 50-step fast window (step size only), one slow window that re-estimates the mass
+        matrix from the fold's own draws, and a 50-step fast window. Meant for folds that drop
+        a few points (PSIS-LOO refits, random K-fold), whose posteriors are close to the full
+        one; the gate still checks every fold. Use only a fit that passed the gate.
+        ``warm_tune`` must lie in [120, ``tune``].
+        """
+        if warm_tune > self.tune:
+            raise ValueError(f"warm_tune ({warm_tune}) exceeds the engine's warm-up of {self.tune} steps")
+        view = copy.copy(self)
+        view._start_from(fit, int(warm_tune))
+        return view
+
+    def _start_from(self, fit: xr.DataTree, warm_tune: int) -> None:
+        if warm_tune < 120:
+            raise ValueError(f"warm_tune must be at least 120 (got {warm_tune})")
+        self._init_z, self._init_imm = _warm_start_from(self.program, fit, self.chains, self.seed)
+        self._schedule = sampling_schedule(self.tune, self.draws, active=warm_tune)
+        self.warm, self.warm_tune = True, warm_tune
+
+    @property
+    def settings(self) -> dict:
+        """Sampler settings, as stored with results."""
+        tune = self.warm_tune if self.warm else self.tune
+        return dict(draws=self.draws, tune=tune, chains=self.chains,
+                    target_accept=self.target_accept, max_tree_depth=self.max_tree_depth,
+                    fold_batch=self.fold_batch, sampler="blackjax NUTS, window adaptation",
+                    warm_start="from the full fit's draws and mass matrix" if self.warm else "no")
+
+    # -- the compiled function ------------------------------------------------------------
+    def _sample_batch(self, keys, masks, init_z, init_imm, schedule, inputs, group_index, response):
+        self.compilations += 1  # runs only while tracing, i.e. once per compilation
+        density = self._density  # the program's one log density, data passed as arguments
+        data = dict(inputs=inputs, group_index=group_index, response=response)
+        tune = schedule.shape[0] - self.draws
+
+        def one_fold(fold_keys, mask):
+            def logdensity(x):
+                return density.log_joint(x, mask, data)
+
+            def one_chain(key, x0):
+                out = nuts_chain(key, x0, logdensity, schedule, init_imm, self.target_accept,
+                                 self.max_tree_depth)
+                return jax.tree.map(lambda a: a[tune:], out)
+
+            draws = jax.vmap(one_chain)(fold_keys, init_z)
+            constrained = jax.vmap(jax.vmap(lambda v: density.constrain(v, data)))(draws.position)
+            flat = {k: v.reshape((-1,) + v.shape[2:]) for k, v in constrained.items()}
+            ll = jax.vmap(lambda c: density.pointwise(c, data))(flat)
+            lpd = jax.scipy.special.logsumexp(ll, axis=0) - jnp.log(ll.shape[0])
+            stats = dict(diverging=draws.diverging, energy=draws.energy, n_steps=draws.n_steps,
+                         acceptance_rate=draws.acceptance_rate)
+            return constrained, stats, lpd
+
+        return jax.vmap(one_fold)(keys, masks)
+
+    # -- public ---------------------------------------------------------------------------
+    def run(self, train_masks: np.ndarray, seed: int = 0) -> FoldFits:
+        """Refit the program once per row of ``train_masks`` (bool, ``(K, n_obs)``).
+
+        Returns every fold's draws, the pointwise predictive density of all observations, and
+        the gate verdict per fold.
+        """
+        masks = np.asarray(train_masks, dtype=bool)
+        if masks.ndim != 2 or masks.shape[1] != self.program.n_obs:
+            raise ValueError(f"train masks must be (K, {self.program.n_obs}); got {masks.shape}")
+        if not masks.any(axis=1).all():
+            raise ValueError("a fold trains on no observation")
+        start = time.perf_counter()
+        n_folds, b = masks.shape[0], self.fold_batch
+        n_pad = (-n_folds) % b
+        padded = np.concatenate([masks, np.repeat(masks[:1], n_pad, axis=0)])
+        # fold k's chains draw from fold_in(seed, k): independent of K, batch and padding
+        base = jax.random.PRNGKey(seed)
+        keys = jnp.stack([jax.random.split(jax.random.fold_in(base, k), self.chains)
+                          for k in range(padded.shape[0])])
+        p = self.program
+        parts = []
+        for lo in range(0, padded.shape[0], b):
+            out = self._sampler(keys[lo:lo + b], jnp.asarray(padded[lo:lo + b]), self._init_z,
+                                self._init_imm, jnp.asarray(self._schedule), p.inputs, p.group_index,
+                                p.response)
+            parts.append(jax.tree.map(np.asarray, out))
+        samples, stats, lpd = jax.tree.map(lambda *xs: np.concatenate(xs)[:n_folds], *parts)
+        verdicts = [self._verdict({k: v[i] for k, v in samples.items()}, stats["diverging"][i],
+                                  stats["energy"][i]) for i in range(n_folds)]
+        return FoldFits(samples, lpd, verdicts, time.perf_counter() - start, stats)
+
+    def fit(self, ds: xr.Dataset, seed: int | None = None) -> xr.DataTree:
+        """The full fit: the all-true mask of this engine, assembled into the fit's DataTree.
+
+        ``ds`` is the data set the program was built on (for its coordinates and provenance).
+        ``seed`` defaults to the engine's seed.
+        """
+        seed = self.seed if seed is None else int(seed)
+        fits = self.run(np.ones((1, self.program.n_obs), dtype=bool), seed=seed)
+        samples = {k: v[0] for k, v in fits.samples.items()}
+        stats = {k: v[0] for k, v in fits.stats.items()}
+        settings = dict(draws=self.draws, tune=self.tune, chains=self.chains, target_accept=self.target_accept,
+                        max_tree_depth=self.max_tree_depth)
+        return assemble(self.program, ds, samples, stats, sampler="nuts", settings=settings, seed=seed)
+
+    def _verdict(self, samples: dict, diverging: np.ndarray, energy: np.ndarray) -> Verdict:
+        dims = {k: ["group"] for k in ("group_z", "group_offset") if k in samples}
+        dt = arviz_base.from_dict({"posterior": samples,
+                           "sample_stats": {"diverging": diverging, "energy": energy}}, dims=dims)
+        return check(dt, gate=self.gate)
+
+
+def _warm_start_from(program: Program, fit: xr.DataTree, chains: int, seed: int):
+    """Initial points and diagonal inverse mass matrix for the fold chains, from a full fit.
+
+    Picks ``chains`` posterior draws (chain ``c % n_chains``, a random draw of it), maps them
+    to the unconstrained space the sampler works in, and takes the per-coordinate variance of
+    all unconstrained draws as the inverse mass matrix (floored at 1e-8 so a coordinate the
+    data pin down hard keeps a positive scale).
+    """
+    density = program.density(seed)
+    post = fit["posterior"]
+    missing = [n for n in density.sites if n not in post.data_vars]
+    if missing:
+        raise ValueError(f"warm start: the fit lacks the sampled site(s) {missing}; is it a fit of "
+                         f"{program.law.name!r} with the same noise model?")
+    n_chain, n_draw = post.sizes["chain"], post.sizes["draw"]
+    flat = {n: np.asarray(post[n].values).reshape((n_chain * n_draw,) + post[n].shape[2:]) for n in density.sites}
+    unconstrained = density.to_unconstrained(flat)
+    rng = np.random.default_rng(seed)
+    picks = np.array([(c % n_chain) * n_draw + rng.integers(n_draw) for c in range(chains)])
+    imm = jnp.maximum(jnp.var(unconstrained, axis=0), 1e-8)
+    return unconstrained[picks], imm
