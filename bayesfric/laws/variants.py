@@ -65,14 +65,13 @@ from bayesfric.quantities import parse_unit
 
 __all__ = [
     "VariantError", "TERMS", "TRANSLATIONAL", "vary", "build", "for_data", "translation_problem",
-    "translational_unit", "law_of_fit", "describe", "motion_of_response", "alias",
+    "translational_unit", "law_of_fit", "describe", "alias",
 ]
 
 #: Rotary quantity -> its translational counterpart.
 TRANSLATIONAL = {"velocity": "linear_velocity", "angle": "displacement", "torque": "force"}
 #: Inputs whose meaning does not depend on the motion kind.
 MOTION_NEUTRAL = ("time", "preload", "temperature", TRAJECTORY_START)
-_RESPONSE_MOTION = {"torque": "rotary", "force": "translational"}
 _GENERIC = "generic coefficient, data-scaled weakly-informative prior (bayesfric.priors)"
 
 
@@ -86,11 +85,6 @@ class VariantError(LawDeclarationError):
     def __init__(self, problem: str, key: str = ""):
         super().__init__(f"{key}: {problem}" if key else problem)
         self.key, self.problem = key, problem
-
-
-def motion_of_response(response: str) -> str | None:
-    """``"rotary"`` for torque, ``"translational"`` for force, None otherwise."""
-    return _RESPONSE_MOTION.get(response)
 
 
 # -- units ---------------------------------------------------------------------------------------
