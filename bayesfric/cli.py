@@ -27,6 +27,7 @@ USER_ERRORS = (DataError, PriorError, UnitError, UserError, LawDeclarationError)
 
 def _cmd_laws(args: argparse.Namespace) -> None:
     from bayesfric.laws import all_laws
+    from bayesfric.laws.variants import translation_problem
     from bayesfric.report.tables import format_table, law_rows
 
     laws = [w for w in all_laws() if args.family in (None, w.family)]
@@ -44,7 +45,9 @@ def _cmd_laws(args: argparse.Namespace) -> None:
             rows += law_rows(w)
         print(format_table(header, rows, markdown=args.markdown))
         for w in (w for w in laws if w.family == family):
-            print(f"  {w.name}: {w.summary}  [{w.source}; response {w.response}]")
+            problem = translation_problem(w)
+            motion = "also force data (translational)" if problem is None else f"rotary only: {problem}"
+            print(f"  {w.name}: {w.summary}  [{w.source}; response {w.response}; {motion}]")
 
 
 class UsageError(UserError):
@@ -77,6 +80,27 @@ def _parse_priors(items: list[str] | None, known: list[str], law: str) -> dict[s
         except PriorError as exc:
             raise UserError(f"--prior {name}: {exc}") from None
     return out
+
+
+def _parse_fix(items: list[str] | None, law):
+    """``--fix NAME=VALUE`` options: the law with each named parameter (or constant) held at VALUE (SI)."""
+    from bayesfric.laws.variants import VariantError, vary
+
+    fixed: dict[str, float] = {}
+    for item in items or []:
+        name, sep, text = item.partition("=")
+        if not sep or not name:
+            raise UserError(f"--fix {item!r}: expected NAME=VALUE, e.g. --fix i=1.5")
+        try:
+            value = float(text)
+        except ValueError:
+            raise UserError(f"--fix {name}: {text!r} is not a number") from None
+        try:
+            vary(law, fixed={name: value})  # each option checked alone, so the error names it
+        except VariantError as exc:
+            raise UserError(f"--fix {name}: {exc.problem}") from None
+        fixed[name] = value
+    return vary(law, fixed=fixed)
 
 
 def _parse_select(items: list[str] | None) -> dict[str, object]:
@@ -124,6 +148,7 @@ def _cmd_fit(args: argparse.Namespace) -> None:
     from bayesfric.fsutil import PathError, check_output_file
     from bayesfric.inference import fit, save_fit
     from bayesfric.laws import get_law
+    from bayesfric.laws.variants import for_data
     from bayesfric.model import Noise, build_program
     from bayesfric.report.tables import fit_report
     from bayesfric.study.config import walkers_problem
@@ -138,7 +163,9 @@ def _cmd_fit(args: argparse.Namespace) -> None:
         law = get_law(args.law)
     except KeyError as exc:
         raise UserError(exc.args[0]) from None
+    law = _parse_fix(args.fix, law)
     ds = _load_selected(args.data, args.select)
+    law = for_data(law, ds)  # its motion kind and units as they run on this data
     noise = Noise(kind=args.noise, group=args.group)
     if args.group is not None and args.group not in ds.coords:
         raise UserError(f"--group {args.group}: not a coordinate of the data ({', '.join(ds.coords)})")
@@ -230,7 +257,7 @@ def _size_fit(args: argparse.Namespace, question):
 
     from bayesfric import sizing
     from bayesfric.inference import load_fit
-    from bayesfric.laws import get_law
+    from bayesfric.laws.variants import law_of_fit
 
     path = Path(args.target)
     if question is None:
@@ -245,7 +272,7 @@ def _size_fit(args: argparse.Namespace, question):
             fit.children):
         raise UserError(f"{path}: not a bayesfric fit (no law, noise model or posterior recorded)")
     try:
-        law = get_law(str(fit.attrs["law"]))
+        law = law_of_fit(fit.attrs)
     except KeyError as exc:
         raise UserError(f"{path}: {exc.args[0]}") from None
     if law.trajectory:
@@ -300,6 +327,8 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--group", help="group coordinate for partial-pooled offsets (series, run ...)")
     q.add_argument("--select", action="append", metavar="COORD=VALUE", help="use only these rows")
     q.add_argument("--prior", action="append", metavar="NAME=JSON", help="override a prior")
+    q.add_argument("--fix", action="append", metavar="NAME=VALUE",
+                   help="hold a parameter (or constant) at VALUE in SI units instead of sampling it, e.g. i=1.5")
     q.add_argument("--quiet", action="store_true", help="no progress bar")
     q.set_defaults(func=_cmd_fit)
 

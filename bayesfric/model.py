@@ -32,6 +32,7 @@ from bayesfric.datasets.loader import OBS_DIM, DataError
 from bayesfric.datasets.views import data_scale, law_inputs, response_values
 from bayesfric.density import OBS_SITE, Density, build_density
 from bayesfric.laws.base import Law
+from bayesfric.laws.variants import for_data
 from bayesfric.priors import DataScale, Prior, PriorError
 from bayesfric.runtime import configure
 
@@ -188,10 +189,13 @@ def build_program(
 ) -> Program:
     """Bind ``law`` to ``ds`` with optional prior overrides by parameter name.
 
+    The program's law is ``law`` as it runs on ``ds`` (:func:`bayesfric.laws.variants.for_data`):
+    its translational form on force data, without the optional inputs the data lack.
+
     Parameters
     ----------
     law : Law
-        A registered law.
+        A registered law or a variant.
     ds : xarray.Dataset
         Data from :func:`bayesfric.datasets.load_dataset`.
     priors : mapping, optional
@@ -212,6 +216,8 @@ def build_program(
         The dataset lacks an input the law reads, or the group coordinate.
     """
     configure()  # x64 and the persistent compilation cache, on first use
+    law = for_data(law, ds)  # the data's motion kind; optional inputs it lacks (laws.variants)
+    inputs, response = law_inputs(ds, law), response_values(ds, law)  # a missing input, before priors
     noise = noise or Noise()
     declared = law.default_priors() | {k: NOISE_PRIORS[k] for k in noise.sites()}
     for name, spec in (priors or {}).items():
@@ -241,8 +247,8 @@ def build_program(
         resolved=resolved,
         constants=consts,
         scale=scale,
-        inputs=law_inputs(ds, law),
-        response=response_values(ds, law),
+        inputs=inputs,
+        response=response,
         group_index=group_index,
         group_labels=labels,
     )

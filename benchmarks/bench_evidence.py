@@ -21,7 +21,6 @@ from pathlib import Path
 from bayesfric import compare
 from bayesfric.datasets import load_dataset, resolve, select
 from bayesfric.inference import SAMPLERS, release_compiled_code
-from bayesfric.laws import get_law
 from bayesfric.model import build_program
 from bayesfric.study import STUDIES_DIR, load_study
 
@@ -40,7 +39,7 @@ def bench_study(name: str, laws: list[str] | None, smc: bool) -> list[dict]:
     for spec in study.laws:
         if laws and spec.name not in laws:
             continue
-        program = build_program(get_law(spec.name), ds, priors=spec.priors, noise=study.noise,
+        program = build_program(spec.build(), ds, priors=spec.priors, noise=study.noise,
                                 constants=spec.constants)
         dt, t_fit = _timed(SAMPLERS["nuts"], program, ds, seed=0, **settings)
         bridge, t_bridge = _timed(compare.bridge_log_evidence, program, dt, seed=0)

@@ -30,7 +30,7 @@ import xarray as xr
 from bayesfric.compare.folds import Folds
 from bayesfric.inference.diagnostics import Verdict
 from bayesfric.inference.engine import FoldFits, NutsEngine
-from bayesfric.laws.base import get_law
+from bayesfric.laws.variants import law_of_fit
 from bayesfric.model import Noise, Program, build_program
 
 #: The compiled NUTS engine of a law, by the name the comparison code has always used.
@@ -63,7 +63,7 @@ def program_from_fit(fit: xr.DataTree, ds: xr.Dataset) -> Program:
     if noise["kind"] == "normal" and "sigma" not in priors and sigma is None:
         raise ValueError(f"fit of {fit.attrs['law']!r} used a known noise sigma, which its attrs "
                          "do not record; pass the fit's program (or engine) explicitly")
-    return build_program(get_law(fit.attrs["law"]), ds, priors=priors,
+    return build_program(law_of_fit(fit.attrs), ds, priors=priors,
                          noise=Noise(kind=noise["kind"], group=noise.get("group"), sigma=sigma),
                          constants=json.loads(fit.attrs["constants"]))
 

@@ -11,6 +11,7 @@ import xarray as xr
 from bayesfric.datasets.loader import OBS_DIM, DataError
 from bayesfric.laws.base import TRAJECTORY_START, Law
 from bayesfric.priors import DataScale
+from bayesfric.quantities import QUANTITIES
 
 __all__ = ["law_inputs", "response_values", "data_scale", "select", "trajectory_starts"]
 
@@ -39,8 +40,9 @@ def law_inputs(ds: xr.Dataset, law: Law) -> dict[str, np.ndarray]:
             out[name] = np.asarray(ds[name].values, dtype=float)
         else:
             have = [k for k, v in ds.coords.items() if v.attrs.get("role") == "input"]
+            meaning = f" ({QUANTITIES[name].meaning})" if name in QUANTITIES else ""
             raise DataError(
-                f"dataset {ds.attrs.get('name', '?')!r} has no input {name!r} needed by law "
+                f"dataset {ds.attrs.get('name', '?')!r} has no input {name!r}{meaning} needed by law "
                 f"{law.name!r} (inputs present: {', '.join(have) or 'none'})"
             )
     return out

@@ -33,6 +33,7 @@ def provenance(program: Program, ds: xr.Dataset, sampler: str, settings: dict, s
     """Provenance attrs stored on every fit (strings and numbers only, NetCDF-safe)."""
     return {
         "law": program.law.name,
+        "law_recipe": json.dumps(dict(program.law.recipe)) if program.law.recipe else "",  # laws.variants
         "law_source": program.law.source,
         "law_family": program.law.family,
         "noise": json.dumps({"kind": program.noise.kind, "group": program.noise.group,

@@ -5,6 +5,10 @@ One module per family; each law is declared once with :func:`bayesfric.laws.base
 
 from bayesfric.laws import bearing, classical, drum, hysteresis, thermal  # noqa: F401  (registers laws)
 from bayesfric.laws.base import REGISTRY, Constant, Derived, Law, Param, get_law, law
+from bayesfric.laws.variants import alias
+
+for _name, _recipe in hysteresis.DAHL_ALIASES.items():  # names users type; one declaration each
+    alias(_name, _recipe)
 
 __all__ = ["REGISTRY", "Law", "Param", "Constant", "Derived", "get_law", "law", "all_laws"]
 

@@ -42,6 +42,8 @@ __all__ = [
     "REGISTRY",
     "get_law",
     "TRAJECTORY_START",
+    "OptionalInput",
+    "declare",
 ]
 
 #: Structural input of trajectory (stateful) laws: True at the first sample of each ordered
@@ -67,13 +69,22 @@ class Param:
         Physical meaning, one line.
     source : str
         Literature source of the parameter and of its prior.
+    shape : tuple of int
+        Shape of a vector-valued parameter (e.g. spline knot increments); ``()`` for a scalar.
+    translational : Prior, optional
+        Its prior when the law runs on translational data, where the rotary prior's numbers do
+        not carry over (a knee angle in rad is no knee displacement in m). Required for a
+        parameter whose unit has radians that its prior does not scale by a rotary input
+        (:func:`bayesfric.laws.variants.translation_problem`); otherwise the rotary prior is used
+        with its data scaling renamed.
     """
 
     unit: str
     prior: Prior
     meaning: str
     source: str
-    shape: tuple[int, ...] = ()  # vector-valued parameters (e.g. spline knot increments)
+    shape: tuple[int, ...] = ()
+    translational: Prior | None = None
 
 
 @dataclass(frozen=True)
@@ -95,6 +106,20 @@ class Derived:
 
 
 @dataclass(frozen=True)
+class OptionalInput:
+    """An input the law can do without: a dependence that data which do not vary it cannot inform.
+
+    When the data lack the input, it is held at the law's constant ``fill`` (so the law's factor
+    for it is 1 when the law is written relative to that reference), and the parameters named in
+    ``drops`` -- which then have no effect -- are fixed at 0 instead of sampled
+    (:func:`bayesfric.laws.variants.for_data`).
+    """
+
+    fill: str
+    drops: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
 class Law:
     """A declared friction law. Call it like its function; use :meth:`mean` with mappings."""
 
@@ -111,6 +136,13 @@ class Law:
     trajectory: bool = False
     notes: str = ""
     sign_definite: bool = True
+    #: Why the law runs on rotary data only ("" : it also runs on translational data, see
+    #: :mod:`bayesfric.laws.variants`).
+    rotary_only: str = ""
+    optional: Mapping[str, OptionalInput] = field(default_factory=dict)
+    #: How a variant was made from a registered law (:mod:`bayesfric.laws.variants`); empty for a
+    #: law declared by its own function.
+    recipe: Mapping[str, Any] = field(default_factory=dict)
 
     def __call__(self, *args, **kwargs):
         return self.fn(*args, **kwargs)
@@ -140,6 +172,11 @@ class Law:
         """Evaluate every derived quantity from a parameter mapping."""
         return {k: d.fn(**{p: params[p] for p in inspect.signature(d.fn).parameters})
                 for k, d in self.derived.items()}
+
+    @property
+    def base_name(self) -> str:
+        """The registered law this one was made from (its own name if it is not a variant)."""
+        return str(self.recipe.get("base", self.name))
 
     def default_priors(self) -> dict[str, Prior]:
         return {k: p.prior for k, p in self.params.items()}
@@ -174,13 +211,18 @@ def law(
     trajectory: bool = False,
     notes: str = "",
     sign_definite: bool = True,
+    rotary_only: str = "",
+    optional: Mapping[str, OptionalInput] | None = None,
 ) -> Callable[[Callable[..., Any]], Law]:
     """Declare and register a friction law (see the module docstring).
 
     ``sign_definite=False`` marks purely empirical curve fits (e.g. polynomial surfaces) whose
     prior admits friction of the wrong sign; the prior-predictive checks then report the
     fraction of implausible draws instead of requiring none. ``notes`` holds identifiability
-    remarks the report prints.
+    remarks the report prints. A law declared on rotary quantities (torque, ``velocity``,
+    ``angle``) also runs on translational data (force, ``linear_velocity``, ``displacement``)
+    unless ``rotary_only`` says why it cannot (:mod:`bayesfric.laws.variants`). ``optional``
+    names inputs the law can do without (:class:`OptionalInput`).
 
     Raises
     ------
@@ -191,72 +233,100 @@ def law(
     """
 
     def wrap(fn: Callable[..., Any]) -> Law:
-        where = f"law {name!r} ({fn.__module__}.{fn.__qualname__})"
-        consts = dict(constants or {})
-        sig = list(inspect.signature(fn).parameters)
-        expected = list(inputs) + list(params) + list(consts)
-        if sig != expected:
-            raise LawDeclarationError(
-                f"{where}: function signature {sig} does not match the declaration "
-                f"(inputs + params + constants = {expected})"
-            )
-        for i in inputs:
-            if i == TRAJECTORY_START:
-                if not trajectory:
-                    raise LawDeclarationError(f"{where}: {TRAJECTORY_START} needs trajectory=True")
-                continue
-            if i not in QUANTITIES:
-                raise LawDeclarationError(
-                    f"{where}: unknown input {i!r}; the vocabulary is {', '.join(QUANTITIES)}"
-                )
-        if trajectory and TRAJECTORY_START not in inputs:
-            raise LawDeclarationError(f"{where}: trajectory laws must read {TRAJECTORY_START}")
-        if response not in RESPONSES:
-            raise LawDeclarationError(f"{where}: response {response!r} not one of {RESPONSES}")
-        for pname, p in params.items():
-            if not isinstance(p, Param):
-                raise LawDeclarationError(f"{where}: parameter {pname!r} is not a Param")
-            _check_unit(where, pname, p.unit)
-            if not p.meaning.strip() or not p.source.strip():
-                raise LawDeclarationError(f"{where}: parameter {pname!r} needs a meaning and a source")
-            if not isinstance(p.prior, Prior):
-                raise LawDeclarationError(f"{where}: parameter {pname!r} prior is not a Prior spec")
-            for key in p.prior.scaled_by:
-                if key != "response" and key not in inputs:
-                    raise LawDeclarationError(
-                        f"{where}: prior of {pname!r} is scaled by {key!r}, which the law does not read"
-                    )
-        for cname, c in consts.items():
-            _check_unit(where, cname, c.unit)
-        for dname, d in (derived or {}).items():
-            _check_unit(where, dname, d.unit)
-            missing = set(inspect.signature(d.fn).parameters) - set(params)
-            if missing:
-                raise LawDeclarationError(f"{where}: derived {dname!r} reads unknown {sorted(missing)}")
         if name in REGISTRY:
-            raise LawDeclarationError(f"{where}: a law named {name!r} is already registered")
-        doc = inspect.getdoc(fn) or ""
-        if not doc:
-            raise LawDeclarationError(f"{where}: needs a docstring (its first line is the summary)")
-        declared = Law(
-            name=name,
-            family=family,
-            inputs=tuple(inputs),
-            response=response,
-            params=dict(params),
-            fn=fn,
-            source=source,
-            summary=doc.splitlines()[0],
-            constants=consts,
-            derived=dict(derived or {}),
-            trajectory=trajectory,
-            notes=notes,
-            sign_definite=sign_definite,
-        )
+            raise LawDeclarationError(f"law {name!r} ({fn.__module__}.{fn.__qualname__}): a law named "
+                                      f"{name!r} is already registered")
+        declared = declare(fn, name=name, family=family, inputs=inputs, response=response, source=source,
+                           params=params, constants=constants, derived=derived, trajectory=trajectory,
+                           notes=notes, sign_definite=sign_definite, rotary_only=rotary_only,
+                           optional=optional)
         REGISTRY[name] = declared
         return declared
 
     return wrap
+
+
+def declare(
+    fn: Callable[..., Any],
+    *,
+    name: str,
+    family: str,
+    inputs: tuple[str, ...],
+    response: str,
+    source: str,
+    params: Mapping[str, Param],
+    constants: Mapping[str, Constant] | None = None,
+    derived: Mapping[str, Derived] | None = None,
+    trajectory: bool = False,
+    notes: str = "",
+    sign_definite: bool = True,
+    rotary_only: str = "",
+    optional: Mapping[str, OptionalInput] | None = None,
+    recipe: Mapping[str, Any] | None = None,
+) -> Law:
+    """Validate a declaration and build its :class:`Law` without registering it (see :func:`law`).
+
+    Variants (:mod:`bayesfric.laws.variants`) are built here, so they pass the same checks.
+    """
+    where = f"law {name!r} ({fn.__module__}.{fn.__qualname__})"
+    consts = dict(constants or {})
+    sig = list(inspect.signature(fn).parameters)
+    expected = list(inputs) + list(params) + list(consts)
+    if sig != expected:
+        raise LawDeclarationError(
+            f"{where}: function signature {sig} does not match the declaration "
+            f"(inputs + params + constants = {expected})"
+        )
+    _check_inputs(where, inputs, response, trajectory)
+    for pname, p in params.items():
+        if not isinstance(p, Param):
+            raise LawDeclarationError(f"{where}: parameter {pname!r} is not a Param")
+        _check_unit(where, pname, p.unit)
+        if not p.meaning.strip() or not p.source.strip():
+            raise LawDeclarationError(f"{where}: parameter {pname!r} needs a meaning and a source")
+        if not isinstance(p.prior, Prior):
+            raise LawDeclarationError(f"{where}: parameter {pname!r} prior is not a Prior spec")
+        for key in p.prior.scaled_by:
+            if key != "response" and key not in inputs:
+                raise LawDeclarationError(
+                    f"{where}: prior of {pname!r} is scaled by {key!r}, which the law does not read"
+                )
+    for cname, c in consts.items():
+        _check_unit(where, cname, c.unit)
+    for dname, d in (derived or {}).items():
+        _check_unit(where, dname, d.unit)
+        missing = set(inspect.signature(d.fn).parameters) - set(params)
+        if missing:
+            raise LawDeclarationError(f"{where}: derived {dname!r} reads unknown {sorted(missing)}")
+    for iname, opt in (optional or {}).items():
+        if iname not in inputs or opt.fill not in consts or not set(opt.drops) <= set(params) | set(consts):
+            raise LawDeclarationError(f"{where}: optional input {iname!r} must be an input, its fill a "
+                                      "constant and its drops parameters or constants of the law")
+    doc = inspect.getdoc(fn) or ""
+    if not doc:
+        raise LawDeclarationError(f"{where}: needs a docstring (its first line is the summary)")
+    return Law(
+        name=name, family=family, inputs=tuple(inputs), response=response, params=dict(params), fn=fn,
+        source=source, summary=doc.splitlines()[0], constants=consts, derived=dict(derived or {}),
+        trajectory=trajectory, notes=notes, sign_definite=sign_definite, rotary_only=rotary_only,
+        optional=dict(optional or {}), recipe=dict(recipe or {}),
+    )
+
+
+def _check_inputs(where: str, inputs: tuple[str, ...], response: str, trajectory: bool) -> None:
+    for i in inputs:
+        if i == TRAJECTORY_START:
+            if not trajectory:
+                raise LawDeclarationError(f"{where}: {TRAJECTORY_START} needs trajectory=True")
+            continue
+        if i not in QUANTITIES:
+            raise LawDeclarationError(
+                f"{where}: unknown input {i!r}; the vocabulary is {', '.join(QUANTITIES)}"
+            )
+    if trajectory and TRAJECTORY_START not in inputs:
+        raise LawDeclarationError(f"{where}: trajectory laws must read {TRAJECTORY_START}")
+    if response not in RESPONSES:
+        raise LawDeclarationError(f"{where}: response {response!r} not one of {RESPONSES}")
 
 
 def _check_unit(where: str, what: str, unit: str) -> None:

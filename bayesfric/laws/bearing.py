@@ -30,6 +30,9 @@ from bayesfric.laws.ball_loads import PITCH_BEARING, BearingGeometry, sum_contac
 from bayesfric.laws.base import Constant, Param, law
 from bayesfric.priors import Prior
 
+#: Why these laws run on rotary (torque) data only (bayesfric.laws.variants).
+_ROTARY = "slewing-bearing geometry: friction torque from the tilting moment on the ball set"
+
 SEED = "seed 000 (pitch bearing friction, Stammler et al.)"
 _GENERIC = "generic coefficient, data-scaled weakly-informative prior (bayesfric.priors)"
 RPM_PER_RAD_S = 30.0 / math.pi
@@ -92,6 +95,7 @@ f1 = Param(
 @law(
     name="palmgren",
     family="bearing",
+    rotary_only=_ROTARY,
     inputs=("velocity", "bending_moment"),
     response="torque",
     source=f"{SEED}, Eq. 1–2 (Palmgren 1957)",
@@ -148,6 +152,7 @@ def _rothe_erde(bending_moment, mu, D_M, F_a, F_r):
 @law(
     name="rothe_erde",
     family="bearing",
+    rotary_only=_ROTARY,
     inputs=("bending_moment",),
     response="torque",
     source=f"{SEED}, Eq. 15 (Rothe Erde 2016 catalogue)",
@@ -167,6 +172,7 @@ def rothe_erde(bending_moment, mu, D_M, F_a, F_r):
 @law(
     name="rothe_erde_offset",
     family="bearing",
+    rotary_only=_ROTARY,
     inputs=("bending_moment",),
     response="torque",
     source=f"{SEED}, Eq. 15 plus a load-independent term (§3.3)",
@@ -238,6 +244,7 @@ SKF_CONSTANTS = {
 @law(
     name="skf_2014",
     family="bearing",
+    rotary_only=_ROTARY,
     inputs=("velocity", "bending_moment"),
     response="torque",
     source=f"{SEED}, Eq. 3–7 (SKF 2014)",
@@ -330,6 +337,7 @@ ROLL_LOAD_EXPONENT = 0.47  # ... and ∝ W^0.47
 @law(
     name="wang_reduced",
     family="bearing",
+    rotary_only=_ROTARY,
     inputs=("velocity", "bending_moment"),
     response="torque",
     source=f"{SEED}, Eq. 8–14 (Wang 2015), reduced order",

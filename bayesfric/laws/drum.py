@@ -40,6 +40,9 @@ from bayesfric.laws.base import (
 )
 from bayesfric.priors import DataScale, Prior
 
+#: Why these laws run on rotary (torque) data only (bayesfric.laws.variants).
+_ROTARY = "the drum motor's rolling bearings and O-rings (seed 003): ball geometry, shaft speed"
+
 __all__ = [
     "DRUM_INERTIA",
     "DRUM_BEARING",
@@ -83,6 +86,7 @@ tau_o0 = Param(
 @law(
     name="oring",
     family="drum",
+    rotary_only=_ROTARY,
     inputs=("velocity",),
     response="torque",
     source=f"{SEED}, Eq. 6 (O-ring friction)",
@@ -90,8 +94,13 @@ tau_o0 = Param(
     notes="Same form as Coulomb + viscous; both parameters are identified from a speed sweep.",
 )
 def oring(velocity, k_o, tau_o0):
-    """O-ring friction: τ = k_o ω + τ_o0 sign(ω)."""
-    return k_o * velocity + tau_o0 * jnp.sign(velocity)
+    """O-ring friction: τ = k_o ω + τ_o0 sign(ω).
+
+    The formula is ``coulomb_viscous``'s (called, not restated); the law stays registered under
+    seed 003's name because its parameters carry that seed's names, meanings and reported values,
+    which the closed-form O-ring coast-down and the drum study read.
+    """
+    return classical.coulomb_viscous.fn(velocity, T_C=tau_o0, c_v=k_o)
 
 
 # --- rolling friction of a radially loaded ball bearing (Eq. 1–5) ---------------------------------
@@ -143,6 +152,7 @@ def seed_ball_normal_forces(radial_force, angle, n_balls: int):
 @law(
     name="drum_ball_rolling",
     family="drum",
+    rotary_only=_ROTARY,
     inputs=("radial_force", "angle"),
     response="torque",
     source=f"{SEED}, Eq. 1–4 (Hertz ball loads, rolling friction per ball), Eq. 5 (ball angle)",
@@ -242,6 +252,7 @@ def pchip(x, knots, values):
 @law(
     name="drum_torque_spline",
     family="drum",
+    rotary_only=_ROTARY,
     inputs=("velocity",),
     response="torque",
     source=f"{SEED}, §3.2 and §4 (look-up tables of measured torque over speed)",

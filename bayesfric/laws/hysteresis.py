@@ -27,7 +27,11 @@ loop should use trajectories that begin at a reversal after a saturating sweep, 
 cycle from the likelihood (``mask``).
 
 Preload: one law covers the six preloads of the experiment through F_c(P) = F_c0 (P/P_ref)^γ and
-x_c(P) = x_c0 (P/P_ref)^κ. The state is carried as F/F_c, so a preload change inside a trajectory
+x_c(P) = x_c0 (P/P_ref)^κ. The preload input is optional: on data without a preload column (a
+tribometer at one normal load) the law runs with P = P_ref, so both factors are 1, F_c0 and x_c0
+are the running friction and knee of the test itself, and γ, κ (which then have no effect) are
+fixed at 0 instead of sampled (:class:`bayesfric.laws.base.OptionalInput`).
+The state is carried as F/F_c, so a preload change inside a trajectory
 (absent from seed 001, where each run holds its preload) rescales the torque instantly.
 
 LuGre (Canudas de Wit, Olsson, Åström & Lischinsky 1995, IEEE TAC 40(3):419-425)
@@ -52,7 +56,7 @@ import math
 import jax.numpy as jnp
 from jax import lax
 
-from bayesfric.laws.base import TRAJECTORY_START, Constant, Derived, Param, law
+from bayesfric.laws.base import TRAJECTORY_START, Constant, Derived, OptionalInput, Param, law
 from bayesfric.priors import Prior
 
 __all__ = ["DAHL_LAWS", "dahl_torque", "lugre", "dahl_relax", "lugre_bristle"]
@@ -82,12 +86,15 @@ gamma = Param(
 # in·ozf/deg; Fig. 11's torque scale (0.356 in·ozf per plotter inch, loop about 7 in high) gives
 # 2F_c ≈ 2.5 in·ozf, so x_c = F_c/σ ≈ 1.25/5.4 ≈ 0.23° ≈ 4e-3 rad. LogNormal scale 1.0: 90 % of
 # the prior mass within a factor 5 of that.
+# On translational data (a tribometer's force-displacement loops) no seed fixes the knee: its
+# prior is scaled by the largest displacement, median 5 % of it, 90 % within ~[0.4 %, 60 %].
 x_c0 = Param(
     "rad",
     Prior("LogNormal", loc=math.log(4e-3), scale=1.0),
     "knee (characteristic angle) x_c = F_c/σ at the reference preload",
     f"{SEED} Eq. 5, §III (meter vs. bearing rest stiffness), Fig. 11 scales: "
-    "x_c ≈ 0.23° ≈ 4e-3 rad",
+    "x_c ≈ 0.23° ≈ 4e-3 rad; translational: generic, scaled by the largest displacement",
+    translational=Prior("LogNormal", loc=math.log(0.05), scale=1.5, scaled_by={"displacement": 1}),
 )
 kappa = Param(
     "1",
@@ -191,18 +198,15 @@ def dahl_torque(angle, preload, trajectory_start, F_c0, gamma, x_c0, kappa, i, P
     return F_c * phi
 
 
-def _dahl_law(name: str, i_fixed: float | None, knee_by_preload: bool):
-    """Declare one Dahl variant: i free or fixed (a Constant), x_c shared or preload-dependent."""
+def _dahl_law(name: str, knee_by_preload: bool):
+    """Declare one Dahl law: x_c shared or preload-dependent (the exponent i is fixed by aliases)."""
     params = {"F_c0": F_c0, "gamma": gamma, "x_c0": x_c0}
     constants = {}
     if knee_by_preload:
         params["kappa"] = kappa
     else:
         constants["kappa"] = Constant(0.0, "1", "knee independent of preload (seed 001 §V)")
-    if i_fixed is None:
-        params["i"] = exponent_i
-    else:
-        constants["i"] = Constant(i_fixed, "1", "SFM exponent i, fixed (seed 001 Eq. 6-8)")
+    params["i"] = exponent_i
     constants["P_ref"] = P_REF
     constants["F_start"] = F_START
     inputs = ("angle", "preload", TRAJECTORY_START)
@@ -214,11 +218,10 @@ def _dahl_law(name: str, i_fixed: float | None, knee_by_preload: bool):
     def fn(*args, **kwargs):
         return dahl_torque(**signature.bind(*args, **kwargs).arguments)
 
-    i_text = "i free" if i_fixed is None else f"i = {i_fixed:g}"
     knee_text = "x_c ∝ P^κ per preload" if knee_by_preload else "one x_c for all preloads"
     fn.__signature__ = signature
     fn.__name__ = fn.__qualname__ = name
-    fn.__doc__ = (f"Dahl solid friction, {i_text}, {knee_text}: dF/dx = σ|1 − (F/F_c) sgn ẋ|^i "
+    fn.__doc__ = (f"Dahl solid friction, {knee_text}: dF/dx = σ|1 − (F/F_c) sgn ẋ|^i "
                   "sgn(1 − (F/F_c) sgn ẋ), F_c = F_c0 (P/P_ref)^γ.")
     return law(
         name=name,
@@ -231,15 +234,21 @@ def _dahl_law(name: str, i_fixed: float | None, knee_by_preload: bool):
         derived={"sigma_ref": sigma_ref},
         trajectory=True,
         notes=_DAHL_NOTES,
+        optional={"preload": OptionalInput("P_ref", ("gamma", "kappa"))},
     )(fn)
 
 
-#: name -> Law for every Dahl variant: i ∈ {free, 1, 1.5, 2} × knee shared / per preload.
-DAHL_LAWS = {
-    f"dahl{i_tag}{knee_tag}": _dahl_law(f"dahl{i_tag}{knee_tag}", i_fixed, by_preload)
-    for i_tag, i_fixed in (("", None), ("_i1", 1.0), ("_i1p5", 1.5), ("_i2", 2.0))
-    for knee_tag, by_preload in (("", False), ("_xc_preload", True))
+_dahl_law("dahl", knee_by_preload=False)
+_dahl_law("dahl_xc_preload", knee_by_preload=True)
+#: Names users already type for Dahl with a fixed exponent: thin aliases (registered by
+#: bayesfric.laws with :func:`bayesfric.laws.variants.alias`), the same as ``fixed = { i = ... }``.
+DAHL_ALIASES = {
+    f"dahl{i_tag}{knee_tag}": {"base": f"dahl{knee_tag}", "fixed": {"i": value}}
+    for i_tag, value in (("_i1", 1.0), ("_i1p5", 1.5), ("_i2", 2.0))
+    for knee_tag in ("", "_xc_preload")
 }
+#: Every Dahl law name: i ∈ {free, 1, 1.5, 2} × knee shared / per preload.
+DAHL_LAWS = ("dahl", "dahl_xc_preload", *DAHL_ALIASES)
 
 # --- LuGre -----------------------------------------------------------------------------------
 _LUGRE_NOTES = (
@@ -302,7 +311,8 @@ def lugre_bristle(velocity, time, trajectory_start, sigma0, F_c, dF_s, v_s):
             Prior("LogNormal", loc=math.log(1e3), scale=2.0, scaled_by={"response": 1}),
             "bristle (pre-sliding) stiffness σ0",
             f"{LUGRE} (σ0 = F_c/z_ss with z_ss ~ 1e-5 m there); seed 001 knee ~ 4e-3 rad; "
-            "prior centred on 1 mrad pre-sliding deflection",
+            "prior centred on 1 mrad pre-sliding deflection (translational: on 10 µm, as in LuGre)",
+            translational=Prior("LogNormal", loc=math.log(1e5), scale=2.0, scaled_by={"response": 1}),
         ),
         "rho1": Param(
             "1",

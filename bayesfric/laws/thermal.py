@@ -26,6 +26,9 @@ import jax.numpy as jnp
 from bayesfric.laws.base import Constant, Param, law
 from bayesfric.priors import Prior
 
+#: Why these laws run on rotary (torque) data only (bayesfric.laws.variants).
+_ROTARY = "a geared drive's oil-bath friction (seed 002): speed in rad/s through the gearbox"
+
 SEED = "seed 002 (web-machine unwinding group)"
 KELVIN_OFFSET = 273.15  # θ[°C] = T[K] − 273.15
 RPM = 2.0 * math.pi / 60.0  # rad/s per rpm
@@ -79,6 +82,7 @@ def _centred(temperature, T_ref, T_scale):
 @law(
     name="thermal_viscous_quadratic",
     family="thermal",
+    rotary_only=_ROTARY,
     inputs=("velocity", "temperature"),
     response="torque",
     source=f"{SEED}, Eq. 5 with f1(t_GB) a 2nd-order polynomial (Fig. 11)",
@@ -102,6 +106,7 @@ def thermal_viscous_quadratic(velocity, temperature, f1_ref, f1_lin, f1_quad, T_
 @law(
     name="thermal_poly_surface",
     family="thermal",
+    rotary_only=_ROTARY,
     inputs=("velocity", "temperature"),
     response="torque",
     source=f"{SEED}, Fig. 12 (polynomial surface, 2nd order in speed × 4th order in temperature)",
@@ -167,6 +172,7 @@ VOGEL_C = Param(
 @law(
     name="thermal_vogel_power",
     family="thermal",
+    rotary_only=_ROTARY,
     inputs=("velocity", "temperature"),
     response="torque",
     source=(
@@ -236,6 +242,7 @@ def thermal_vogel_power(velocity, temperature, c0, c, a, b, B, C, omega_ref, T_r
 @law(
     name="thermal_mass2_viscous",
     family="thermal",
+    rotary_only=_ROTARY,
     inputs=("velocity",),
     response="torque",
     source=f"{SEED}, Eq. 6 (roller-bearing friction of mass 2, Fig. 13)",

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING
 
 import pandas as pd
 
+from bayesfric.compare.asymmetry import asymmetry
 from bayesfric.study import scores as sc
 
 if TYPE_CHECKING:
@@ -91,6 +92,9 @@ def findings(outcome: StudyOutcome, table: pd.DataFrame) -> list[Finding]:
     crits = sc.criteria(outcome)
     loo_winner = sc.best(table, "elpd_loo") if outcome.study.loo else None
     lines = [a for c in crits if (a := _answer(table, c, loo_winner)) is not None]
+    for w in outcome.laws:  # direction-dependent coefficients (laws.variants): is the asymmetry supported?
+        if w.law.recipe.get("asymmetric"):
+            lines += [_f("Direction asymmetry of ", _law(w.name), f": {a.text()}.") for a in asymmetry(w.fit)]
     lines += _warnings(outcome)
     for label, reason in outcome.extra.get("weight_errors", []):
         lines.append(plain(f"{label} weights not computed: {reason}", warning=True))

@@ -86,9 +86,9 @@ def provenance_of_fit(fit: xr.DataTree) -> str:
 
 def size_fit(fit: xr.DataTree, question: SizingQuestion, *, name: str, seed: int = 0) -> SizingResult:
     """Answer one question for one fit (weight 1; the tested range is the fit's own data)."""
-    from bayesfric.laws import get_law
+    from bayesfric.laws.variants import law_of_fit
 
-    law = get_law(fit.attrs["law"])
+    law = law_of_fit(fit.attrs)
     data = fit["constant_data"].to_dataset()
     unit = question.capacity.unit if question.capacity is not None else None
     unit, scale = _response_display(law.response, unit)

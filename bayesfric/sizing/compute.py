@@ -65,7 +65,7 @@ import xarray as xr
 
 from bayesfric.datasets.synthetic import make_dataset
 from bayesfric.inference.diagnostics import verdict_of
-from bayesfric.laws import get_law
+from bayesfric.laws.variants import law_of_fit
 from bayesfric.sizing.points import SizingError, SizingQuestion
 
 __all__ = [
@@ -275,7 +275,7 @@ def predict(fit: xr.DataTree, grid: Mapping[str, np.ndarray], seed: int = 0) -> 
     """
     from bayesfric.compare.refit import program_from_fit
 
-    law = get_law(fit.attrs["law"])
+    law = law_of_fit(fit.attrs)
     if law.trajectory:
         raise SizingError("", f"law {law.name!r} is a trajectory (stateful) law: its friction depends on the "
                               "path, so it cannot be sized at an operating point")

@@ -30,6 +30,14 @@ sampler settings, comparison methods and extrapolation folds::
     name = "armstrong_helouvry"
     priors = { delta = { dist = "LogNormal", loc = -1.1, scale = 0.3 } }
 
+    [[laws]]                           # the same law again, as a variant (bayesfric.laws.variants)
+    name = "stribeck"
+    label = "stribeck_asym"            # required when a law is listed twice; names fits and tables
+    add = ["viscous", "offset"]        # additive parts: terms "offset", "viscous" or registered laws
+    offset = true                      # the same as add = ["offset"]
+    asymmetric = ["T_C", "offset"]     # one value per direction: T_C_pos (velocity ≥ 0), T_C_neg (< 0)
+    fixed = { delta = 1.0 }            # hold parameters (or constants) at a value, SI units
+
     [compare]
     loo = true
     kfold = 10                         # 0 disables; else 2 … number of points (or trajectories)
@@ -102,7 +110,8 @@ from numpyro import handlers
 from bayesfric.errors import UserError
 from bayesfric.fsutil import name_problem
 from bayesfric.inference import SAMPLERS
-from bayesfric.laws import get_law
+from bayesfric.laws import Law, get_law
+from bayesfric.laws.variants import VariantError, vary
 from bayesfric.model import Noise, Program
 from bayesfric.priors import Prior, PriorError
 from bayesfric.sizing.points import SizingError, SizingQuestion, make_question
@@ -125,11 +134,24 @@ class StudyError(UserError):
 
 @dataclass(frozen=True)
 class LawSpec:
-    """A candidate law with its overrides."""
+    """A candidate law with its overrides and variant options (:mod:`bayesfric.laws.variants`).
+
+    ``name`` is the entry's label -- what fits, tables and ``weights.json`` call it (the law's
+    name unless the entry gives ``label``); ``law`` is the registered law it is built from.
+    """
 
     name: str
     priors: dict[str, Prior] = field(default_factory=dict)
     constants: dict[str, float] = field(default_factory=dict)
+    law: str = ""
+    fixed: dict[str, float] = field(default_factory=dict)
+    add: tuple[str, ...] = ()
+    asymmetric: tuple[str, ...] = ()
+
+    def build(self) -> Law:
+        """The entry's law: the registered law with its options applied, named by the label."""
+        return vary(get_law(self.law or self.name), name=self.name, add=self.add, asymmetric=self.asymmetric,
+                    fixed=self.constants | self.fixed)
 
 
 @dataclass(frozen=True)
@@ -224,10 +246,22 @@ SAMPLER = Schema((
           doc="emcee walkers: at least 2 × free parameters (default max(32, 4 × free parameters))"),
     Field("thin", "int", _backend("thin"), min=1, only=("name", EMCEE), doc="emcee thinning"),
 ), only_label="sampler")
+def _names(value: Any) -> str | None:
+    items = value if isinstance(value, list) else [value]
+    return None if all(isinstance(v, str) and v.strip() for v in items) else "must be a name or a list of names"
+
+
 LAW = Schema((
     Field("name", "str", REQUIRED, rule=_known_law, doc="registered law (bayesfric laws --names)"),
+    Field("label", "name", None, doc="name of this entry in reports and fit files (default: the law's name); "
+                                     "required to list one law twice"),
     Field("priors", "table", {}, items="table", doc="prior overrides by parameter name"),
     Field("constants", "table", {}, items="number", doc="constant overrides by name"),
+    Field("fixed", "table", {}, items="number", doc="parameters (or constants) held at a value, SI units"),
+    Field("add", "value", [], rule=_names, doc='additive parts: "offset", "viscous" or registered laws'),
+    Field("offset", "bool", False, doc='add a constant offset term (same as add = ["offset"])'),
+    Field("asymmetric", "value", [], rule=_names,
+          doc="parameters with one value per direction: <p>_pos (velocity ≥ 0), <p>_neg (velocity < 0)"),
 ))
 BLOCKED = Schema((
     Field("axis", "str", REQUIRED, doc="input coordinate to block along"),
@@ -327,10 +361,31 @@ def _read(path: Path) -> dict[str, Any]:
         raise StudyError(f"{path}: cannot read ({exc.strerror})") from None
 
 
-def _law_spec(path: Path, i: int, entry: dict[str, Any], noise: Noise) -> LawSpec:
-    """Law-specific checks of a parsed ``[[laws]]`` entry: parameter and constant names, priors."""
-    where = f"{path}: laws[{i}]"
+def _listed(value: Any) -> tuple[str, ...]:
+    return tuple(value) if isinstance(value, list) else (value,)
+
+
+def _variant(where: str, entry: dict[str, Any]) -> Law:
+    """The entry's law with its options, each checked in turn so an error names its key."""
     law = get_law(entry["name"])
+    add = _listed(entry["add"]) + (("offset",) if entry["offset"] and "offset" not in _listed(entry["add"]) else ())
+    for key, options in (("add", {"add": add}), ("asymmetric", {"asymmetric": _listed(entry["asymmetric"])}),
+                         ("constants", {"fixed": entry["constants"]}), ("fixed", {"fixed": entry["fixed"]})):
+        if key == "constants" and (bad := [c for c in entry["constants"] if c not in law.constants]):
+            raise StudyError(f"{where}.constants.{bad[0]}: law {law.name!r} has no constant {bad[0]!r} "
+                             f"(constants: {', '.join(law.constants) or 'none'})")
+        try:
+            law = vary(law, **options)
+        except VariantError as exc:  # exc.key names the option within the entry (fixed.i)
+            sub = exc.key.split(".", 1)[1] if "." in exc.key else ""
+            raise StudyError(f"{where}.{key}{'.' + sub if sub else ''}: {exc.problem}") from None
+    return law
+
+
+def _law_spec(path: Path, i: int, entry: dict[str, Any], noise: Noise) -> LawSpec:
+    """Law-specific checks of a parsed ``[[laws]]`` entry: options, parameter and constant names, priors."""
+    where = f"{path}: laws[{i}]"
+    law = _variant(where, entry)
     known = list(law.params) + list(noise.sites())
     priors = {}
     for pname, spec in entry["priors"].items():
@@ -341,11 +396,9 @@ def _law_spec(path: Path, i: int, entry: dict[str, Any], noise: Noise) -> LawSpe
             priors[pname] = Prior.from_dict(spec)
         except PriorError as exc:
             raise StudyError(f"{where}.priors.{pname}: {exc}") from None
-    for cname in entry["constants"]:
-        if cname not in law.constants:
-            raise StudyError(f"{where}.constants.{cname}: law {law.name!r} has no constant {cname!r} "
-                             f"(constants: {', '.join(law.constants) or 'none'})")
-    return LawSpec(law.name, priors, dict(entry["constants"]))
+    add = _listed(entry["add"]) + (("offset",) if entry["offset"] and "offset" not in _listed(entry["add"]) else ())
+    return LawSpec(entry["label"] or entry["name"], priors, dict(entry["constants"]), law=entry["name"],
+                   fixed=dict(entry["fixed"]), add=add, asymmetric=_listed(entry["asymmetric"]))
 
 
 def _sizing_question(path: Path, i: int, entry: dict[str, Any]) -> SizingQuestion:
@@ -409,9 +462,11 @@ def load_study(path: str | Path) -> Study:
     noise = Noise(kind=spec["noise"]["kind"], group=spec["noise"]["group"])
     laws = [_law_spec(path, i, entry, noise) for i, entry in enumerate(spec["laws"])]
     names = [w.name for w in laws]
-    for i, law_name in enumerate(names):
-        if law_name in names[:i]:
-            raise StudyError(f"{path}: laws[{i}].name: law {law_name!r} is listed twice")
+    for i, label in enumerate(names):
+        if label in names[:i]:
+            key = "label" if spec["laws"][i]["label"] else "name"
+            raise StudyError(f"{path}: laws[{i}].{key}: {label!r} is listed twice: give each entry of the "
+                             "same law its own label")
     if compare["evidence"]:
         _check_evidence_draws(path, spec["sampler"])
     blocked = [BlockedSpec(b["axis"], b["direction"], b["threshold"], b["quantile"], b["label"], b["future"])

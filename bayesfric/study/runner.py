@@ -24,9 +24,10 @@ import numpy as np
 from bayesfric import compare, fsutil, sizing
 from bayesfric.datasets import DataError, load_dataset, resolve, select
 from bayesfric.inference import SAMPLERS, release_compiled_code, save_fit
-from bayesfric.laws import get_law
+from bayesfric.laws.variants import for_data
 from bayesfric.model import build_program
 from bayesfric.priors import PriorError
+from bayesfric.quantities import QUANTITIES
 from bayesfric.study.claims import ClaimError, check_claim, evaluate_claims
 from bayesfric.study.config import Study, StudyError, load_study, sampler_settings, walkers_problem
 from bayesfric.study.outcome import Estimate, LawOutcome, StudyOutcome
@@ -74,10 +75,14 @@ def validate_against_data(study: Study, ds) -> None:
         except ValueError as exc:
             raise StudyError(f"{where}: [compare] kfold: {exc}") from None
     for i, spec in enumerate(study.laws):
-        law = get_law(spec.name)
-        missing = [q for q in law.operating_inputs if q not in inputs]
+        try:  # the law as it runs on this data: its motion kind, without optional inputs it lacks
+            law = for_data(spec.build(), ds)
+        except DataError as exc:
+            raise StudyError(f"{where}: laws[{i}] ({spec.name}): {exc}") from None
+        missing = [f"{q} ({QUANTITIES[q].meaning})" for q in law.operating_inputs if q not in inputs]
         if missing:
-            raise StudyError(f"{where}: laws[{i}] ({spec.name}) reads {missing}, which the data lacks")
+            raise StudyError(f"{where}: laws[{i}] ({spec.name}) reads {'; '.join(missing)}, which the data lacks "
+                             f"(its inputs: {', '.join(sorted(inputs)) or 'none'})")
         if law.response != ds.attrs["response"]:
             raise StudyError(f"{where}: laws[{i}] ({spec.name}) predicts {law.response}, the data has "
                              f"{ds.attrs['response']}")
@@ -109,7 +114,7 @@ def sizing_questions(study: Study, ds, questions: list[sizing.SizingQuestion] | 
     if not questions:
         return []
     inputs = [k for k, v in ds.coords.items() if v.attrs.get("role") == "input"]
-    laws = [get_law(spec.name) for spec in study.laws]
+    laws = [for_data(spec.build(), ds) for spec in study.laws]  # inputs as the laws read this data
     for i, law in enumerate(laws):
         if law.trajectory:
             raise StudyError(f"{where}: laws[{i}] ({law.name}): a trajectory (stateful) law cannot be sized at an "
@@ -179,8 +184,8 @@ def _run_law(study: Study, spec, ds, folder: Path, schemes, settings: dict, seed
         out.timings[stage] = now - clock[0]
         clock[0] = now
 
-    law = get_law(spec.name)
-    program = build_program(law, ds, priors=spec.priors, noise=study.noise, constants=spec.constants)
+    program = build_program(spec.build(), ds, priors=spec.priors, noise=study.noise, constants=spec.constants)
+    law = program.law  # as it runs on this data (motion kind, units), named by the entry's label
     if study.sampler.get("name", "nuts") == "nuts":
         # One compiled engine per law: the full fit is its all-true mask, and the same compiled
         # sampler refits every fold -- cold (the full warm-up from the prior median) for folds

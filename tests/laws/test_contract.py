@@ -1,5 +1,9 @@
 """Registry-wide contract test: every registered law satisfies the same declaration contract.
 
+Every law runs once on rotary (torque) data and, unless it declares itself rotary-only, once
+more on translational (force) data at tribometer scale (µm, µm/s, mN) as its translational
+variant (:mod:`bayesfric.laws.variants`).
+
 For each law: units parse, every parameter has a prior/meaning/source, the mean function is
 jit-able and differentiable with finite values and gradients over draws from the prior, it
 broadcasts over input shapes, and its prior-predictive mean has the physically right sign
@@ -17,11 +21,16 @@ from numpyro.infer import Predictive
 from bayesfric.datasets.synthetic import make_dataset
 from bayesfric.laws import all_laws
 from bayesfric.laws.base import TRAJECTORY_START
+from bayesfric.laws.variants import TRANSLATIONAL, translation_problem
 from bayesfric.model import build_program
 from bayesfric.quantities import parse_unit
 
 LAWS = all_laws()
 N_DRAWS = 64
+#: (law, motion kind) for every law on rotary data and every law that also runs translationally.
+CASES = [(w, "rotary") for w in LAWS] + [(w, "translational") for w in LAWS if translation_problem(w) is None]
+#: Tribometer scale of the translational design: rotary design values (rad, rad/s) times this.
+TRIBO = 5e-5
 
 
 def _design(law, n_traj: int = 3, per_traj: int = 40) -> dict[str, np.ndarray]:
@@ -61,13 +70,17 @@ def _design(law, n_traj: int = 3, per_traj: int = 40) -> dict[str, np.ndarray]:
     return out
 
 
-def _dataset(law):
+def _dataset(law, motion: str = "rotary"):
     design = _design(law)
     n = len(next(iter(design.values())))
     groups = {"run": np.repeat(np.arange(3), n // 3)} if law.trajectory else None
     scale = 100.0 if law.response == "velocity" else 10.0
+    response = law.response
+    if motion == "translational":  # µm-scale loops, mN forces
+        design = {TRANSLATIONAL.get(k, k): v * TRIBO if k in TRANSLATIONAL else v for k, v in design.items()}
+        scale, response = 1e-3, TRANSLATIONAL[law.response]
     # a response of the right sign and size: only its scale matters for data-scaled priors
-    return make_dataset(design, np.full(n, scale), response_quantity=law.response, groups=groups,
+    return make_dataset(design, np.full(n, scale), response_quantity=response, groups=groups,
                         trajectory="run" if law.trajectory else None)
 
 
@@ -75,15 +88,21 @@ def _prior_draws(law, ds):
     program = build_program(law, ds)
     predictive = Predictive(program.model, num_samples=N_DRAWS)
     draws = predictive(jax.random.PRNGKey(0), **dict(program.model_kwargs, response=None))
-    return program, {k: draws[k] for k in law.params}
+    return program, {k: draws[k] for k in program.law.params}
 
 
-@pytest.fixture(scope="module", params=LAWS, ids=[w.name for w in LAWS])
+@pytest.fixture(scope="module", params=CASES, ids=[f"{w.name}-{m}" for w, m in CASES])
 def law_case(request):
-    law = request.param
-    ds = _dataset(law)
+    """(the law as it runs on the case's data, its program, prior draws of its parameters)."""
+    law, motion = request.param
+    ds = _dataset(law, motion)
     program, params = _prior_draws(law, ds)
-    return law, program, params
+    assert program.law.response == ds.attrs["response"]
+    return program.law, program, params
+
+
+def _direction(law) -> str | None:
+    return next((q for q in ("velocity", "linear_velocity") if q in law.inputs), None)
 
 
 def test_registry_is_populated():
@@ -152,8 +171,8 @@ def test_prior_predictive_sign(law_case):
         bad = out < -1e-9
     elif law.trajectory:
         pytest.skip("hysteresis torque follows the loop, not the instantaneous velocity sign")
-    elif "velocity" in law.inputs:
-        v = program.inputs["velocity"]
+    elif _direction(law):
+        v = program.inputs[_direction(law)]
         bad = np.sign(out) * np.sign(v) < 0
     else:
         bad = out < -1e-9
@@ -162,10 +181,37 @@ def test_prior_predictive_sign(law_case):
 
 def test_odd_in_velocity(law_case):
     law, program, params = law_case
-    if "velocity" not in law.inputs or law.trajectory or law.response != "torque":
+    if not _direction(law) or law.trajectory or law.response not in ("torque", "force"):
         pytest.skip("only steady-state velocity laws are odd in velocity")
     p0 = {k: v[0] for k, v in params.items()}
-    flipped = dict(program.inputs, velocity=-program.inputs["velocity"])
+    flipped = dict(program.inputs, **{_direction(law): -program.inputs[_direction(law)]})
     a = np.asarray(law.mean(program.inputs, p0, program.constants))
     b = np.asarray(law.mean(flipped, p0, program.constants))
     np.testing.assert_allclose(a, -b, rtol=1e-12, atol=1e-12)
+
+
+def test_translational_form_follows_the_rotary_declaration():
+    """Units map N·m → N and rad → m, the response to force, the inputs to their counterparts."""
+    for law, motion in CASES:
+        if motion != "translational":
+            continue
+        moved = build_program(law, _dataset(law, motion)).law
+        assert moved.response == "force" and moved.recipe["motion"] == "translational"
+        assert set(moved.operating_inputs) == {TRANSLATIONAL.get(q, q) for q in law.operating_inputs}
+        for name, p in moved.params.items():
+            rotary = law.params[name]
+            # same dimension as the rotary unit with torque -> force (÷ m) and angle -> length (× m)
+            rad = parse_unit(rotary.unit)._units.get("radian", 0)
+            torque = parse_unit(rotary.unit)._units.get("newton", 0)
+            expected = parse_unit(rotary.unit) * parse_unit("m") ** (rad - torque) / parse_unit("rad") ** rad
+            assert parse_unit(p.unit).dimensionality == expected.dimensionality, (law.name, name, p.unit)
+            assert all(k not in ("velocity", "angle") for k in p.prior.scaled_by), (law.name, name)
+
+
+def test_rotary_only_laws_say_why():
+    """Laws that cannot run translationally give a reason (declared, or read from their inputs)."""
+    for law in LAWS:
+        problem = translation_problem(law)
+        assert problem is None or problem.strip(), law.name
+        if law.family in ("bearing", "thermal", "drum"):
+            assert problem, f"{law.name}: a geometry-specific rotary law must stay rotary-only"

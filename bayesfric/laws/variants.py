@@ -1,0 +1,495 @@
+"""Variants of declared laws: motion kind, added terms, direction asymmetry, fixed parameters.
+
+A law is declared once (:mod:`bayesfric.laws.base`); everything a study or the data asks of it
+beyond that declaration is a *variant*, built here from a small recipe and validated by the same
+:func:`bayesfric.laws.base.declare` as a registered law:
+
+``add``
+    Additive parts: a term of :data:`TERMS` (``"offset"``: a constant response offset with a
+    data-scaled prior; ``"viscous"``: ``c_v · q̇``) or any registered law with the same response.
+    A part's parameter whose name the law already uses is renamed ``<name>_<part>``.
+``offset``
+    Shorthand for ``add = ["offset"]``.
+``asymmetric``
+    Direction-dependent coefficients of a steady law that reads ``velocity``: each named
+    parameter ``p`` becomes ``p_pos`` (used where velocity ≥ 0) and ``p_neg`` (velocity < 0),
+    both with the declared prior. The law is evaluated once with each set and the value of the
+    sample's direction is kept, so a derived quantity that reads ``p`` is reported per side too
+    (``T_s_pos``, ``T_s_neg``). Trajectory (stateful) laws are refused: their state would mix the
+    two parameter sets along a loop.
+``fixed``
+    Parameters conditioned at a value (SI, in the unit the law shows for the data's motion kind)
+    instead of sampled: each becomes a constant of the variant; a constant named here is simply
+    overridden. ``fixed`` generalises the study's ``constants``.
+``without``
+    Optional inputs (:class:`bayesfric.laws.base.OptionalInput`) the data lack: the input is held
+    at the declared reference constant and the parameters that then have no effect are fixed at 0.
+``motion``
+    ``"translational"``: the law declared on rotary quantities runs on force data. Inputs map
+    ``velocity → linear_velocity``, ``angle → displacement``, the response ``torque → force``;
+    parameter units map N·m → N and rad → m (so N·m·s/rad → N·s/m, rad/s → m/s), and the priors'
+    data scaling follows the renamed inputs. Quantities that do not depend on the motion kind
+    (time, preload, temperature) are unchanged. A law that cannot run translationally says why
+    (:func:`translation_problem`).
+
+The order of application is fixed: add, asymmetric, fixed, without, motion. :func:`for_data`
+adds the data-dependent steps (motion, missing optional inputs) to a law's recipe; the recipe is
+stored with every fit so the variant can be rebuilt (:func:`law_of_fit`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import inspect
+import json
+import math
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any
+
+import jax.numpy as jnp
+import numpy as np
+
+from bayesfric.laws.base import (
+    REGISTRY,
+    TRAJECTORY_START,
+    Constant,
+    Derived,
+    Law,
+    LawDeclarationError,
+    Param,
+    declare,
+    get_law,
+)
+from bayesfric.priors import Prior
+from bayesfric.quantities import parse_unit
+
+__all__ = [
+    "VariantError", "TERMS", "TRANSLATIONAL", "vary", "build", "for_data", "translation_problem",
+    "translational_unit", "law_of_fit", "describe", "alias",
+]
+
+#: Rotary quantity -> its translational counterpart.
+TRANSLATIONAL = {"velocity": "linear_velocity", "angle": "displacement", "torque": "force"}
+#: Inputs whose meaning does not depend on the motion kind.
+MOTION_NEUTRAL = ("time", "preload", "temperature", TRAJECTORY_START)
+_GENERIC = "generic coefficient, data-scaled weakly-informative prior (bayesfric.priors)"
+
+
+class VariantError(LawDeclarationError):
+    """A variant the law cannot take (unknown parameter, asymmetry of a trajectory law ...).
+
+    ``key`` is the option it concerns (``"fixed.i"``, ``"asymmetric"``, ``"add"``), ``problem``
+    the message without it, so callers name the option in their own terms (study key, CLI flag).
+    """
+
+    def __init__(self, problem: str, key: str = ""):
+        super().__init__(f"{key}: {problem}" if key else problem)
+        self.key, self.problem = key, problem
+
+
+# -- units ---------------------------------------------------------------------------------------
+def translational_unit(unit: str) -> str:
+    """The translational form of a rotary SI unit: N·m → N, rad → m (powers kept).
+
+    A unit whose newton and metre powers are equal carries torque (N·m)^a and becomes N^a;
+    radians become metres. Anything else (a preload in N, a time, a temperature) is unchanged.
+
+    >>> translational_unit("N*m*s/rad")
+    'N*s/m'
+    """
+    powers = {str(k): float(v) for k, v in parse_unit(unit)._units.items()}
+    torque = powers.get("newton", 0.0)
+    changed = False
+    if torque and powers.get("meter", 0.0) == torque:
+        powers.pop("meter")
+        changed = True
+    if "radian" in powers:
+        angle = powers.pop("radian")
+        powers["meter"] = powers.get("meter", 0.0) + angle
+        changed = True
+    return _format_unit(powers) if changed else unit
+
+
+_SYMBOL = {"newton": "N", "meter": "m", "second": "s", "kilogram": "kg", "kelvin": "K", "pascal": "Pa"}
+
+
+def _format_unit(powers: Mapping[str, float]) -> str:
+    def part(name: str, p: float) -> str:
+        sym = _SYMBOL.get(name, name)
+        p = abs(p)
+        return sym if p == 1 else f"{sym}**{int(p) if float(p).is_integer() else p:g}"
+
+    order = sorted((k for k, v in powers.items() if v), key=lambda k: list(_SYMBOL).index(k) if k in _SYMBOL else 99)
+    num = "*".join(part(k, powers[k]) for k in order if powers[k] > 0) or "1"
+    den = "*".join(part(k, powers[k]) for k in order if powers[k] < 0)
+    return f"{num}/{den}" if den else num
+
+
+# -- building blocks -----------------------------------------------------------------------------
+def _rebuild(base: Law, call: Callable[[dict[str, Any]], Any], **changes: Any) -> Law:
+    """A new (unregistered) law like ``base`` with ``changes``; its function calls ``call(kwargs)``."""
+    fields = {f.name: getattr(base, f.name) for f in dataclasses.fields(Law)} | changes
+    names = list(fields["inputs"]) + list(fields["params"]) + list(fields["constants"])
+    signature = inspect.Signature([inspect.Parameter(n, inspect.Parameter.POSITIONAL_OR_KEYWORD) for n in names])
+
+    def fn(*args, **kwargs):
+        return call(dict(signature.bind(*args, **kwargs).arguments))
+
+    fn.__signature__ = signature
+    fn.__name__ = fn.__qualname__ = base.name
+    fn.__doc__ = fields.pop("summary")
+    fields.pop("fn")
+    return declare(fn, **fields)
+
+
+def _rewire(d: Derived, rename: Mapping[str, str], fixed: Mapping[str, float]) -> Derived:
+    """``d`` reading its arguments under new names (``rename``: old -> new), some held fixed."""
+    old = list(inspect.signature(d.fn).parameters)
+    new = [rename.get(a, a) for a in old if a not in fixed]
+    signature = inspect.Signature([inspect.Parameter(n, inspect.Parameter.POSITIONAL_OR_KEYWORD) for n in new])
+
+    def fn(*args, **kwargs):
+        got = signature.bind(*args, **kwargs).arguments
+        return d.fn(**{a: fixed[a] if a in fixed else got[rename.get(a, a)] for a in old})
+
+    fn.__signature__ = signature
+    return Derived(fn, d.unit, d.meaning)
+
+
+def _reads(d: Derived) -> set[str]:
+    return set(inspect.signature(d.fn).parameters)
+
+
+# -- the operations ------------------------------------------------------------------------------
+def _add(law: Law, part: Law) -> Law:
+    if part.response != law.response:
+        raise VariantError(f"cannot add {part.name!r} ({part.response}) to law {law.name!r} ({law.response})",
+                           "add")
+    taken = set(law.params) | set(law.constants) | set(law.derived) | set(law.inputs)
+    rename = {k: (f"{k}_{part.name}" if k in taken else k)
+              for k in list(part.params) + list(part.constants) + list(part.derived)}
+    inputs = law.inputs + tuple(i for i in part.inputs if i not in law.inputs)
+    if TRAJECTORY_START in inputs:  # keep the structural input last, as declarations do
+        inputs = tuple(i for i in inputs if i != TRAJECTORY_START) + (TRAJECTORY_START,)
+    own = list(law.inputs) + list(law.params) + list(law.constants)
+    theirs = list(part.inputs) + list(part.params) + list(part.constants)
+
+    def call(kw):
+        return law.fn(**{k: kw[k] for k in own}) + part.fn(**{k: kw[rename.get(k, k)] for k in theirs})
+
+    return _rebuild(
+        law, call, inputs=inputs, trajectory=law.trajectory or part.trajectory,
+        params=dict(law.params) | {rename[k]: p for k, p in part.params.items()},
+        constants=dict(law.constants) | {rename[k]: c for k, c in part.constants.items()},
+        derived=dict(law.derived) | {rename[k]: _rewire(d, rename, {}) for k, d in part.derived.items()},
+        optional=dict(law.optional) | dict(part.optional),
+        sign_definite=law.sign_definite and part.sign_definite and part.name != "offset",
+        summary=f"{law.summary} + {part.name}: {part.summary}",
+    )
+
+
+def _asymmetric(law: Law, names: Sequence[str]) -> Law:
+    if law.trajectory or "velocity" not in law.inputs:
+        raise VariantError(f"law {law.name!r} must be a steady law that reads velocity "
+                           "(a trajectory law would mix the two parameter sets along its state)", "asymmetric")
+    unknown = [n for n in names if n not in law.params]
+    if unknown:
+        raise VariantError(f"law {law.name!r} has no parameter {unknown[0]!r} "
+                           f"(parameters: {', '.join(law.params)})", "asymmetric")
+    if any(law.params[n].shape for n in names):
+        raise VariantError("vector-valued parameters cannot be split by direction", "asymmetric")
+    params: dict[str, Param] = {}
+    for k, p in law.params.items():
+        if k in names:
+            for side, text in (("pos", "velocity ≥ 0"), ("neg", "velocity < 0")):
+                params[f"{k}_{side}"] = dataclasses.replace(p, meaning=f"{p.meaning}, direction {text}")
+        else:
+            params[k] = p
+    derived: dict[str, Derived] = {}
+    for k, d in law.derived.items():
+        if _reads(d) & set(names):
+            for side in ("pos", "neg"):
+                derived[f"{k}_{side}"] = _rewire(d, {n: f"{n}_{side}" for n in names}, {})
+        else:
+            derived[k] = d
+    own = list(law.inputs) + list(law.params) + list(law.constants)
+
+    def call(kw):
+        pos = law.fn(**{k: kw[f"{k}_pos"] if k in names else kw[k] for k in own})
+        neg = law.fn(**{k: kw[f"{k}_neg"] if k in names else kw[k] for k in own})
+        return jnp.where(jnp.asarray(kw["velocity"]) >= 0, pos, neg)
+
+    return _rebuild(law, call, params=params, derived=derived,
+                    summary=f"{law.summary} [direction-dependent {', '.join(names)}]")
+
+
+def _support_problem(p: Param, value: float) -> str | None:
+    """Why ``value`` lies outside the support of ``p``'s prior (None if inside)."""
+    prior = Prior(p.prior.dist, **p.prior.args)  # support does not depend on the data scale
+    ok = bool(np.all(np.asarray(prior.to_numpyro().support.check(jnp.asarray(value)))))
+    return None if ok else f"outside the support of its prior {p.prior}"
+
+
+def _fix(law: Law, values: Mapping[str, float]) -> Law:
+    params, constants, fixed_params = dict(law.params), dict(law.constants), {}
+    for name, value in values.items():
+        if not isinstance(value, int | float) or isinstance(value, bool) or not math.isfinite(value):
+            raise VariantError(f"must be a finite number, got {value!r}", f"fixed.{name}")
+        value = float(value)
+        if name in constants:
+            constants[name] = dataclasses.replace(constants[name], value=value)
+        elif name in params:
+            p = params.pop(name)
+            if p.shape:
+                raise VariantError("a vector-valued parameter cannot be fixed", f"fixed.{name}")
+            if problem := _support_problem(p, value):
+                raise VariantError(f"{value:g} is {problem}", f"fixed.{name}")
+            constants[name] = Constant(value, p.unit, f"{p.meaning} (fixed)")
+            fixed_params[name] = value
+        else:
+            raise VariantError(f"law {law.name!r} has no parameter or constant {name!r} "
+                               f"(parameters: {', '.join(law.params) or 'none'}; constants: "
+                               f"{', '.join(law.constants) or 'none'})", f"fixed.{name}")
+    derived = {k: _rewire(d, {}, fixed_params) for k, d in law.derived.items() if _reads(d) - set(fixed_params)}
+    own = list(law.inputs) + list(law.params) + list(law.constants)
+    text = ", ".join(f"{k} = {v:g}" for k, v in values.items())
+    return _rebuild(law, lambda kw: law.fn(**{k: kw[k] for k in own}), params=params, constants=constants,
+                    derived=derived, summary=f"{law.summary} [fixed {text}]")
+
+
+def _without(law: Law, name: str) -> Law:
+    opt = law.optional[name]
+    drops = {k: 0.0 for k in opt.drops if k in law.params}
+    law = _fix(law, drops) if drops else law
+    constants = dict(law.constants) | {k: dataclasses.replace(law.constants[k], value=0.0)
+                                       for k in opt.drops if k in law.constants and k not in drops}
+    own = list(law.inputs) + list(law.params) + list(law.constants)
+
+    def call(kw):
+        return law.fn(**{k: kw[opt.fill] if k == name else kw[k] for k in own})
+
+    return _rebuild(law, call, inputs=tuple(i for i in law.inputs if i != name), constants=constants,
+                    optional={k: v for k, v in law.optional.items() if k != name},
+                    summary=f"{law.summary} [no {name} input: held at {opt.fill}]")
+
+
+def translation_problem(law: Law) -> str | None:
+    """Why ``law`` cannot run on translational (force) data; None if it can."""
+    if law.rotary_only:
+        return law.rotary_only
+    if law.response != "torque":
+        return f"its response is {law.response}, not torque"
+    other = [q for q in law.operating_inputs if q not in TRANSLATIONAL and q not in MOTION_NEUTRAL]
+    if other:
+        return f"it reads {', '.join(other)}, which has no translational counterpart"
+    unscaled = [k for k, p in law.params.items() if p.translational is None and _angle_unscaled(p)]
+    if unscaled:
+        return (f"the prior of {', '.join(unscaled)} is stated in radians and declares no translational "
+                "prior (Param.translational)")
+    return None
+
+
+def _angle_unscaled(p: Param) -> bool:
+    """True if ``p``'s unit carries radians that its prior's data scaling does not supply."""
+    rad = float(parse_unit(p.unit)._units.get("radian", 0.0))
+    supplied = sum(v for k, v in p.prior.scaled_by.items() if k in ("velocity", "angle"))
+    return rad != supplied
+
+
+def _translational(law: Law) -> Law:
+    if problem := translation_problem(law):
+        raise VariantError(f"law {law.name!r} runs on rotary (torque) data only: {problem}")
+    to = dict(TRANSLATIONAL)
+
+    def param(p: Param) -> Param:
+        prior = p.translational or Prior(
+            p.prior.dist, scaled_by={to.get(k, k): v for k, v in p.prior.scaled_by.items()}, **p.prior.args)
+        return dataclasses.replace(p, unit=translational_unit(p.unit), prior=prior,
+                                   meaning=p.meaning.replace("torque", "force"))
+
+    own = list(law.inputs) + list(law.params) + list(law.constants)
+    return _rebuild(
+        law, lambda kw: law.fn(**{k: kw[to.get(k, k)] for k in own}),
+        inputs=tuple(to.get(i, i) for i in law.inputs), response="force",
+        params={k: param(p) for k, p in law.params.items()},
+        constants={k: dataclasses.replace(c, unit=translational_unit(c.unit)) for k, c in law.constants.items()},
+        derived={k: dataclasses.replace(d, unit=translational_unit(d.unit),
+                                        meaning=d.meaning.replace("torque", "force"))
+                 for k, d in law.derived.items()},
+        optional={to.get(k, k): v for k, v in law.optional.items()},
+        summary=f"{law.summary} [translational: force in N, linear_velocity in m/s, displacement in m]",
+    )
+
+
+# -- terms that only make sense as parts ---------------------------------------------------------
+def _offset(offset):
+    """Constant additive offset: T = T_0 (sensor zero, gravity or cable drag; not friction)."""
+    return offset
+
+
+def _viscous(velocity, c_v):
+    """Linear viscous term: T = c_v q̇."""
+    return c_v * velocity
+
+
+def _terms() -> dict[str, Law]:
+    from bayesfric.laws.classical import c_v_linear  # one declaration of the viscous coefficient
+
+    offset = Param("N*m", Prior("Normal", loc=0.0, scale=0.5, scaled_by={"response": 1}),
+                   "constant additive offset of the response (not friction: sensor zero, gravity, cables)",
+                   _GENERIC)
+    return {
+        "offset": declare(_offset, name="offset", family="term", inputs=(), response="torque", source="bayesfric",
+                          params={"offset": offset}, sign_definite=False),
+        "viscous": declare(_viscous, name="viscous", family="term", inputs=("velocity",), response="torque",
+                           source=c_v_linear.source, params={"c_v": c_v_linear}),
+    }
+
+
+#: Additive terms a law entry may ``add`` besides registered laws (built on first use).
+TERMS: dict[str, Law] = {}
+
+
+def _part(name: str) -> Law:
+    if not TERMS:
+        TERMS.update(_terms())
+    if name in TERMS:
+        return TERMS[name]
+    try:
+        return get_law(name)
+    except KeyError:
+        raise VariantError(f"{name!r} is not a term ({', '.join(TERMS)}) or a registered law", "add") from None
+
+
+# -- recipes -------------------------------------------------------------------------------------
+_KEYS = ("base", "add", "asymmetric", "fixed", "without", "motion")
+
+
+def build(recipe: Mapping[str, Any], name: str | None = None) -> Law:
+    """The law a recipe describes (keys: base, add, asymmetric, fixed, without, motion).
+
+    Raises
+    ------
+    VariantError
+        An unknown part, parameter or input, or a variant the law cannot take.
+    KeyError
+        The base is not a registered law.
+    """
+    unknown = set(recipe) - set(_KEYS)
+    if unknown:
+        raise VariantError(f"unknown variant key(s) {sorted(unknown)}")
+    law = get_law(recipe["base"])
+    if law.recipe:  # an alias: build from its own recipe, then apply this one on top
+        return build(_merge(law.recipe, {k: v for k, v in recipe.items() if k != "base"}), name or law.name)
+    for part in recipe.get("add", ()):
+        law = _add(law, _part(part))
+    if recipe.get("asymmetric"):
+        law = _asymmetric(law, list(recipe["asymmetric"]))
+    if recipe.get("fixed"):
+        law = _fix(law, recipe["fixed"])
+    for input_name in recipe.get("without", ()):
+        if input_name not in law.optional:
+            raise VariantError(f"law {law.name!r} cannot do without input {input_name!r}")
+        law = _without(law, input_name)
+    if recipe.get("motion", "rotary") == "translational":
+        law = _translational(law)
+    elif recipe.get("motion", "rotary") != "rotary":
+        raise VariantError(f"motion {recipe['motion']!r}: not 'rotary' or 'translational'")
+    clean = {k: recipe[k] for k in _KEYS if recipe.get(k)}
+    return dataclasses.replace(law, name=name or str(recipe["base"]), recipe=clean)
+
+
+def _merge(first: Mapping[str, Any], then: Mapping[str, Any]) -> dict[str, Any]:
+    out = dict(first)
+    for key in ("add", "asymmetric", "without"):
+        out[key] = list(first.get(key, ())) + [v for v in then.get(key, ()) if v not in first.get(key, ())]
+    out["fixed"] = dict(first.get("fixed", {})) | dict(then.get("fixed", {}))
+    if "motion" in then:
+        out["motion"] = then["motion"]
+    return {k: v for k, v in out.items() if v}
+
+
+def vary(law: Law, *, name: str | None = None, add: Sequence[str] = (), offset: bool = False,
+         asymmetric: Sequence[str] = (), fixed: Mapping[str, float] | None = None,
+         without: Sequence[str] = (), motion: str | None = None) -> Law:
+    """A variant of ``law`` (see the module docstring); ``law`` itself if nothing is asked.
+
+    Parameters
+    ----------
+    law : Law
+        A registered law or a variant (its recipe is extended).
+    name : str, optional
+        The variant's name (the label of a study entry); default the law's name.
+    add, offset, asymmetric, fixed, without, motion
+        As in the module docstring.
+    """
+    asked = {"add": list(add) + (["offset"] if offset and "offset" not in add else []),
+             "asymmetric": list(asymmetric), "fixed": dict(fixed or {}), "without": list(without)}
+    if motion is not None:
+        asked["motion"] = motion
+    asked = {k: v for k, v in asked.items() if v}
+    if not asked and (name is None or name == law.name):
+        return law
+    return build(_merge(law.recipe or {"base": law.name}, asked) | {"base": law.recipe.get("base", law.name)},
+                 name or law.name)
+
+
+def for_data(law: Law, ds) -> Law:
+    """``law`` as it runs on ``ds``: translational for force data, without optional inputs the
+    data lack. A law that cannot run on the data's motion kind raises :class:`VariantError`."""
+    from bayesfric.datasets.loader import DataError
+
+    response = ds.attrs.get("response")
+    inputs = {k for k, v in ds.coords.items() if v.attrs.get("role") == "input"}
+    motion = None
+    if response == "force" and law.response == "torque":
+        if problem := translation_problem(law):
+            raise DataError(f"law {law.name!r} runs on rotary (torque) data only ({problem}); data set "
+                            f"{ds.attrs.get('name', '?')!r} has a force response")
+        motion = "translational"
+    without = [i for i in law.optional if i not in inputs]
+    if motion is None and not without:
+        return law
+    return vary(law, without=without, motion=motion)
+
+
+def alias(name: str, recipe: Mapping[str, Any]) -> Law:
+    """Register ``name`` as a thin alias: the variant ``recipe`` of a registered law.
+
+    Raises
+    ------
+    LawDeclarationError
+        The name is taken, or the recipe is not a valid variant.
+    """
+    if name in REGISTRY:
+        raise LawDeclarationError(f"alias {name!r}: a law named {name!r} is already registered")
+    REGISTRY[name] = build(recipe, name)
+    return REGISTRY[name]
+
+
+def law_of_fit(attrs: Mapping[str, Any]) -> Law:
+    """The law of a stored fit: its recipe if it was a variant, else the registered name."""
+    recipe = attrs.get("law_recipe")
+    if recipe:
+        return build(json.loads(recipe), str(attrs["law"]))
+    return get_law(str(attrs["law"]))
+
+
+def describe(law: Law) -> str:
+    """One line naming how a variant differs from its base law ('' for a registered law)."""
+    r = law.recipe
+    if not r:
+        return ""
+    parts = [f"base {r['base']}"]
+    if r.get("add"):
+        parts.append("+ " + " + ".join(r["add"]))
+    if r.get("asymmetric"):
+        parts.append("direction-dependent " + ", ".join(r["asymmetric"]) + " (_pos: velocity ≥ 0, _neg: < 0)")
+    if r.get("fixed"):
+        parts.append("fixed " + ", ".join(f"{k} = {v:g}" for k, v in r["fixed"].items()))
+    if r.get("without"):
+        parts.append("without input " + ", ".join(r["without"]))
+    if r.get("motion") == "translational":
+        parts.append("translational")
+    return "; ".join(parts)
+
