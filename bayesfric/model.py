@@ -161,17 +161,19 @@ class Program:
                 z = numpyro.sample("group_z", dist.Normal(0.0, 1.0))
             offset = numpyro.deterministic("group_offset", group_sd * z)
             mu = mu * jnp.exp(offset[group_index])
-        likelihood = self._likelihood(mu, mask)
+        likelihood = self._likelihood(mu, mask, response)
         with numpyro.plate(OBS_DIM, mu.shape[0]):
             with numpyro.handlers.mask(mask=True if mask is None else mask):
                 numpyro.sample(OBS_SITE, likelihood, obs=response)
 
-    def _likelihood(self, mu, mask=None):
+    def _likelihood(self, mu, mask=None, response=None):
         r = self.resolved
         if self.noise.kind == "ar1":  # the mask is integrated out exactly (bayesfric.noise)
             sigma = numpyro.sample("sigma", r["sigma"].to_numpyro())
             rho = numpyro.sample("rho", r["rho"].to_numpyro())
-            return AR1Residuals(mu, sigma, rho, self.chain_start, mask)
+            # predictive draws: one step ahead given the observed data (what the likelihood scores)
+            past = self.response if response is None else None
+            return AR1Residuals(mu, sigma, rho, self.chain_start, mask, past)
         if self.noise.kind == "normal":
             if self.noise.sigma is not None:
                 return dist.Normal(mu, self.noise.sigma)

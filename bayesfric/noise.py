@@ -34,6 +34,11 @@ Which predictive each score then reads (documented in the README, *Correlated re
   one-step-ahead predictive given the *observed* previous value (held out or not); the first
   point of a trajectory is scored by its marginal. A held-out whole trajectory is therefore
   scored point by point, not by its joint predictive density.
+
+Predictive draws of a program (posterior and prior predictive, hence LOO-PIT and the
+posterior-predictive checks) are the same one-step-ahead conditionals given the observed data,
+``y_t ~ N(mu_t + ρ^k e_s, ...)``, not freshly simulated trajectories: they check the predictive
+the likelihood scores. :meth:`AR1Residuals.sample` without ``past`` simulates trajectories.
 """
 
 from __future__ import annotations
@@ -107,24 +112,34 @@ class AR1Residuals(dist.Distribution):
     (one per point), so numpyro's pointwise log-likelihood is the conditional one. ``observed``
     is the likelihood mask the program applies, passed here so that masked points are
     integrated out rather than conditioned on.
+
+    ``past`` (the observed response, optional) makes :meth:`sample` draw the *one-step-ahead*
+    predictive ``y_t ~ p(y_t | y_<t observed)`` -- the predictive the pointwise log-likelihood
+    scores, and so what posterior-predictive checks and LOO-PIT compare with; without it
+    :meth:`sample` draws whole new stationary trajectories.
     """
 
     arg_constraints = {"loc": constraints.real, "sigma": constraints.positive}
     support = constraints.real
 
-    def __init__(self, loc, sigma, rho, start, observed=None, *, validate_args=None):
+    def __init__(self, loc, sigma, rho, start, observed=None, past=None, *, validate_args=None):
         self.loc = jnp.asarray(loc, dtype=float)
         self.sigma, self.rho = sigma, rho
         self.start = jnp.asarray(start, dtype=bool)
         self.observed = observed
+        self.past = past
         super().__init__(batch_shape=jnp.shape(self.loc), validate_args=validate_args)
 
     def log_prob(self, value):
         return ar1_log_prob(value - self.loc, self.sigma, self.rho, self.start, self.observed)
 
     def sample(self, key, sample_shape=()):
-        """Draw whole AR(1) trajectories (stationary start), shape ``sample_shape + (n,)``."""
+        """One-step-ahead draws given ``past``, else whole stationary AR(1) trajectories."""
         eps = jax.random.normal(key, tuple(sample_shape) + self.batch_shape)
+        if self.past is not None:
+            mean, var = ar1_conditionals(jnp.asarray(self.past) - self.loc, self.sigma, self.rho,
+                                         self.start, self.observed)
+            return self.loc + mean + jnp.sqrt(var) * eps
         stationary = self.sigma / jnp.sqrt(1.0 - self.rho**2)
         decay = jnp.where(self.start, 0.0, self.rho) * jnp.ones_like(eps)
         shock = jnp.where(self.start, stationary, self.sigma) * eps

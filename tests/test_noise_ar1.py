@@ -143,3 +143,15 @@ def test_recovers_rho_and_evidence_prefers_ar1(simulator):
         assert lo <= value <= hi, f"{name}: truth {value} outside 90 % interval [{lo:.4g}, {hi:.4g}]"
     z = {k: bridge_log_evidence(p, dt) for k, (p, dt) in fits.items()}
     assert z["ar1"].log_z - z["normal"].log_z > 10 * (z["ar1"].error + z["normal"].error + 1.0), z
+
+
+def test_predictive_draws_are_one_step_ahead_given_the_data():
+    start = two_trajectories(6, 4)
+    y = np.random.default_rng(5).normal(size=10)
+    mu = np.linspace(-1, 1, 10)
+    sigma, rho = 0.2, 0.9
+    draws = np.asarray(AR1Residuals(mu, sigma, rho, start, past=y).sample(jax.random.PRNGKey(0), (20000,)))
+    expected = mu + np.r_[0.0, rho * (y - mu)[:-1]] * ~start
+    sd = np.where(start, sigma / np.sqrt(1 - rho**2), sigma)
+    np.testing.assert_allclose(draws.mean(axis=0), expected, atol=4 * sd.max() / np.sqrt(20000) * 1.5)
+    np.testing.assert_allclose(draws.std(axis=0), sd, rtol=0.03)
