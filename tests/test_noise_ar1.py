@@ -9,6 +9,7 @@ import pytest
 from scipy.stats import multivariate_normal, norm
 
 from bayesfric.compare.evidence import bridge_log_evidence
+from bayesfric.compare.loo import psis_loo
 from bayesfric.datasets.loader import DataError
 from bayesfric.inference import check, fit
 from bayesfric.laws import get_law
@@ -127,7 +128,7 @@ def test_ar1_needs_a_trajectory_group(dataset_factory):
 
 
 @pytest.mark.slow
-def test_recovers_rho_and_evidence_prefers_ar1(simulator):
+def test_recovers_rho_and_evidence_and_loo_prefer_ar1(simulator):
     # simulated: 4 sweeps of 60 points, ρ = 0.8 (SIMULATED data, known truth)
     law, ds, truth, sigma = _coulomb_viscous_data(simulator, rho=0.8)
     fits = {}
@@ -143,6 +144,9 @@ def test_recovers_rho_and_evidence_prefers_ar1(simulator):
         assert lo <= value <= hi, f"{name}: truth {value} outside 90 % interval [{lo:.4g}, {hi:.4g}]"
     z = {k: bridge_log_evidence(p, dt) for k, (p, dt) in fits.items()}
     assert z["ar1"].log_z - z["normal"].log_z > 10 * (z["ar1"].error + z["normal"].error + 1.0), z
+    # PSIS-LOO of the conditional pointwise terms (one-step-ahead predictive) also prefers AR(1)
+    loo = {k: psis_loo(dt, ds, program=p) for k, (p, dt) in fits.items()}
+    assert loo["ar1"].elpd - loo["normal"].elpd > 4 * np.hypot(loo["ar1"].se, loo["normal"].se), loo
 
 
 def test_predictive_draws_are_one_step_ahead_given_the_data():
