@@ -74,12 +74,18 @@ SUBSTEPS = 8  #: exponential-Euler sub-steps of the elasto-plastic blend zone pe
 
 F_C = Param("N*m", Prior("HalfNormal", scale=1.0, scaled_by={"response": 1}),
             "sliding (Coulomb) friction torque F_c = Σ break-away torques", f"{MS}; {_GENERIC}")
-DF_S = Param("N*m", Prior("HalfNormal", scale=0.5, scaled_by={"response": 1}),
-             "static friction excess F_s − F_c ≥ 0 of the Stribeck curve", f"{GMS}; {_GENERIC}")
-V_S = Param("rad/s", Prior("LogNormal", loc=-2.0, scale=1.5, scaled_by={"velocity": 1}),
-            "Stribeck velocity v_s of the decay e^(−(v/v_s)²)", f"{GMS}; {_GENERIC}")
-SIGMA2 = Param("N*m*s/rad", Prior("HalfNormal", scale=1.0, scaled_by={"response": 1, "velocity": -1}),
-               "viscous friction coefficient σ2", f"{GMS}; {_GENERIC}")
+
+
+def _stribeck_params(source: str) -> dict[str, Param]:
+    """F_s − F_c, v_s and σ2 of a Stribeck curve s(v) + σ2 v, with the citing law's source."""
+    return {
+        "dF_s": Param("N*m", Prior("HalfNormal", scale=0.5, scaled_by={"response": 1}),
+                      "static friction excess F_s − F_c ≥ 0 of the Stribeck curve", f"{source}; {_GENERIC}"),
+        "v_s": Param("rad/s", Prior("LogNormal", loc=-2.0, scale=1.5, scaled_by={"velocity": 1}),
+                     "Stribeck velocity v_s of the decay e^(−(v/v_s)²)", f"{source}; {_GENERIC}"),
+        "sigma2": Param("N*m*s/rad", Prior("HalfNormal", scale=1.0, scaled_by={"response": 1, "velocity": -1}),
+                        "viscous friction coefficient σ2", f"{source}; {_GENERIC}"),
+    }
 
 
 def _weights(n: int) -> Param:
@@ -202,7 +208,7 @@ def elastoplastic_deflection(velocity, time, trajectory_start, sigma0, beta, F_c
     family="hysteresis",
     inputs=("velocity", "time", TRAJECTORY_START),
     response="torque",
-    source=f"{EP}, Eq. 8-11",
+    source=EP,
     params={
         "sigma0": Param("N*m/rad",
                         Prior("LogNormal", loc=math.log(1e3), scale=2.0, scaled_by={"response": 1}),
@@ -211,11 +217,8 @@ def elastoplastic_deflection(velocity, time, trajectory_start, sigma0, beta, F_c
         "beta": Param("1", Prior("Uniform", low=0.0, high=1.0),
                       "break-away deflection z_ba as a fraction of F_c/σ0 (elastic below it)",
                       f"{EP} (0 < z_ba < z_max for every speed)"),
-        "sigma2": SIGMA2,
         "F_c": Param("N*m", F_C.prior, "Coulomb friction torque F_c", f"{EP}; {_GENERIC}"),
-        "dF_s": DF_S,
-        "v_s": V_S,
-    },
+    } | _stribeck_params(EP),
     constants={"F_start": START_STATE},
     derived={"z_ba": Derived(lambda sigma0, beta, F_c: beta * F_c / sigma0, "rad",
                              "break-away deflection z_ba"),
@@ -225,7 +228,7 @@ def elastoplastic_deflection(velocity, time, trajectory_start, sigma0, beta, F_c
            "sampled finely inside the pre-sliding range, otherwise its prior returns. Not "
            "sign-definite in velocity: the torque lags at reversals."),
 )
-def elastoplastic(velocity, time, trajectory_start, sigma0, beta, sigma2, F_c, dF_s, v_s, F_start):
+def elastoplastic(velocity, time, trajectory_start, sigma0, beta, F_c, dF_s, v_s, sigma2, F_start):
     """Elasto-plastic friction: T = σ0 z + σ2 v, ż = v(1 − α(z, v) z/z_ss(v)), elastic below z_ba."""
     z = elastoplastic_deflection(velocity, time, trajectory_start, sigma0, beta, F_c, dF_s, v_s, F_start)
     return sigma0 * z + sigma2 * jnp.asarray(velocity, dtype=float)
@@ -254,7 +257,7 @@ def maxwell_slip_law(n: int = N_DEFAULT) -> Law:
     fn.__doc__ = (f"Maxwell-slip, {n} elasto-slide elements: z_i ← clip(z_i + Δx, ±Δ_i), "
                   "T = Σ k_i z_i, Δ_i ordered.")
     return law(name=name, family="hysteresis", inputs=inputs, response="torque",
-               source=f"{MS}; {GMS}, Eq. 1-2 (rate-independent case)", params=params,
+               source=f"{MS}; {GMS} (rate-independent case)", params=params,
                constants={"F_start": START_STATE}, trajectory=True,
                derived={"break_away": Derived(lambda dx: jnp.sum(dx, axis=-1), "rad",
                                               "largest break-away deflection Δ_N (end of pre-sliding)")},
@@ -267,11 +270,11 @@ def maxwell_slip_law(n: int = N_DEFAULT) -> Law:
 def gms_law(n: int = N_DEFAULT) -> Law:
     """Declare (once) and return the GMS law with ``n`` elements (``gms`` or ``gms_n<n>``)."""
     name = "gms" if n == N_DEFAULT else f"gms_n{n}"
-    params = {"F_c": F_C, "dF_s": DF_S, "v_s": V_S, "sigma2": SIGMA2,
+    params = {"F_c": F_C, **_stribeck_params(GMS),
               "C": Param("N*m/s", Prior("LogNormal", loc=math.log(100.0), scale=2.0,
                                          scaled_by={"response": 1, "time": -1}),
                          "attraction rate C of slipping elements towards α_i s(v)",
-                         f"{GMS}, Eq. 4; {_GENERIC} (median: relaxation in 1 % of the record)"),
+                         f"{GMS}; {_GENERIC} (median: relaxation in 1 % of the record)"),
               "w": _weights(n),
               "dx": _increments(n, {"velocity": 1, "time": 1}, "the travel scale max|v|·max t")}
     inputs = ("velocity", "time", TRAJECTORY_START)
@@ -284,7 +287,7 @@ def gms_law(n: int = N_DEFAULT) -> Law:
     fn.__doc__ = (f"Generalized Maxwell-slip, {n} elements: stick dF_i/dt = k_i v, slip dF_i/dt = "
                   "sgn(v) C (1 − F_i/(α_i s(v))), T = Σ F_i + σ2 v.")
     return law(name=name, family="hysteresis", inputs=inputs, response="torque",
-               source=f"{GMS}, Eq. 3-5", params=params, constants={"F_start": START_STATE},
+               source=GMS, params=params, constants={"F_start": START_STATE},
                derived={"F_s": Derived(lambda F_c, dF_s: F_c + dF_s, "N*m", "static friction torque F_s")},
                trajectory=True,
                notes=(f"{n} elements. Steady sliding gives the Stribeck curve s(v) sgn v + σ2 v "
