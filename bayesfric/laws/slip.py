@@ -293,7 +293,9 @@ def gms_law(n: int = N_DEFAULT) -> Law:
                notes=(f"{n} elements. Steady sliding gives the Stribeck curve s(v) sgn v + σ2 v "
                       "(identifies F_c, F_s, v_s, σ2 as for LuGre); the element deflections and "
                       "weights need finely sampled reversals; C only acts after break-away and is "
-                      "weakly identified when slip transients are short against the sampling. Not "
+                      "weakly identified when slip transients are short against the sampling. Sampling "
+                      "is hard: on simulated two-element loops (1 % noise) NUTS chains with the "
+                      "default priors stuck in different local modes (R-hat 2.7); check R-hat. Not "
                       "sign-definite in velocity."))(fn)
 
 
