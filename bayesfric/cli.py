@@ -323,7 +323,7 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--chains", type=int, default=None, help="NUTS chains, ≥ 1")
     q.add_argument("--walkers", type=int, default=None, help="emcee walkers, ≥ 2 × free parameters")
     q.add_argument("--seed", type=int, default=0, help="seed, 0 … 2**32 - 1")
-    q.add_argument("--noise", choices=["normal", "student_t", "proportional"], default="normal")
+    q.add_argument("--noise", choices=["normal", "student_t", "proportional", "ar1"], default="normal")
     q.add_argument("--group", help="group coordinate for partial-pooled offsets (series, run ...)")
     q.add_argument("--select", action="append", metavar="COORD=VALUE", help="use only these rows")
     q.add_argument("--prior", action="append", metavar="NAME=JSON", help="override a prior")

@@ -3,8 +3,9 @@
 Every law becomes the same program shape, so fits compare across laws:
 
 * one sample site per law parameter (named as declared), derived quantities as deterministics;
-* noise parameters ``sigma`` (normal, student_t), ``nu`` (student_t), or ``sigma_rel`` and
-  ``sigma_floor`` (proportional);
+* noise parameters ``sigma`` (normal, student_t), ``nu`` (student_t), ``sigma_rel`` and
+  ``sigma_floor`` (proportional), or ``sigma`` (innovation sd) and ``rho`` (ar1: AR(1) residuals
+  along each trajectory, :mod:`bayesfric.noise`);
 * optional per-group multiplicative offsets ``group_offset`` with scale ``group_sd`` (partial
   pooling, non-centred): ``mu_i = law(x_i) * exp(b_g[i])``, ``b_g ~ Normal(0, group_sd)``. A
   multiplicative offset keeps odd symmetry and the sign of friction, and reads as "this series
@@ -29,10 +30,11 @@ import numpyro.distributions as dist
 import xarray as xr
 
 from bayesfric.datasets.loader import OBS_DIM, DataError
-from bayesfric.datasets.views import data_scale, law_inputs, response_values
+from bayesfric.datasets.views import data_scale, law_inputs, response_values, trajectory_starts
 from bayesfric.density import OBS_SITE, Density, build_density
 from bayesfric.laws.base import Law
 from bayesfric.laws.variants import for_data
+from bayesfric.noise import AR1Residuals
 from bayesfric.priors import DataScale, Prior, PriorError
 from bayesfric.runtime import configure
 
@@ -46,11 +48,13 @@ NOISE_PRIORS: dict[str, Prior] = {
     "sigma_rel": Prior("HalfNormal", scale=0.1),  # relative scatter, dimensionless
     "sigma_floor": Prior("HalfNormal", scale=0.01, scaled_by={"response": 1}),
     "group_sd": Prior("HalfNormal", scale=0.1),  # relative spread between groups
+    "rho": Prior("Uniform", low=-1.0, high=1.0),  # AR(1) lag-one correlation: whole stationary range
 }
 _NOISE_SITES = {
     "normal": ("sigma",),
     "student_t": ("sigma", "nu"),
     "proportional": ("sigma_rel", "sigma_floor"),
+    "ar1": ("sigma", "rho"),
 }
 
 
@@ -60,9 +64,12 @@ class Noise:
 
     Parameters
     ----------
-    kind : {"normal", "student_t", "proportional"}
+    kind : {"normal", "student_t", "proportional", "ar1"}
         ``proportional`` uses ``sd_i = sqrt((sigma_rel * mu_i)^2 + sigma_floor^2)``; the floor
-        keeps the density finite where the mean crosses zero.
+        keeps the density finite where the mean crosses zero. ``ar1``: Gaussian residuals with
+        lag-one correlation ``rho`` along each ordered trajectory of the data (stationary start,
+        innovation sd ``sigma``); its pointwise log-likelihood is the conditional
+        ``log p(y_t | y_<t)`` (:mod:`bayesfric.noise`).
     group : str, optional
         Name of a group coordinate for hierarchical multiplicative offsets.
     sigma : float, optional
@@ -70,7 +77,7 @@ class Noise:
         ``kind="normal"``; then ``sigma`` is a constant, not a sampled site.
     """
 
-    kind: Literal["normal", "student_t", "proportional"] = "normal"
+    kind: Literal["normal", "student_t", "proportional", "ar1"] = "normal"
     group: str | None = None
     sigma: float | None = None
 
@@ -103,6 +110,7 @@ class Program:
     response: np.ndarray
     group_index: np.ndarray | None
     group_labels: list[Any] = field(default_factory=list)
+    chain_start: np.ndarray | None = None  # ar1 noise: True where a trajectory starts (data order)
     # init=False: dataclasses.replace(program, response=...) starts a fresh cache, never the old data's density
     _densities: dict[int, Density] = field(default_factory=dict, init=False, repr=False, compare=False)
 
@@ -154,13 +162,19 @@ class Program:
                 z = numpyro.sample("group_z", dist.Normal(0.0, 1.0))
             offset = numpyro.deterministic("group_offset", group_sd * z)
             mu = mu * jnp.exp(offset[group_index])
-        likelihood = self._likelihood(mu)
+        likelihood = self._likelihood(mu, mask, response)
         with numpyro.plate(OBS_DIM, mu.shape[0]):
             with numpyro.handlers.mask(mask=True if mask is None else mask):
                 numpyro.sample(OBS_SITE, likelihood, obs=response)
 
-    def _likelihood(self, mu):
+    def _likelihood(self, mu, mask=None, response=None):
         r = self.resolved
+        if self.noise.kind == "ar1":  # the mask is integrated out exactly (bayesfric.noise)
+            sigma = numpyro.sample("sigma", r["sigma"].to_numpyro())
+            rho = numpyro.sample("rho", r["rho"].to_numpyro())
+            # predictive draws: one step ahead given the observed data (what the likelihood scores)
+            past = self.response if response is None else None
+            return AR1Residuals(mu, sigma, rho, self.chain_start, mask, past)
         if self.noise.kind == "normal":
             if self.noise.sigma is not None:
                 return dist.Normal(mu, self.noise.sigma)
@@ -240,6 +254,12 @@ def build_program(
             raise DataError(f"noise group {noise.group!r} is not a coordinate of the dataset")
         labels_arr, group_index = np.unique(np.asarray(ds[noise.group].values), return_inverse=True)
         labels = labels_arr.tolist()
+    chain_start = None
+    if noise.kind == "ar1":
+        if not ds.attrs.get("trajectory"):
+            raise DataError(f"noise kind 'ar1' needs ordered trajectories, but data set "
+                            f"{ds.attrs.get('name', '?')!r} names no trajectory group")
+        chain_start = trajectory_starts(ds)
     return Program(
         law=law,
         noise=noise,
@@ -251,4 +271,5 @@ def build_program(
         response=response,
         group_index=group_index,
         group_labels=labels,
+        chain_start=chain_start,
     )

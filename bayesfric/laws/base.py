@@ -44,6 +44,7 @@ __all__ = [
     "TRAJECTORY_START",
     "OptionalInput",
     "declare",
+    "register_resolver",
 ]
 
 #: Structural input of trajectory (stateful) laws: True at the first sample of each ordered
@@ -183,14 +184,25 @@ class Law:
 
 
 REGISTRY: dict[str, Law] = {}
+#: Functions name -> Law | None that declare a parametrised law on first use (e.g. ``gms_n6``).
+_RESOLVERS: list[Callable[[str], Law | None]] = []
+
+
+def register_resolver(resolve: Callable[[str], Law | None]) -> None:
+    """Let ``resolve(name)`` declare laws of a family whose size is chosen by name (``gms_n6``)."""
+    _RESOLVERS.append(resolve)
 
 
 def get_law(name: str) -> Law:
-    """Look up a registered law by name; a clear error lists the known names."""
+    """Look up a registered law by name (or declare it through a resolver); a clear error lists
+    the known names."""
     _ensure_loaded()
     try:
         return REGISTRY[name]
     except KeyError:
+        for resolve in _RESOLVERS:
+            if (found := resolve(name)) is not None:
+                return found
         raise KeyError(f"unknown law {name!r}; known laws: {', '.join(sorted(REGISTRY))}") from None
 
 

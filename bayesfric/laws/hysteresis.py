@@ -45,7 +45,11 @@ coefficients, a = σ0|v̄|/g(v̄), so
 
 exact for piecewise-constant velocity and unconditionally stable however stiff σ0 is (z_k is a
 convex combination of z_{k−1} and the steady deflection g(v̄) sgn(v̄)/σ0). The recursion is
-affine in z, so it runs as an associative scan. Trajectories start at rest, z = 0.
+affine in z, so it runs as an associative scan. Start state: the constant ``F_start``
+(:data:`START_STATE`, the convention Dahl's ``F_start`` uses and the multi-element laws of
+:mod:`bayesfric.laws.slip` share): z = −F_start · g(v̄₁) sgn(v̄₁)/σ0 at each trajectory start, v̄₁
+the first step's held velocity -- 0 (default) at rest, z = 0; 1 saturated against the first
+motion (after a sweep the other way); −1 in steady sliding along it.
 """
 
 from __future__ import annotations
@@ -59,7 +63,8 @@ from jax import lax
 from bayesfric.laws.base import TRAJECTORY_START, Constant, Derived, OptionalInput, Param, law
 from bayesfric.priors import Prior
 
-__all__ = ["DAHL_LAWS", "dahl_torque", "lugre", "dahl_relax", "lugre_bristle"]
+__all__ = ["DAHL_LAWS", "dahl_torque", "lugre", "dahl_relax", "lugre_bristle", "START_STATE",
+           "held_velocity"]
 
 SEED = "seed 001 (Dahl 1977, solid friction parameters of ball bearings)"
 LUGRE = "Canudas de Wit et al. 1995 (LuGre), named in seed 002"
@@ -111,6 +116,11 @@ exponent_i = Param(
 P_REF = Constant(20.0 * LBF, "N", "reference preload P_ref = 20 lbf (middle of seed 001's 6-36 lb)")
 F_START = Constant(1.0, "1", "torque at each trajectory start as a fraction of F_c, against the "
                    "first motion (1: saturated branch, seed 001 Eq. 9-14; 0: virgin F = 0, Eq. 4)")
+#: Start state of the velocity-driven state laws (LuGre, GMS, elasto-plastic, Maxwell-slip), Dahl's
+#: convention with a relaxed default: fraction of the saturated state, against the first motion.
+START_STATE = Constant(0.0, "1", "state at each trajectory start as a fraction of the saturated "
+                       "(steady-sliding) state, against the first motion (0: relaxed, zero state; "
+                       "1: saturated after a sweep the other way; −1: sliding along the first motion)")
 sigma_ref = Derived(lambda F_c0, x_c0: F_c0 / x_c0, "N*m/rad",
                     "rest stiffness σ = F_c/x_c at P_ref (Eq. 5)")
 
@@ -268,7 +278,17 @@ def _phi1(x):
     return jnp.where(tiny, 1.0 - x / 2, -jnp.expm1(-x_safe) / x_safe)
 
 
-def lugre_bristle(velocity, time, trajectory_start, sigma0, F_c, dF_s, v_s):
+def held_velocity(velocity, time, trajectory_start):
+    """Midpoint velocity v̄_k = (v_{k−1} + v_k)/2 held over each sample interval, and the interval
+    h_k = t_k − t_{k−1} (0 at trajectory starts: time restarts per trajectory)."""
+    v = jnp.asarray(velocity, dtype=float)
+    start = jnp.asarray(trajectory_start, dtype=bool)
+    time = jnp.asarray(time, dtype=float)
+    v_hold = 0.5 * (v + jnp.concatenate([v[:1], v[:-1]]))
+    return v_hold, jnp.where(start, 0.0, jnp.diff(time, prepend=time[:1]))
+
+
+def lugre_bristle(velocity, time, trajectory_start, sigma0, F_c, dF_s, v_s, F_start=0.0):
     """Bristle deflection z (rad) of the LuGre model by the exact exponential step update.
 
     Returns
@@ -282,12 +302,12 @@ def lugre_bristle(velocity, time, trajectory_start, sigma0, F_c, dF_s, v_s):
     def g(w):
         return F_c + dF_s * jnp.exp(-((w / v_s) ** 2))
 
-    v_hold = 0.5 * (v + jnp.concatenate([v[:1], v[:-1]]))
-    time = jnp.asarray(time, dtype=float)
-    h = jnp.where(start, 0.0, jnp.diff(time, prepend=time[:1]))  # time restarts per trajectory
+    v_hold, h = held_velocity(v, time, start)
     rate_h = sigma0 * jnp.abs(v_hold) / g(v_hold) * h
-    decay = jnp.where(start, 0.0, jnp.exp(-rate_h))  # z = 0 at every trajectory start
-    gain = jnp.where(start, 0.0, v_hold * h * _phi1(rate_h))
+    decay = jnp.where(start, 0.0, jnp.exp(-rate_h))  # the start state replaces z at every start
+    v_first = jnp.append(v_hold[1:], 0.0)  # the first step's held velocity, on the start row
+    z_start = -F_start * jnp.sign(v_first) * g(v_first) / sigma0
+    gain = jnp.where(start, z_start, v_hold * h * _phi1(rate_h))
 
     def compose(first, second):  # affine maps z -> a z + b, applied first then second
         a1, b1 = first
@@ -343,6 +363,7 @@ def lugre_bristle(velocity, time, trajectory_start, sigma0, F_c, dF_s, v_s):
             f"{LUGRE}; {_GENERIC}",
         ),
     },
+    constants={"F_start": START_STATE},
     derived={
         "F_s": Derived(lambda F_c, dF_s: F_c + dF_s, "N*m", "static friction torque F_s"),
         "sigma1": Derived(lambda rho1, sigma2, F_c, dF_s: rho1 * sigma2 * F_c / dF_s,
@@ -351,9 +372,9 @@ def lugre_bristle(velocity, time, trajectory_start, sigma0, F_c, dF_s, v_s):
     trajectory=True,
     notes=_LUGRE_NOTES,
 )
-def lugre(velocity, time, trajectory_start, sigma0, rho1, sigma2, F_c, dF_s, v_s):
+def lugre(velocity, time, trajectory_start, sigma0, rho1, sigma2, F_c, dF_s, v_s, F_start):
     """LuGre friction: F = σ0 z + σ1 ż + σ2 v, ż = v − σ0|v| z/g(v), σ1 = ρ1·σ2 F_c/(F_s − F_c)."""
-    z, g = lugre_bristle(velocity, time, trajectory_start, sigma0, F_c, dF_s, v_s)
+    z, g = lugre_bristle(velocity, time, trajectory_start, sigma0, F_c, dF_s, v_s, F_start)
     v = jnp.asarray(velocity, dtype=float)
     z_rate = v - sigma0 * jnp.abs(v) * z / g
     sigma1 = rho1 * sigma2 * F_c / dF_s

@@ -15,13 +15,15 @@ from bayesfric.quantities import QUANTITIES
 
 __all__ = ["ParameterRow", "parameter_rows", "format_table", "law_rows", "unit_of"]
 
-_NOISE_UNITS = {"sigma": "response", "sigma_floor": "response", "nu": "1", "sigma_rel": "1", "group_sd": "1"}
+_NOISE_UNITS = {"sigma": "response", "sigma_floor": "response", "nu": "1", "sigma_rel": "1", "group_sd": "1",
+                "rho": "1"}
 _NOISE_MEANING = {
     "sigma": "noise standard deviation",
     "nu": "Student-t degrees of freedom",
     "sigma_rel": "relative (proportional) noise",
     "sigma_floor": "noise floor of the proportional model",
     "group_sd": "relative spread of group offsets",
+    "rho": "AR(1) lag-one correlation of residuals along a trajectory (sigma: innovation sd)",
 }
 
 

@@ -13,7 +13,7 @@ sampler settings, comparison methods and extrapolation folds::
     select = { series = [1, 2, 3] }    # optional row selection on coordinates
 
     [noise]
-    kind = "normal"                    # normal | student_t | proportional
+    kind = "normal"                    # normal | student_t | proportional | ar1 (AR(1) along trajectories)
     group = "series"                   # optional partial-pooled offsets
 
     [sampler]

@@ -62,6 +62,9 @@ def validate_against_data(study: Study, ds) -> None:
     if study.noise.group and study.noise.group not in coords:
         raise StudyError(f"{where}: [noise] group: {study.noise.group!r} is not a group of the data "
                          f"({', '.join(sorted(coords))})")
+    if study.noise.kind == "ar1" and not ds.attrs.get("trajectory"):
+        raise StudyError(f"{where}: [noise] kind: 'ar1' needs ordered trajectories, but the data "
+                         "names no trajectory group")
     if study.grouped and study.grouped not in coords:
         raise StudyError(f"{where}: [compare] grouped: {study.grouped!r} is not a coordinate of the data "
                          f"({', '.join(sorted(coords))})")

@@ -141,6 +141,7 @@ CASES = [
     S("constant-unknown", {"laws.0.constants": {"nope": 1.0}}, "laws[0].constants.nope"),
     # -- data-dependent checks ----------------------------------------------------------------------
     S("noise-group-unknown", {"noise": {"group": "nope"}}, "[noise] group", "'nope'"),
+    S("noise-ar1-without-trajectories", {"noise": {"kind": "ar1"}}, "[noise] kind", "trajectory"),
     S("grouped-unknown", {"compare.grouped": "nope"}, "[compare] grouped", "'nope'"),
     S("blocked-axis-unknown", {"compare.blocked.0.axis": "temperature"}, "compare.blocked[0].axis"),
     S("blocked-nothing-held-out", {"compare.blocked.0.threshold": 100.0}, "compare.blocked[0]",

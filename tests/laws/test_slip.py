@@ -1,0 +1,197 @@
+"""Maxwell-slip, GMS, elasto-plastic (bayesfric.laws.slip) and the shared start states (LuGre too):
+hand-computed values, invariants (loops close, virgin curves, sliding limit = Stribeck curve,
+no drift below break-away), exactness of the step updates."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from bayesfric.laws import get_law
+from bayesfric.laws.hysteresis import lugre_bristle
+from bayesfric.laws.slip import N_DEFAULT, elastoplastic_deflection
+
+W = np.array([1.0, 3.0, 2.0, 2.0])  # α = (1, 3, 2, 2)/8
+DX = np.array([1e-3, 1e-3, 2e-3, 4e-3])  # Δ = (1, 2, 4, 8) mrad
+STRIBECK = dict(F_c=1.0, dF_s=0.5, v_s=0.01, sigma2=2.0)
+
+
+def starts(n):
+    flags = np.zeros(n, dtype=bool)
+    flags[0] = True
+    return flags
+
+
+def maxwell(angle, F_c=2.0, w=W, dx=DX, F_start=0.0):
+    law = get_law("maxwell_slip")
+    inputs = {"angle": np.asarray(angle, float), "trajectory_start": starts(len(angle))}
+    return np.asarray(law.mean(inputs, {"F_c": F_c, "w": w, "dx": dx}, {"F_start": F_start}))
+
+
+def gms(v, t, F_start=0.0, C=50.0, **over):
+    params = dict(STRIBECK, C=C, w=W, dx=DX) | over
+    inputs = {"velocity": np.asarray(v, float), "time": np.asarray(t, float), "trajectory_start": starts(len(t))}
+    return np.asarray(get_law("gms").mean(inputs, params, {"F_start": F_start}))
+
+
+EP = dict(sigma0=1e3, beta=0.4, sigma2=2.0, F_c=1.0, dF_s=0.5, v_s=0.01)
+
+
+def elastoplastic(v, t, F_start=0.0, **over):
+    inputs = {"velocity": np.asarray(v, float), "time": np.asarray(t, float), "trajectory_start": starts(len(t))}
+    return np.asarray(get_law("elastoplastic").mean(inputs, EP | over, {"F_start": F_start}))
+
+
+def virgin_ms(x, F_c=2.0):
+    """Hand: T(x) = Σ k_i min(x, Δ_i), k_i = α_i F_c/Δ_i."""
+    alpha, delta = W / W.sum(), np.cumsum(DX)
+    return sum(a * F_c / d * np.minimum(x, d) for a, d in zip(alpha, delta, strict=True))
+
+
+# --- Maxwell-slip -------------------------------------------------------------------------------
+def test_maxwell_slip_hand_computed_virgin_curve():
+    x = np.linspace(0.0, 12e-3, 25)  # 0.5 mrad steps: kinks at 1, 2, 4, 8 mrad
+    np.testing.assert_allclose(maxwell(x), virgin_ms(x), rtol=1e-12, atol=1e-15)
+    # by hand at x = 3 mrad: 2·(1/8·1 + 3/8·1 + 2/8·3/4 + 2/8·3/8) = 1.5625
+    assert maxwell(np.array([0.0, 3e-3]))[1] == pytest.approx(1.5625, rel=1e-12)
+    assert maxwell(np.array([0.0, 1.0]))[1] == pytest.approx(2.0, rel=1e-12)  # saturates at F_c
+
+
+def test_maxwell_slip_reversal_follows_masing_rule_and_loops_close():
+    # triangle ±10 mrad: after the first half-cycle every branch is T_r ∓ 2·virgin(Δx/2)
+    up = np.linspace(-10e-3, 10e-3, 81)
+    cycle = np.concatenate([up[:-1], up[::-1][:-1]])
+    x = np.append(np.tile(cycle, 3), -10e-3)
+    T = maxwell(x)
+    n = cycle.size
+    np.testing.assert_allclose(T[n:2 * n], T[2 * n:3 * n], atol=1e-14)  # the loop closes
+    down = slice(n + 80, 2 * n + 1)  # from the reversal at +10 mrad (T = F_c) downwards
+    travelled = 10e-3 - x[down]
+    np.testing.assert_allclose(T[down], 2.0 - 2 * virgin_ms(travelled / 2), rtol=1e-12, atol=1e-14)
+
+
+@pytest.mark.parametrize("F_start,expected", [(0.0, 0.0), (1.0, -2.0), (-1.0, 2.0)])
+def test_maxwell_slip_start_states(F_start, expected):
+    x = np.linspace(0.0, 0.5e-3, 3)  # first motion positive
+    assert maxwell(x, F_start=F_start)[0] == pytest.approx(expected, abs=1e-15)
+
+
+def test_elements_are_ordered_and_n_is_chosen_by_name():
+    law = get_law("maxwell_slip")
+    assert law.params["w"].shape == (N_DEFAULT,)
+    assert get_law("maxwell_slip_n2").params["dx"].shape == (2,)
+    assert get_law("gms_n6").params["w"].shape == (6,)
+    assert get_law("gms_n6") is get_law("gms_n6")  # declared once
+    with pytest.raises(KeyError):
+        get_law("gms_n99")
+    # one element: elastic-perfectly-plastic, by hand
+    one = get_law("maxwell_slip_n1")
+    x = np.array([0.0, 0.5e-3, 2e-3, 1.5e-3])
+    out = np.asarray(one.mean({"angle": x, "trajectory_start": starts(4)},
+                              {"F_c": 1.0, "w": np.array([1.0]), "dx": np.array([1e-3])}))
+    np.testing.assert_allclose(out, [0.0, 0.5, 1.0, 0.5], rtol=1e-12)
+
+
+# --- GMS ----------------------------------------------------------------------------------------
+def stribeck_curve(v):
+    return (STRIBECK["F_c"] + STRIBECK["dF_s"] * np.exp(-((v / STRIBECK["v_s"]) ** 2))) * np.sign(v) \
+        + STRIBECK["sigma2"] * v
+
+
+@pytest.mark.parametrize("speed", [-0.05, -0.004, 0.002, 0.01, 0.3])
+def test_gms_sliding_limit_is_the_declared_stribeck_curve(speed):
+    t = np.linspace(0.0, 5.0, 200)
+    v = np.full(t.size, speed)
+    T = gms(v, t)
+    assert T[-1] == pytest.approx(stribeck_curve(speed), rel=1e-10)
+    # started in steady sliding along the motion (F_start = −1) it is on the curve at once
+    np.testing.assert_allclose(gms(v, t, F_start=-1.0), stribeck_curve(speed), rtol=1e-10)
+
+
+def test_gms_virgin_curve_at_constant_speed_by_hand():
+    # from rest at constant v: T(x) = Σ α_i min(F_s x/Δ_i, s(v)) + σ2 v (element at α_i s(v) once broken)
+    speed = 0.004
+    t = np.linspace(0.0, 3.0, 61)
+    T = gms(np.full(t.size, speed), t)
+    x = speed * t
+    s = STRIBECK["F_c"] + STRIBECK["dF_s"] * np.exp(-((speed / STRIBECK["v_s"]) ** 2))
+    alpha, delta = W / W.sum(), np.cumsum(DX)
+    F_s = STRIBECK["F_c"] + STRIBECK["dF_s"]
+    hand = sum(a * np.minimum(F_s * x / d, s) for a, d in zip(alpha, delta, strict=True)) + STRIBECK["sigma2"] * speed
+    np.testing.assert_allclose(T[1:], hand[1:], rtol=1e-10)
+
+
+def test_gms_with_flat_stribeck_curve_is_maxwell_slip_on_the_travelled_angle():
+    t = np.linspace(0.0, 6.0, 601)
+    v = 0.01 * np.sin(2 * np.pi * t / 2.0) + 0.003 * np.cos(2 * np.pi * t / 0.7)
+    T = gms(v, t, dF_s=0.0, sigma2=0.0, F_c=2.0)
+    v_hold = 0.5 * (v + np.r_[v[0], v[:-1]])
+    angle = np.concatenate([[0.0], np.cumsum(v_hold[1:] * np.diff(t))])
+    np.testing.assert_allclose(T, maxwell(angle), rtol=1e-9, atol=1e-12)
+
+
+def test_gms_loops_close_under_periodic_velocity():
+    per = 200
+    t = np.arange(4 * per) * (2.0 / per)
+    T = gms(0.02 * np.sin(2 * np.pi * t / 2.0), t)
+    np.testing.assert_allclose(T[2 * per:3 * per], T[3 * per:], atol=1e-9)
+
+
+# --- elasto-plastic -----------------------------------------------------------------------------
+def test_elastoplastic_has_no_drift_below_break_away_unlike_lugre():
+    # oscillation of amplitude 0.3 mrad < z_ba = β F_c/σ0 = 0.4 mrad: purely elastic, z = x
+    t = np.linspace(0.0, 10.0, 1001)
+    v = 0.3e-3 * (2 * np.pi / 2.0) * np.cos(2 * np.pi * t / 2.0)
+    z = np.asarray(elastoplastic_deflection(v, t, starts(t.size), 1e3, 0.4, 1.0, 0.5, 0.01, 0.0))
+    v_hold = 0.5 * (v + np.r_[v[0], v[:-1]])
+    x = np.concatenate([[0.0], np.cumsum(v_hold[1:] * np.diff(t))])
+    np.testing.assert_allclose(z, x, atol=1e-15)
+    z_lugre, _ = lugre_bristle(v, t, starts(t.size), 1e3, 1.0, 0.5, 0.01)
+    assert np.max(np.abs(np.asarray(z_lugre) - x)) > 1e-3 * 0.3e-3  # LuGre creeps (plastic) below it
+
+
+@pytest.mark.parametrize("speed", [-0.02, 0.003, 0.2])
+def test_elastoplastic_sliding_limit_is_the_stribeck_curve(speed):
+    t = np.linspace(0.0, 20.0, 400)  # ≥ 40 steady deflections z_max of travel
+    v = np.full(t.size, speed)
+    expected = (1.0 + 0.5 * np.exp(-((speed / 0.01) ** 2))) * np.sign(speed) + 2.0 * speed
+    assert elastoplastic(v, t)[-1] == pytest.approx(expected, rel=1e-9)
+    np.testing.assert_allclose(elastoplastic(v, t, F_start=-1.0), expected, rtol=1e-12)
+
+
+def test_elastoplastic_virgin_curve_is_elastic_then_converges():
+    speed = 1e-4  # 0.1 mrad per s, F_s reached near 1.5 mrad
+    t = np.linspace(0.0, 40.0, 401)
+    z = np.asarray(elastoplastic_deflection(np.full(t.size, speed), t, starts(t.size), *EP_ARGS))
+    x = speed * t
+    elastic = x <= 0.4e-3
+    np.testing.assert_allclose(z[elastic], x[elastic], rtol=1e-12)  # pure stiction below z_ba
+    assert np.all(np.diff(z) >= 0) and z.max() <= (1.0 + 0.5 * np.exp(-1e-4)) / 1e3 + 1e-15
+    # the blend zone is integrated approximately: 8 sub-steps against a 4000-step reference
+    ref = np.asarray(elastoplastic_deflection(np.full(t.size, speed), t, starts(t.size), *EP_ARGS,
+                                              substeps=4000))
+    assert np.max(np.abs(z - ref)) < 0.02 * ref.max()
+
+
+EP_ARGS = (1e3, 0.4, 1.0, 0.5, 0.01, 0.0)  # σ0, β, F_c, dF_s, v_s, F_start
+
+
+def test_elastoplastic_loops_close_under_periodic_velocity():
+    per = 200
+    t = np.arange(4 * per) * (2.0 / per)
+    T = elastoplastic(0.02 * np.sin(2 * np.pi * t / 2.0), t)
+    np.testing.assert_allclose(T[2 * per:3 * per], T[3 * per:], atol=1e-9)
+
+
+# --- LuGre start states -------------------------------------------------------------------------
+@pytest.mark.parametrize("F_start", [1.0, -1.0])
+def test_lugre_start_state_saturated(F_start):
+    t = np.linspace(0.0, 1.0, 50)
+    v = np.full(t.size, 0.05)
+    z, g = lugre_bristle(v, t, starts(t.size), 1e3, 1.0, 0.5, 0.01, F_start)
+    steady = float(np.asarray(g)[0]) / 1e3
+    assert float(z[0]) == pytest.approx(-F_start * steady, rel=1e-12)
+    if F_start < 0:  # steady sliding along the motion: stays there
+        np.testing.assert_allclose(np.asarray(z), steady, rtol=1e-12)
+    law = get_law("lugre")
+    assert law.constants["F_start"].value == 0.0  # default: relaxed, as before
