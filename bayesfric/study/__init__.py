@@ -15,18 +15,26 @@ __all__ = ["Study", "StudyError", "load_study", "run_study", "run_flagship", "ST
 STUDIES_DIR = builtin_folder("bayesfric.builtin_studies", "studies")
 
 
-def run_flagship(out_root: str | Path = "reports", quick: bool = False) -> list[Path]:
+def run_flagship(out_root: str | Path = "reports", quick: bool = False, *, fresh: bool = False, workers: int = 0,
+                 scheduler: str | None = None) -> list[Path]:
     """The main job: run every study in ``studies/`` (one per seed experiment) and write reports.
 
-    Prints each study's headline findings and the total wall time.
+    ``fresh``, ``workers`` and ``scheduler`` as in :func:`run_study` (one Dask cluster serves
+    every study). Prints one per-stage timing table over all studies and the total wall time.
     """
+    from bayesfric.study.executor import open_client, timing_table
+
     start = time.perf_counter()
     folders = []
     files = sorted(STUDIES_DIR.glob("*.toml"))
     if not files:
         raise StudyError(f"{STUDIES_DIR}: no study files")
-    for path in files:
-        folders.append(run_study(path, out_root=out_root, quick=quick))
+    timings: list = []
+    with open_client(workers, scheduler) as client:
+        for path in files:
+            folders.append(run_study(path, out_root=out_root, quick=quick, fresh=fresh, client=client,
+                                     timings=timings))
+    print("\n" + timing_table(timings, "main job: time per stage over all studies"))
     print(f"\nmain job: {len(folders)} studies in {time.perf_counter() - start:.0f} s")
     for folder in folders:
         print(f"  {folder / 'summary.md'}")
