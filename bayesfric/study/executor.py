@@ -32,8 +32,12 @@ from pathlib import Path
 from tqdm import tqdm
 
 from bayesfric.compare import verdict_of
+from bayesfric.errors import UserError
 from bayesfric.study.store import RunStore, load_fit_bytes
 from bayesfric.study.units import COSTLY, LawJob, Unit, compute, compute_seconds
+
+#: Seconds to wait for ``--scheduler ADDRESS`` to answer.
+CONNECT_TIMEOUT_S = 20
 
 __all__ = ["Timing", "run_units", "open_client", "timing_table", "write_timings", "Progress"]
 
@@ -94,7 +98,11 @@ def open_client(workers: int = 0, scheduler: str | None = None) -> Iterator[obje
     from distributed import Client, LocalCluster
 
     if scheduler:
-        with Client(scheduler) as client:
+        try:
+            client = Client(scheduler, timeout=CONNECT_TIMEOUT_S)
+        except (OSError, TimeoutError, ValueError) as exc:
+            raise UserError(f"--scheduler {scheduler}: cannot connect to a Dask scheduler ({exc})") from None
+        with client:
             yield client
         return
     with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \

@@ -182,6 +182,8 @@ def _run_laws(study: Study, ds, work: Path, schemes, settings: dict, seed: int, 
     The fits are copied into ``work/fits/``.
     """
     store = RunStore(store_folder(out_root, study.name), read=not fresh)
+    for tmp in store.clean():
+        print(f"[{study.name}] removed a temporary file of an interrupted run: {tmp}", flush=True)
     sampler = study.sampler.get("name", "nuts")
     plans = []
     for spec in study.laws:
@@ -332,7 +334,17 @@ def run_study(path: str | Path, out_root: str | Path = "reports", quick: bool = 
         One line, on bad input, before anything is written.
     """
     start = time.perf_counter()
-    study, final, ds, settings, kfold, schemes, questions = _prepare(path, out_root, quick)
+    prepared = _prepare(path, out_root, quick)
+    with contextlib.ExitStack() as stack:
+        if client is None:  # connected before anything is written: a bad --scheduler writes nothing
+            client = stack.enter_context(open_client(workers, scheduler))
+        return _write_study(prepared, Path(out_root), quick, fresh, client, timings, start)
+
+
+def _write_study(prepared, out_root: Path, quick: bool, fresh: bool, client, timings: list | None,
+                 start: float) -> Path:
+    """Run the prepared study's units and write its report folder atomically (see :func:`run_study`)."""
+    study, final, ds, settings, kfold, schemes, questions = prepared
     seed = study.sampler["seed"]
     root = final.parent
     for stale in fsutil.clean_stale_work(root, study.name):
@@ -340,11 +352,8 @@ def run_study(path: str | Path, out_root: str | Path = "reports", quick: bool = 
     work = fsutil.create_work_folder(root, study.name)
     try:
         rows: list = []
-        with contextlib.ExitStack() as stack:
-            if client is None:
-                client = stack.enter_context(open_client(workers, scheduler))
-            outcomes = _run_laws(study, ds, work, schemes, settings, seed, out_root=Path(out_root), fresh=fresh,
-                                 client=client, timings=rows)
+        outcomes = _run_laws(study, ds, work, schemes, settings, seed, out_root=out_root, fresh=fresh,
+                             client=client, timings=rows)
         write_timings(rows, work / "timings.csv")
         if timings is not None:
             timings += rows

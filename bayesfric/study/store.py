@@ -25,6 +25,7 @@ import io
 import json
 import os
 import secrets
+import socket
 import zipfile
 from collections.abc import Mapping
 from functools import lru_cache
@@ -109,9 +110,14 @@ def unit_key(**parts: Any) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:32]
 
 
+def _tmp_name(path: Path) -> Path:
+    """Temporary file of a write in progress: names its host and process (see :meth:`RunStore.clean`)."""
+    return path.parent / f".{path.name}.{socket.gethostname()}.{os.getpid()}.{secrets.token_hex(4)}.tmp"
+
+
 def _atomic_write(path: Path, payload: bytes) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.parent / f".{path.name}.{secrets.token_hex(4)}.tmp"
+    tmp = _tmp_name(path)
     try:
         with open(tmp, "wb") as fh:
             fh.write(payload)
@@ -175,6 +181,20 @@ class RunStore:
             return None
         return payload
 
+    def clean(self) -> list[Path]:
+        """Remove temporary files of writes killed part-way (their process on this host is gone)."""
+        removed = []
+        if not self.folder.is_dir():
+            return removed
+        host = socket.gethostname()
+        for tmp in self.folder.glob(".*.tmp"):
+            parts = tmp.name.rsplit(".", 4)  # .<entry>.<host>.<pid>.<token>.tmp
+            if len(parts) != 5 or parts[1] != host or not parts[2].isdigit() or _pid_alive(int(parts[2])):
+                continue
+            tmp.unlink(missing_ok=True)
+            removed.append(tmp)
+        return removed
+
     def put(self, key: str, kind: str, payload: bytes) -> Path:
         """Write an entry atomically (an existing one is replaced)."""
         path = self.path(key, kind)
@@ -182,18 +202,21 @@ class RunStore:
         return path
 
 
-def fit_to_bytes(dt: xr.DataTree) -> bytes:
-    """A fit as NetCDF bytes (what :func:`bayesfric.inference.save_fit` writes)."""
-    from bayesfric.inference import save_fit
-
-    folder = Path(os.environ.get("TMPDIR", "/tmp"))
-    path = folder / f"bayesfric-fit-{os.getpid()}-{secrets.token_hex(4)}.nc"
+def _pid_alive(pid: int) -> bool:
     try:
-        save_fit(dt, path)
-        return path.read_bytes()
-    finally:
-        if path.exists():
-            path.unlink()
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def fit_to_bytes(dt: xr.DataTree) -> bytes:
+    """A fit as NetCDF bytes (h5netcdf, as :func:`bayesfric.inference.save_fit` writes; no temporary file)."""
+    buffer = io.BytesIO()
+    dt.to_netcdf(buffer, engine="h5netcdf")
+    return buffer.getvalue()
 
 
 def load_fit_bytes(payload: bytes) -> xr.DataTree:
