@@ -184,6 +184,7 @@ def test_kill_minus_nine_then_rerun_equals_an_uninterrupted_run(tmp_path, data_c
 
 @pytest.mark.slow
 def test_two_worker_local_cluster_equals_serial(tmp_path, data_csv):  # noqa: F811
+    pytest.importorskip("distributed")  # the dask extra (installed by make test's bootstrap)
     path = _study(tmp_path)
     _finish(_run(path, tmp_path / "serial"))
     _finish(_run(path, tmp_path / "dask", "--workers", "2"))
@@ -211,3 +212,26 @@ def test_a_failed_fit_skips_cv_and_evidence_unless_asked(tmp_path, data_csv):  #
     _finish(_run(path, tmp_path / "skip"))
     assert "skipped" not in _statuses(folder)
     assert _statuses(folder).count("reused") == 3  # the fit, LOO and checks do not depend on the option
+
+
+def test_progress_lines_without_a_terminal_and_the_stage_table(tmp_path):
+    import io
+
+    from bayesfric.study.executor import Progress, Timing, timing_table, write_timings
+    from bayesfric.study.units import Unit
+
+    stream = io.StringIO()  # not a TTY: plain lines, no bar
+    progress = Progress(3, "tiny", stream)
+    progress.step(Unit("coulomb", "fit", "fit", "k1"), "computed", 2.5)
+    progress.step(Unit("coulomb", "cv", "blocked v", "k2"), "reused", 0.0)
+    lines = stream.getvalue().splitlines()
+    assert lines[0].startswith("[tiny] 1/3 coulomb fit: computed in 2.5 s (elapsed ")
+    assert lines[1].startswith("[tiny] 2/3 coulomb blocked v: reused (elapsed ") and "left)" in lines[1]
+    rows = [Timing("tiny", "coulomb", "fit", "fit", "computed", 2.5, 2.5),
+            Timing("tiny", "stribeck", "fit", "fit", "reused", 0.0, 4.0),
+            Timing("tiny", "stribeck", "cv", "blocked v", "skipped", 0.0, float("nan"))]
+    table = timing_table(rows).splitlines()
+    assert table[2].split() == ["fit", "1", "1", "0", "2.5"] and table[3].split() == ["cv", "0", "0", "1", "0.0"]
+    assert table[-1].split() == ["total", "1", "1", "1", "2.5"]
+    text = write_timings(rows, tmp_path / "timings.csv").read_text().splitlines()
+    assert text[0] == "study,law,stage,label,status,seconds,stored_seconds" and len(text) == 4

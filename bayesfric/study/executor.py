@@ -95,8 +95,11 @@ def open_client(workers: int = 0, scheduler: str | None = None) -> Iterator[obje
     if not workers and not scheduler:
         yield None
         return
-    from distributed import Client, LocalCluster
-
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError:
+        option = "--scheduler" if scheduler else "--workers"
+        raise UserError(f"{option}: needs Dask distributed, an optional extra: pip install 'bayesfric[dask]'") from None
     if scheduler:
         try:
             client = Client(scheduler, timeout=CONNECT_TIMEOUT_S)
