@@ -19,6 +19,7 @@ any time; it only costs recomputation.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import inspect
 import io
@@ -215,8 +216,19 @@ def _pid_alive(pid: int) -> bool:
 def fit_to_bytes(dt: xr.DataTree) -> bytes:
     """A fit as NetCDF bytes (h5netcdf, as :func:`bayesfric.inference.save_fit` writes; no temporary file)."""
     buffer = io.BytesIO()
-    dt.to_netcdf(buffer, engine="h5netcdf")
+    with _local_locks():
+        dt.to_netcdf(buffer, engine="h5netcdf")
     return buffer.getvalue()
+
+
+def _local_locks():
+    """Inside a Dask worker xarray would take a *distributed* lock named after the file, which a
+    buffer cannot be; the synchronous scheduler makes it take a local lock (the write is local)."""
+    try:
+        import dask
+    except ImportError:
+        return contextlib.nullcontext()
+    return dask.config.set(scheduler="synchronous")
 
 
 def load_fit_bytes(payload: bytes) -> xr.DataTree:
