@@ -7,6 +7,11 @@ check of the study, its paths and its data runs before anything is written; an e
 ``<out_root>/<study>`` is replaced only if bayesfric created it for this study; work folders of
 killed runs are removed by the next run of the study (:mod:`bayesfric.fsutil`).
 
+The work itself is split into units (:mod:`bayesfric.study.units`) that are read back from the run
+store when their key matches and computed otherwise, serially or on Dask
+(:mod:`bayesfric.study.store`, :mod:`bayesfric.study.executor`); ``timings.csv`` in the report says
+which, and how long each took. A killed run keeps its finished units for the next one.
+
 Besides the reports, every run stores ``weights.json`` (:mod:`bayesfric.sizing.store`): the
 weights, the diagnostics and evidence verdicts and the weighting exclusions of every law, so
 ``bayesfric size`` can answer sizing questions from ``fits/*.nc`` later without refitting. A study
