@@ -27,7 +27,6 @@ from pathlib import Path
 
 from bayesfric import compare, fsutil, sizing
 from bayesfric.datasets import DataError, load_dataset, resolve, select
-from bayesfric.inference import load_fit
 from bayesfric.laws import get_law
 from bayesfric.model import build_program
 from bayesfric.priors import PriorError
@@ -38,7 +37,7 @@ from bayesfric.study import units
 from bayesfric.study.config import Study, StudyError, load_study, sampler_settings, walkers_problem
 from bayesfric.study.executor import open_client, run_units, timing_table, write_timings
 from bayesfric.study.outcome import LawOutcome, StudyOutcome
-from bayesfric.study.store import RunStore, store_folder
+from bayesfric.study.store import RunStore, load_fit_bytes, store_folder
 
 __all__ = ["run_study", "validate_against_data", "sizing_questions", "load_study_data"]
 
@@ -202,7 +201,7 @@ def _run_laws(study: Study, ds, work: Path, schemes, settings: dict, seed: int, 
         fit_file = work / "fits" / f"{job.spec.name}.nc"
         fit_file.parent.mkdir(parents=True, exist_ok=True)
         fit_file.write_bytes(payloads[fit.key])  # inside the work folder: installed atomically with the report
-        out = units.assemble(load_fit(fit_file), fit_file, rest, payloads, kinds, skipped[job.spec.name],
+        out = units.assemble(load_fit_bytes(payloads[fit.key]), fit_file, rest, payloads, kinds, skipped[job.spec.name],
                              study.failed_fits)
         for r in rows:
             if r.law == job.spec.name and r.status == "computed":

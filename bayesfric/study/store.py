@@ -232,5 +232,14 @@ def _local_locks():
 
 
 def load_fit_bytes(payload: bytes) -> xr.DataTree:
-    """Inverse of :func:`fit_to_bytes` (the fit fully loaded into memory)."""
+    """Inverse of :func:`fit_to_bytes` (the fit fully loaded into memory; a copy of its own).
+
+    Opening a fit costs about a second; a run opens each fit several times (validation, the
+    gate's verdict, the outcome), so the last few opened are kept (keyed by their bytes).
+    """
+    return _open_fit(bytes(payload)).copy()
+
+
+@lru_cache(maxsize=4)
+def _open_fit(payload: bytes) -> xr.DataTree:
     return xr.open_datatree(io.BytesIO(payload), engine="h5netcdf").load()
