@@ -120,11 +120,11 @@ def _study(tmp_path: Path) -> Path:
     return path
 
 
-def _run(path: Path, out: Path, *extra: str) -> subprocess.Popen:
+def _run(path: Path, out: Path, *extra: str, quick: bool = True) -> subprocess.Popen:
     env = {k: v for k, v in os.environ.items() if k != STORE_ENV}  # the store under --out
-    return subprocess.Popen([sys.executable, "-m", "bayesfric", "study", str(path), "--out", str(out), "--quick",
-                             *extra], cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                            env=env, start_new_session=True)
+    return subprocess.Popen([sys.executable, "-m", "bayesfric", "study", str(path), "--out", str(out),
+                             *(["--quick"] if quick else []), *extra], cwd=REPO, stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True, env=env, start_new_session=True)
 
 
 def _entries(store: Path) -> list[Path]:
@@ -195,12 +195,13 @@ def test_two_worker_local_cluster_equals_serial(tmp_path, data_csv):  # noqa: F8
 
 @pytest.mark.slow
 def test_a_failed_fit_skips_cv_and_evidence_unless_asked(tmp_path, data_csv):  # noqa: F811
-    """20 draws per chain cannot pass the ESS gate: CV and evidence are skipped, and the report says so."""
+    """40 draws per chain cannot pass the ESS gate: CV and evidence are skipped, and the report says so
+    (not under --quick, which runs every stage as a smoke test)."""
     text = (study_text('[[laws]]\nname = "coulomb_viscous"\n').replace("draws = 1000", "draws = 40")
             .replace("tune = 500", "tune = 40").replace("evidence = false", "evidence = true"))
     path = tmp_path / "s.toml"
     path.write_text(text)
-    _finish(_run(path, tmp_path / "skip"))
+    _finish(_run(path, tmp_path / "skip", quick=False))
     folder = tmp_path / "skip" / "tiny"
     with (folder / "timings.csv").open() as fh:
         rows = {row["stage"]: row["status"] for row in csv.DictReader(fh)}
@@ -209,7 +210,7 @@ def test_a_failed_fit_skips_cv_and_evidence_unless_asked(tmp_path, data_csv):  #
     summary = (folder / "summary.md").read_text()
     assert "failed the diagnostics gate, so" in summary and "were not computed" in summary
     path.write_text(text.replace("evidence = true", 'evidence = true\nfailed_fits = "run"'))
-    _finish(_run(path, tmp_path / "skip"))
+    _finish(_run(path, tmp_path / "skip", quick=False))
     assert "skipped" not in _statuses(folder)
     assert _statuses(folder).count("reused") == 3  # the fit, LOO and checks do not depend on the option
 

@@ -178,8 +178,11 @@ def _fold_schemes(study: Study, ds, seed: int, kfold: int) -> list[tuple[str, ob
 
 
 def _run_laws(study: Study, ds, work: Path, schemes, settings: dict, seed: int, *, out_root: Path,
-              fresh: bool, client, timings: list) -> list[LawOutcome]:
+              fresh: bool, client, timings: list, quick: bool) -> list[LawOutcome]:
     """Every law's units through the run store and the executor; their outcomes, in study order.
+
+    Under ``--quick`` every stage runs even after a failed fit (``failed_fits = "run"``): quick
+    settings rarely reach the gate's ESS, and a smoke test should exercise every stage.
 
     Units whose key is in the store are reused, the rest are computed (serially, or on the Dask
     ``client``); each result is stored as soon as it is done (:mod:`bayesfric.study.executor`).
@@ -193,7 +196,8 @@ def _run_laws(study: Study, ds, work: Path, schemes, settings: dict, seed: int, 
     for spec in study.laws:
         job = units.make_job(spec, study.noise, ds, sampler, settings, seed)
         plans.append((job, *units.plan_law(job, study, schemes)))
-    payloads, skipped, rows = run_units(plans, store, study=study.name, failed_fits=study.failed_fits, client=client)
+    failed_fits = "run" if quick else study.failed_fits
+    payloads, skipped, rows = run_units(plans, store, study=study.name, failed_fits=failed_fits, client=client)
     timings += rows
     kinds = {label: kind for label, _, kind in schemes}
     outcomes = []
@@ -202,7 +206,7 @@ def _run_laws(study: Study, ds, work: Path, schemes, settings: dict, seed: int, 
         fit_file.parent.mkdir(parents=True, exist_ok=True)
         fit_file.write_bytes(payloads[fit.key])  # inside the work folder: installed atomically with the report
         out = units.assemble(load_fit_bytes(payloads[fit.key]), fit_file, rest, payloads, kinds, skipped[job.spec.name],
-                             study.failed_fits)
+                             failed_fits)
         for r in rows:
             if r.law == job.spec.name and r.status == "computed":
                 out.timings[r.label if r.stage != "cv" else f"cv {r.label}"] = r.seconds
@@ -357,7 +361,7 @@ def _write_study(prepared, out_root: Path, quick: bool, fresh: bool, client, tim
     try:
         rows: list = []
         outcomes = _run_laws(study, ds, work, schemes, settings, seed, out_root=out_root, fresh=fresh,
-                             client=client, timings=rows)
+                             client=client, timings=rows, quick=quick)
         write_timings(rows, work / "timings.csv")
         if timings is not None:
             timings += rows
