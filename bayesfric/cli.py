@@ -207,11 +207,27 @@ def _check_reports_root(out: str) -> None:
         raise UserError(f"--out {exc}") from None
 
 
+def _run_options(q: argparse.ArgumentParser) -> None:
+    """Options of ``study`` and ``main``: the run store and the Dask executor."""
+    q.add_argument("--fresh", action="store_true", help="recompute every unit instead of reusing the run store")
+    q.add_argument("--workers", type=int, default=0, metavar="N",
+                   help="run units on a local Dask cluster of N processes (default: serial)")
+    q.add_argument("--scheduler", metavar="ADDRESS", help="run units on the Dask cluster at ADDRESS (tcp://host:8786)")
+
+
+def _executor(args: argparse.Namespace) -> dict:
+    if args.workers < 0:
+        raise UserError(f"--workers: must be 0 (serial) or a number of processes ≥ 1, got {args.workers}")
+    if args.workers and args.scheduler:
+        raise UserError("--workers and --scheduler: give one (a local cluster, or an existing one)")
+    return dict(fresh=args.fresh, workers=args.workers, scheduler=args.scheduler)
+
+
 def _cmd_study(args: argparse.Namespace) -> None:
     from bayesfric.study import run_study
 
     _check_reports_root(args.out)
-    run_study(args.file, out_root=args.out, quick=args.quick)
+    run_study(args.file, out_root=args.out, quick=args.quick, **_executor(args))
 
 
 def _size_question(args: argparse.Namespace):
@@ -300,7 +316,7 @@ def _cmd_main(args: argparse.Namespace) -> None:
     from bayesfric.study import run_flagship
 
     _check_reports_root(args.out)
-    run_flagship(out_root=args.out, quick=args.quick)
+    run_flagship(out_root=args.out, quick=args.quick, **_executor(args))
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -345,6 +361,7 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("file", help="study TOML file")
     q.add_argument("--out", default="reports", help="reports root folder")
     q.add_argument("--quick", action="store_true", help="fewer draws and folds (smoke test, not for decisions)")
+    _run_options(q)
     q.set_defaults(func=_cmd_study)
 
     q = sub.add_parser("size", help="actuator sizing: predictive friction at untested operating points, "
@@ -363,6 +380,7 @@ def build_parser() -> argparse.ArgumentParser:
     q = sub.add_parser("main", help="the main job: run every study in studies/ and write reports/")
     q.add_argument("--out", default="reports", help="reports root folder")
     q.add_argument("--quick", action="store_true", help="fewer draws and folds (smoke test)")
+    _run_options(q)
     q.set_defaults(func=_cmd_main)
     return p
 

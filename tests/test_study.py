@@ -94,7 +94,8 @@ def test_end_to_end_tiny_study(tmp_path, data_csv):
         assert np.isfinite(float(r["elpd_loo"])) and len(penalties) == 1 and np.isfinite(penalties[0])
     text = (folder / "summary.md").read_text()
     assert "SIMULATED data" in text and "## Ranking" in text and "weight[stacking LOO]" in rows[0]
-    assert not [p for p in folder.parent.iterdir() if p.name.startswith(".")]  # no temporary folder left
+    hidden = [p.name for p in folder.parent.iterdir() if p.name.startswith(".")]
+    assert hidden == [".store"]  # the run store (README); no temporary folder left
 
 
 def test_evidence_pair_end_to_end(tmp_path, data_csv):

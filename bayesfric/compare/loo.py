@@ -26,7 +26,7 @@ from bayesfric.compare.refit import CVResult, RefitEngine, pointwise_lpd, progra
 from bayesfric.inference.diagnostics import verdict_of
 from bayesfric.model import OBS_SITE, Program
 
-__all__ = ["LooResult", "psis_loo", "K_THRESHOLD_RULE", "Penalty", "extrapolation_penalty"]
+__all__ = ["LooResult", "psis_loo", "loo_from_values", "K_THRESHOLD_RULE", "Penalty", "extrapolation_penalty"]
 
 K_THRESHOLD_RULE = "arviz-stats good_k = min(1 - 1/log10(S), 0.7), S = posterior draws"
 
@@ -135,6 +135,12 @@ def psis_loo(
         handling = f"exact refits leaving out each of {high.size} point(s)"
         if refit_failed:
             handling += f"; refits of {refit_failed} failed the gate"
+    return _result(fit, data, elpd_i, threshold, high, handling, refit_failed)
+
+
+def _result(fit: xr.DataTree, data, elpd_i: np.ndarray, threshold: float, high: np.ndarray, handling: str,
+            refit_failed: list[int]) -> LooResult:
+    """The :class:`LooResult` of ``fit`` from arviz-stats' ``data`` and the (refitted) ``elpd_i``."""
     ll = np.asarray(fit["log_likelihood"][OBS_SITE].values)
     lppd_i = pointwise_lpd(ll.reshape((-1, ll.shape[-1])))
     n = elpd_i.size
@@ -147,11 +153,24 @@ def psis_loo(
     )
     return LooResult(
         law=str(fit.attrs.get("law", "")),
-        elpd=elpd, se=se, p_loo=p_loo, elpd_i=elpd_i, pareto_k=pareto_k,
+        elpd=elpd, se=se, p_loo=p_loo, elpd_i=elpd_i,
+        pareto_k=np.asarray(data.pareto_k.values, dtype=float).ravel(),
         k_threshold=threshold, high_k=high, handling=handling, refit_failed=refit_failed,
         fit_passed=verdict_of(fit).passed if "diagnostics" in fit.attrs else False,
         elpd_data=updated,
     )
+
+
+def loo_from_values(fit: xr.DataTree, elpd_i: np.ndarray, handling: str, refit_failed: list[int]) -> LooResult:
+    """Rebuild the :class:`LooResult` of ``fit`` from a stored ``elpd_i`` (refit values in place).
+
+    The Pareto-smoothed part is recomputed from the fit (deterministic, cheap); only the exact
+    refits' values come from the store (:mod:`bayesfric.study.units`).
+    """
+    data = az.loo(fit, pointwise=True, var_name=OBS_SITE)
+    threshold = float(data.good_k)
+    high = np.flatnonzero(np.asarray(data.pareto_k.values, dtype=float).ravel() > threshold)
+    return _result(fit, data, np.asarray(elpd_i, dtype=float), threshold, high, handling, list(refit_failed))
 
 
 @dataclass(frozen=True)

@@ -118,6 +118,11 @@ def _warnings(outcome: StudyOutcome) -> list[Finding]:
     if disagree:
         out.append(plain("Evidence estimators disagree beyond their combined error for: "
                          f"{', '.join(disagree)} (left out of the evidence ranking, never averaged).", warning=True))
+    for w in outcome.laws:  # stages a failed fit skipped ([compare] failed_fits, study.units)
+        if w.skipped:
+            out.append(_f(_law(w.name), ": the full fit failed the diagnostics gate, so "
+                          f"{', '.join(w.skipped)} were not computed (compare.failed_fits = "
+                          f"\"{outcome.study.failed_fits}\"; set \"run\" to compute them anyway).", warning=True))
     pit = [w.name for w in outcome.laws if not w.loo_pit_ok]
     if pit:
         out.append(plain(f"LOO-PIT miscalibrated (predictive intervals too narrow or too wide): {', '.join(pit)}.",

@@ -25,11 +25,14 @@ def __getattr__(name: str) -> Any:
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-def run_flagship(out_root: str | Path = "reports", quick: bool = False) -> list[Path]:
+def run_flagship(out_root: str | Path = "reports", quick: bool = False, *, fresh: bool = False, workers: int = 0,
+                 scheduler: str | None = None) -> list[Path]:
     """The main job: run every study in ``studies/`` (one per seed experiment) and write reports.
 
-    Prints each study's headline findings and the total wall time.
+    ``fresh``, ``workers`` and ``scheduler`` as in :func:`run_study` (one Dask cluster serves
+    every study). Prints one per-stage timing table over all studies and the total wall time.
     """
+    from bayesfric.study.executor import open_client, timing_table
     from bayesfric.study.runner import run_study
 
     start = time.perf_counter()
@@ -37,8 +40,12 @@ def run_flagship(out_root: str | Path = "reports", quick: bool = False) -> list[
     files = sorted(STUDIES_DIR.glob("*.toml"))
     if not files:
         raise StudyError(f"{STUDIES_DIR}: no study files")
-    for path in files:
-        folders.append(run_study(path, out_root=out_root, quick=quick))
+    timings: list = []
+    with open_client(workers, scheduler) as client:
+        for path in files:
+            folders.append(run_study(path, out_root=out_root, quick=quick, fresh=fresh, client=client,
+                                     timings=timings))
+    print("\n" + timing_table(timings, "main job: time per stage over all studies"))
     print(f"\nmain job: {len(folders)} studies in {time.perf_counter() - start:.0f} s")
     for folder in folders:
         print(f"  {folder / 'summary.md'}")

@@ -46,6 +46,7 @@ sampler settings, comparison methods and extrapolation folds::
     smc = false                        # also tempered SMC as a reference (opt-in: 3-13x the fit's cost)
     smc_particles = 300                # SMC particles per run (default 300, at least 20)
     smc_runs = 3                       # independent SMC runs (≥ 2); their spread gives the MC error
+    failed_fits = "skip"               # skip | run: CV refits and evidence of a law whose fit failed the gate
 
     [[compare.blocked]]
     axis = "velocity"                  # any input coordinate of the data
@@ -195,6 +196,7 @@ class Study:
     smc_runs: int = 3
     blocked: list[BlockedSpec] = field(default_factory=list)
     include_failed: bool = False
+    failed_fits: str = "skip"  # a law whose full fit failed the gate: "skip" its CV and evidence, or "run" them
     sizing: list[SizingQuestion] = field(default_factory=list)
     claims: list[Claim] = field(default_factory=list)
     raw: dict[str, Any] = field(default_factory=dict)
@@ -280,6 +282,8 @@ COMPARE = Schema((
     Field("smc_particles", "int", 300, min=20, doc="SMC particles per run"),
     Field("smc_runs", "int", 3, min=2, doc="independent SMC runs"),
     Field("include_failed", "bool", False, doc="weight fits that failed the gate"),
+    Field("failed_fits", "str", "skip", choices=("skip", "run"),
+          doc="a law whose full fit failed the gate: skip its CV refits and evidence, or run them anyway"),
     Field("blocked", "tables", [], schema=BLOCKED, doc="blocked extrapolation folds"),
 ))
 SIZING = Schema((
@@ -479,6 +483,6 @@ def load_study(path: str | Path) -> Study:
         sampler=spec["sampler"], laws=laws, loo=compare["loo"], kfold=compare["kfold"],
         grouped=compare["grouped"], evidence=compare["evidence"], smc=compare["smc"],
         smc_particles=compare["smc_particles"],
-        smc_runs=compare["smc_runs"], blocked=blocked, include_failed=compare["include_failed"], sizing=sizing,
-        claims=claims, raw=raw,
+        smc_runs=compare["smc_runs"], blocked=blocked, include_failed=compare["include_failed"],
+        failed_fits=compare["failed_fits"], sizing=sizing, claims=claims, raw=raw,
     )

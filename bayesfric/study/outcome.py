@@ -59,8 +59,9 @@ class LawOutcome:
     loo_pit_ok: bool = True  # False: the LOO-PIT ECDF leaves its simultaneous band (miscalibrated)
     prior_sensitivity: str = ""
     flags: list[str] = field(default_factory=list)
+    skipped: list[str] = field(default_factory=list)  # stages not run: the full fit failed the gate
     results: dict[str, Any] = field(default_factory=dict)  # "loo" / scheme label -> LooResult / CVResult
-    timings: dict[str, float] = field(default_factory=dict)  # stage -> wall seconds
+    timings: dict[str, float] = field(default_factory=dict)  # stage -> wall seconds computed in this run
     seconds: float = 0.0
 
     @property

@@ -7,6 +7,11 @@ check of the study, its paths and its data runs before anything is written; an e
 ``<out_root>/<study>`` is replaced only if bayesfric created it for this study; work folders of
 killed runs are removed by the next run of the study (:mod:`bayesfric.fsutil`).
 
+The work itself is split into units (:mod:`bayesfric.study.units`) that are read back from the run
+store when their key matches and computed otherwise, serially or on Dask
+(:mod:`bayesfric.study.store`, :mod:`bayesfric.study.executor`); ``timings.csv`` in the report says
+which, and how long each took. A killed run keeps its finished units for the next one.
+
 Besides the reports, every run stores ``weights.json`` (:mod:`bayesfric.sizing.store`): the
 weights, the diagnostics and evidence verdicts and the weighting exclusions of every law, so
 ``bayesfric size`` can answer sizing questions from ``fits/*.nc`` later without refitting. A study
@@ -16,22 +21,23 @@ question and a sizing section in ``summary.md`` and ``report.html``.
 
 from __future__ import annotations
 
+import contextlib
 import time
 from pathlib import Path
 
-import numpy as np
-
 from bayesfric import compare, fsutil, sizing
 from bayesfric.datasets import DataError, load_dataset, resolve, select
-from bayesfric.inference import SAMPLERS, release_compiled_code, save_fit
 from bayesfric.laws.variants import for_data
 from bayesfric.model import build_program
 from bayesfric.priors import PriorError
 from bayesfric.quantities import QUANTITIES
+from bayesfric.study import units
 from bayesfric.study.claims import ClaimError, check_claim, evaluate_claims
 from bayesfric.study.config import Study, StudyError, load_study, sampler_settings, walkers_problem
-from bayesfric.study.outcome import Estimate, LawOutcome, StudyOutcome
+from bayesfric.study.executor import open_client, run_units, timing_table, write_timings
+from bayesfric.study.outcome import LawOutcome, StudyOutcome
 from bayesfric.study.scores import score_table
+from bayesfric.study.store import RunStore, load_fit_bytes, store_folder
 
 __all__ = ["run_study", "validate_against_data", "sizing_questions", "load_study_data"]
 
@@ -178,96 +184,42 @@ def _fold_schemes(study: Study, ds, seed: int, kfold: int) -> list[tuple[str, ob
     return schemes
 
 
-def _run_law(study: Study, spec, ds, folder: Path, schemes, settings: dict, seed: int, quick: bool) -> LawOutcome:
-    start = time.perf_counter()
-    clock = [start]
+def _run_laws(study: Study, ds, work: Path, schemes, settings: dict, seed: int, *, out_root: Path,
+              fresh: bool, client, timings: list, quick: bool) -> list[LawOutcome]:
+    """Every law's units through the run store and the executor; their outcomes, in study order.
 
-    def lap(stage: str) -> None:  # per-stage wall time, printed and stored with the outcome
-        now = time.perf_counter()
-        out.timings[stage] = now - clock[0]
-        clock[0] = now
+    Under ``--quick`` every stage runs even after a failed fit (``failed_fits = "run"``): quick
+    settings rarely reach the gate's ESS, and a smoke test should exercise every stage.
 
-    program = build_program(spec.build(), ds, priors=spec.priors, noise=study.noise, constants=spec.constants)
-    law = program.law  # as it runs on this data (motion kind, units), named by the entry's label
-    if study.sampler.get("name", "nuts") == "nuts":
-        # One compiled engine per law: the full fit is its all-true mask, and the same compiled
-        # sampler refits every fold -- cold (the full warm-up from the prior median) for folds
-        # that remove a whole region or series, warm-started from the full fit's draws and mass
-        # matrix (a 250-step warm-up) for folds that drop a few points (PSIS-LOO's high-k
-        # points, random K-fold), when the full fit passed the gate.
-        engine = compare.RefitEngine(program, seed=seed, **settings)
-        dt = engine.fit(ds)
-    else:
-        dt = SAMPLERS[study.sampler["name"]](program, ds, seed=seed, **settings)
-        # folds of an emcee study are refitted with NUTS, at the NUTS defaults' length
-        engine = compare.RefitEngine(program, draws=1000, tune=500, chains=4, seed=seed)
-    fit_file = save_fit(dt, folder / "fits" / f"{law.name}.nc")
-    verdict = compare.verdict_of(dt)
-    out = LawOutcome(law=law, fit=dt, fit_file=fit_file, verdict=verdict)
-    lap("fit")
-    if not verdict.passed:
-        out.flags.append("diagnostics FAILED: " + "; ".join(verdict.problems))
-    cold_engine = engine
-    warm_tune = min(250, engine.tune)  # a warm start needs ≥ 120 warm-up steps within the engine's
-    near_engine = engine.warm_started(dt, warm_tune) if verdict.passed and warm_tune >= 120 else engine
-    loo = None
-    if study.loo:
-        loo = compare.psis_loo(dt, program=program, engine=near_engine, seed=seed)
-        out.results["loo"] = loo
-        out.loo, out.loo_pointwise = Estimate(loo.elpd, loo.se), loo.elpd_i
-        out.p_loo, out.pareto_k_max, out.n_high_k = loo.p_loo, float(np.max(loo.pareto_k)), loo.n_high_k
-        out.high_k_handling = f"PSIS-LOO: {loo.n_high_k} points with Pareto k > {loo.k_threshold:.2f} ({loo.handling})"
-        if not loo.reliable:
-            why = "the full fit failed the gate" if not loo.fit_passed else loo.handling
-            out.flags.append(f"LOO unreliable ({why})")
-        lap("loo")
-    for label, folds, kind in schemes:
-        engine = near_engine if kind == "kfold" else cold_engine
-        cv = compare.cross_validate(engine, folds, seed=seed)
-        out.results[label] = cv
-        out.cv[label] = Estimate(cv.elpd, cv.se)
-        out.cv_pointwise[label] = cv.elpd_i
-        out.cv_reliable[label] = cv.reliable
-        if not cv.reliable:
-            out.flags.append(f"{label}: folds {cv.failed_folds} failed the gate")
-        if kind == "blocked" and loo is not None:
-            out.penalty[label] = compare.extrapolation_penalty(loo, cv).per_point
-        lap(f"cv {label}")
-    if study.evidence:
-        # Two estimators that share only the density: bridge sampling on the fit's draws and
-        # importance sampling from a Laplace-t proposal (bench_evidence.py: together ≤ 0.63× the
-        # fit on the shipped laws). Tempered SMC (3-13× the fit) runs only when the study asks.
-        bridge = compare.bridge_log_evidence(program, dt, seed=seed)
-        importance = compare.laplace_is_log_evidence(program, seed=seed)
-        out.evidence = {"bridge": Estimate(bridge.log_z, bridge.error),
-                        "importance": Estimate(importance.log_z, importance.error)}
-        agreement = compare.compare_estimators(bridge, importance)
-        out.evidence_disagreement = agreement.difference
-        out.evidence_agree = agreement.agree
-        if not agreement.agree:
-            why = (f"importance weights heavy-tailed (Pareto k = {importance.diagnostics['pareto_k']:.2f})"
-                   if not importance.diagnostics.get("reliable", True) else
-                   f"> {agreement.threshold:.2f} nat")
-            out.flags.append(f"evidence estimators disagree by {abs(agreement.difference):.2f} nat ({why}); "
-                             "not ranked by evidence")
-        lap("evidence")
-        if study.smc:
-            smc = compare.smc_log_evidence(program, seed=seed, particles=study.smc_particles, runs=study.smc_runs)
-            out.evidence["SMC"] = Estimate(smc.log_z, smc.error)
-            lap("SMC reference")
-    out.prior_implausible = compare.prior_predictive_check(program, seed=seed).implausible
-    pit = compare.loo_pit_check(dt, seed=seed)
-    out.loo_pit_pvalue, out.loo_pit_ok = pit.ks_pvalue, bool(pit.within_band)
-    if not pit.within_band:
-        out.flags.append(f"LOO-PIT outside the {pit.ci_prob:.0%} band (KS p = {pit.ks_pvalue:.3f}): miscalibrated")
-    sens = compare.prior_sensitivity(dt)
-    flagged = [f"{i} ({d})" for i, d in zip(sens.index, sens["diagnosis"], strict=True) if d != "-"]
-    out.prior_sensitivity = ("psense flags " + ", ".join(flagged) if flagged
-                             else "no parameter flagged by power-scaling (psense)")
-    lap("checks")
-    out.seconds = time.perf_counter() - start
-    print(f"    {law.name}: " + ", ".join(f"{k} {v:.0f} s" for k, v in out.timings.items()), flush=True)
-    return out
+    Units whose key is in the store are reused, the rest are computed (serially, or on the Dask
+    ``client``); each result is stored as soon as it is done (:mod:`bayesfric.study.executor`).
+    The fits are copied into ``work/fits/``.
+    """
+    store = RunStore(store_folder(out_root, study.name), read=not fresh)
+    for tmp in store.clean():
+        print(f"[{study.name}] removed a temporary file of an interrupted run: {tmp}", flush=True)
+    sampler = study.sampler.get("name", "nuts")
+    plans = []
+    for spec in study.laws:
+        job = units.make_job(spec, study.noise, ds, sampler, settings, seed)
+        plans.append((job, *units.plan_law(job, study, schemes)))
+    failed_fits = "run" if quick else study.failed_fits
+    payloads, skipped, rows = run_units(plans, store, study=study.name, failed_fits=failed_fits, client=client)
+    timings += rows
+    kinds = {label: kind for label, _, kind in schemes}
+    outcomes = []
+    for job, fit, rest in plans:
+        fit_file = work / "fits" / f"{job.spec.name}.nc"
+        fit_file.parent.mkdir(parents=True, exist_ok=True)
+        fit_file.write_bytes(payloads[fit.key])  # inside the work folder: installed atomically with the report
+        out = units.assemble(load_fit_bytes(payloads[fit.key]), fit_file, rest, payloads, kinds, skipped[job.spec.name],
+                             failed_fits)
+        for r in rows:
+            if r.law == job.spec.name and r.status == "computed":
+                out.timings[r.label if r.stage != "cv" else f"cv {r.label}"] = r.seconds
+        out.seconds = sum(out.timings.values())
+        outcomes.append(out)
+    return outcomes
 
 
 def _assign_weights(out: StudyOutcome) -> None:
@@ -340,7 +292,8 @@ def _prepare(path: str | Path, out_root: str | Path, quick: bool):
     return study, final, ds, settings, kfold, schemes, sizing_questions(study, ds)
 
 
-def run_study(path: str | Path, out_root: str | Path = "reports", quick: bool = False) -> Path:
+def run_study(path: str | Path, out_root: str | Path = "reports", quick: bool = False, *, fresh: bool = False,
+              workers: int = 0, scheduler: str | None = None, client=None, timings: list | None = None) -> Path:
     """Run the study file at ``path`` and write ``<out_root>/<study name>/``.
 
     Parameters
@@ -352,6 +305,14 @@ def run_study(path: str | Path, out_root: str | Path = "reports", quick: bool = 
     quick : bool
         Smoke test: fewer draws and folds (:data:`QUICK`, :data:`QUICK_KFOLD`), applied after
         the study's own settings were validated; the report says so.
+    fresh : bool
+        Recompute every unit instead of reusing the run store (results are stored again).
+    workers, scheduler
+        Run units on a Dask local cluster of ``workers`` processes, or on the cluster whose
+        scheduler listens at ``scheduler`` (:func:`bayesfric.study.executor.open_client`);
+        ``client`` passes an open Dask client instead (the main job shares one).
+    timings : list, optional
+        Receives the run's :class:`~bayesfric.study.executor.Timing` rows (one per unit).
 
     Returns
     -------
@@ -364,18 +325,29 @@ def run_study(path: str | Path, out_root: str | Path = "reports", quick: bool = 
         One line, on bad input, before anything is written.
     """
     start = time.perf_counter()
-    study, final, ds, settings, kfold, schemes, questions = _prepare(path, out_root, quick)
+    prepared = _prepare(path, out_root, quick)
+    with contextlib.ExitStack() as stack:
+        if client is None:  # connected before anything is written: a bad --scheduler writes nothing
+            client = stack.enter_context(open_client(workers, scheduler))
+        return _write_study(prepared, Path(out_root), quick, fresh, client, timings, start)
+
+
+def _write_study(prepared, out_root: Path, quick: bool, fresh: bool, client, timings: list | None,
+                 start: float) -> Path:
+    """Run the prepared study's units and write its report folder atomically (see :func:`run_study`)."""
+    study, final, ds, settings, kfold, schemes, questions = prepared
     seed = study.sampler["seed"]
     root = final.parent
     for stale in fsutil.clean_stale_work(root, study.name):
         print(f"[{study.name}] removed the work folder of an interrupted run: {stale}", flush=True)
     work = fsutil.create_work_folder(root, study.name)
     try:
-        outcomes = []
-        for spec in study.laws:
-            print(f"[{study.name}] fitting {spec.name} ...", flush=True)
-            outcomes.append(_run_law(study, spec, ds, work, schemes, settings, seed, quick))
-            release_compiled_code()  # one law's compiled samplers are not reused by the next
+        rows: list = []
+        outcomes = _run_laws(study, ds, work, schemes, settings, seed, out_root=out_root, fresh=fresh,
+                             client=client, timings=rows, quick=quick)
+        write_timings(rows, work / "timings.csv")
+        if timings is not None:
+            timings += rows
         outcome = StudyOutcome(study=study, data=ds, laws=outcomes, schemes=[s[0] for s in schemes],
                                blocked=[s[0] for s in schemes if s[2] == "blocked"],
                                heldout={s[0]: s[1].heldout.any(axis=0) for s in schemes})
@@ -403,5 +375,6 @@ def run_study(path: str | Path, out_root: str | Path = "reports", quick: bool = 
     except BaseException:
         fsutil.remove_work_folder(work, study.name)
         raise
+    print(timing_table(rows, f"[{study.name}] time per stage"), flush=True)
     print(f"[{study.name}] report written to {final} ({time.perf_counter() - start:.0f} s)")
     return final

@@ -196,4 +196,4 @@ def test_killed_run_is_cleaned_rerun_replaces_modes_follow_umask_and_text_is_esc
     assert not (folder / "extra.txt").exists()
     assert _modes(folder) == {("dir", 0o755), ("file", 0o644)}
     assert "QUICK MODE: sampler draws=600, tune=300, thin=10" in (folder / "summary.md").read_text()
-    assert sorted(p.name for p in (tmp_path / "reports").iterdir()) == [live.name, "tiny"]
+    assert sorted(p.name for p in (tmp_path / "reports").iterdir()) == [".store", live.name, "tiny"]  # + run store

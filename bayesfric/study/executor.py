@@ -1,0 +1,245 @@
+"""Run a study's units serially or on Dask distributed, reusing the run store; progress and timings.
+
+:func:`run_units` walks every law's units (:mod:`bayesfric.study.units`): a unit whose key is in
+the store is read back; the others are computed here (serial) or on the workers of a Dask
+``Client`` (``--workers N`` starts a ``LocalCluster`` of N single-threaded processes;
+``--scheduler ADDRESS`` connects to a running cluster, see :func:`open_client`). A law's fit runs
+first; when it is done (or read back) its other units are scheduled, all independent of each
+other, and the laws are independent of each other. Results travel back to this process as bytes
+and are written to the store here, one atomic file per unit as soon as it is done, so a worker
+that dies, or a run that is killed, loses only the units in flight, and the workers need no file
+system shared with the client. Serial and parallel runs compute the same units from the same
+inputs and seeds, hence the same numbers.
+
+Progress: a tqdm bar (units done / total, the law and stage last finished, elapsed and estimated
+time left) on a terminal; plain lines when stdout is not one (CI logs). Every unit leaves a
+:class:`Timing` row (computed, reused or skipped, and seconds); :func:`timing_table` prints the
+per-stage summary and :func:`write_timings` the rows as CSV.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import io
+import logging
+import sys
+import time
+from collections import deque
+from collections.abc import Iterator
+from dataclasses import astuple, dataclass, fields
+from pathlib import Path
+
+from tqdm import tqdm
+
+from bayesfric.compare import verdict_of
+from bayesfric.errors import UserError
+from bayesfric.study.store import RunStore, load_fit_bytes
+from bayesfric.study.units import COSTLY, LawJob, Unit, compute, compute_seconds
+
+#: Seconds to wait for ``--scheduler ADDRESS`` to answer.
+CONNECT_TIMEOUT_S = 20
+
+__all__ = ["Timing", "run_units", "open_client", "timing_table", "write_timings", "Progress"]
+
+
+@dataclass(frozen=True)
+class Timing:
+    """One unit of a run: ``status`` is computed, reused (read from the store) or skipped."""
+
+    study: str
+    law: str
+    stage: str
+    label: str
+    status: str
+    seconds: float  # wall seconds spent in this run (0 for reused and skipped units)
+    stored_seconds: float  # what the unit cost when it was computed (NaN for fits)
+
+
+class Progress:
+    """Units done / total with the law and stage, elapsed and remaining time (tqdm, or plain lines)."""
+
+    def __init__(self, total: int, name: str, stream=None):
+        self.stream = stream or sys.stdout
+        self.name, self.total, self.done = name, total, 0
+        self.start = time.perf_counter()
+        self.live = bool(getattr(self.stream, "isatty", lambda: False)())
+        self.bar = (tqdm(total=total, desc=name, unit="unit", file=self.stream, dynamic_ncols=True)
+                    if self.live else None)
+
+    def step(self, unit: Unit, status: str, seconds: float) -> None:
+        """Count one unit as finished."""
+        self.done += 1
+        what = f"{unit.law} {unit.label}: {status}" + (f" in {seconds:.1f} s" if status == "computed" else "")
+        if self.bar is not None:
+            self.bar.set_postfix_str(what, refresh=False)
+            self.bar.update(1)
+            return
+        elapsed = time.perf_counter() - self.start
+        left = elapsed / self.done * (self.total - self.done)  # rough: units differ in cost
+        print(f"[{self.name}] {self.done}/{self.total} {what} (elapsed {elapsed:.0f} s, ~{left:.0f} s left)",
+              file=self.stream, flush=True)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+@contextlib.contextmanager
+def open_client(workers: int = 0, scheduler: str | None = None) -> Iterator[object | None]:
+    """A Dask ``Client`` for ``--workers N`` or ``--scheduler ADDRESS``; None for a serial run.
+
+    ``workers`` starts a ``LocalCluster`` of that many processes with one thread each (JAX
+    already uses the cores of a process for one unit's linear algebra); it is closed on exit.
+    ``scheduler`` connects to a running scheduler (``tcp://host:8786``), which is left running.
+    """
+    if not workers and not scheduler:
+        yield None
+        return
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError:
+        option = "--scheduler" if scheduler else "--workers"
+        raise UserError(f"{option}: needs Dask distributed, an optional extra: pip install 'bayesfric[dask]'") from None
+    if scheduler:
+        try:
+            client = Client(scheduler, timeout=CONNECT_TIMEOUT_S)
+        except (OSError, TimeoutError, ValueError) as exc:
+            raise UserError(f"--scheduler {scheduler}: cannot connect to a Dask scheduler ({exc})") from None
+        with client:
+            yield client
+        return
+    with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
+                      silence_logs=logging.ERROR) as cluster, \
+            Client(cluster) as client:
+        yield client
+
+
+class _Serial:
+    """In-process executor with the interface :func:`run_units` needs; a law's units run together."""
+
+    def __init__(self):
+        self.queue: deque = deque()
+
+    def submit(self, job, unit, fit_payload, first: bool) -> None:
+        (self.queue.appendleft if first else self.queue.append)((job, unit, fit_payload))
+
+    def completed(self) -> Iterator[tuple[LawJob, Unit, bytes, float]]:
+        while self.queue:
+            job, unit, fit_payload = self.queue.popleft()
+            payload, seconds = compute(job, unit, fit_payload)
+            yield job, unit, payload, seconds
+
+
+class _Dask:
+    """Units as Dask futures; the fit's bytes are scattered once and shared by the law's units."""
+
+    def __init__(self, client):
+        from distributed import as_completed
+
+        self.client = client
+        self.pending = as_completed()
+        self.meta: dict = {}
+        self.shared: dict[int, object] = {}
+
+    def submit(self, job, unit, fit_payload, first: bool) -> None:
+        if fit_payload is not None:
+            ident = id(fit_payload)
+            if ident not in self.shared:
+                self.shared[ident] = self.client.scatter(fit_payload)
+            fit_payload = self.shared[ident]
+        future = self.client.submit(compute, job, unit, fit_payload, pure=False,
+                                    key=f"{unit.law}-{unit.stage}-{unit.key[:12]}")
+        self.meta[future.key] = (job, unit)
+        self.pending.add(future)
+
+    def completed(self) -> Iterator[tuple[LawJob, Unit, bytes, float]]:
+        for future in self.pending:
+            job, unit = self.meta.pop(future.key)
+            payload, seconds = future.result()  # a unit's error (or a lost worker, after retries) stops the run
+            future.release()
+            yield job, unit, payload, seconds
+
+
+def run_units(plans: list[tuple[LawJob, Unit, list[Unit]]], store: RunStore, *, study: str,
+              failed_fits: str = "skip", client=None, stream=None
+              ) -> tuple[dict[str, bytes], dict[str, list[Unit]], list[Timing]]:
+    """Results of every unit of ``plans`` (law job, fit unit, units after the fit), reusing the store.
+
+    Returns
+    -------
+    payloads : dict
+        Unit key -> stored bytes (every unit that ran or was reused).
+    skipped : dict
+        Law -> units not run because its fit failed the gate (``failed_fits = "skip"``).
+    timings : list of Timing
+        One row per unit.
+    """
+    executor = _Serial() if client is None else _Dask(client)
+    progress = Progress(sum(1 + len(rest) for _, _, rest in plans), study, stream)
+    payloads: dict[str, bytes] = {}
+    skipped: dict[str, list[Unit]] = {job.spec.name: [] for job, _, _ in plans}
+    timings: list[Timing] = []
+    follow = {fit.key: rest for _, fit, rest in plans}
+
+    def finished(job: LawJob, unit: Unit, payload: bytes, status: str, seconds: float) -> None:
+        payloads[unit.key] = payload
+        timings.append(Timing(study, unit.law, unit.stage, unit.label, status, seconds,
+                              compute_seconds(unit, payload) if status == "reused" else seconds))
+        progress.step(unit, status, seconds)
+        if unit.stage != "fit":
+            return
+        passed = verdict_of(load_fit_bytes(payload)).passed
+        misses = []
+        for nxt in follow[unit.key]:
+            if not passed and failed_fits == "skip" and nxt.stage in COSTLY:
+                skipped[job.spec.name].append(nxt)
+                timings.append(Timing(study, nxt.law, nxt.stage, nxt.label, "skipped", 0.0, float("nan")))
+                progress.step(nxt, "skipped (fit failed the gate)", 0.0)
+            elif not reuse(job, nxt):
+                misses.append(nxt)
+        for nxt in reversed(misses):  # reversed: each goes to the front of the serial queue, so they run in order
+            executor.submit(job, nxt, payload, first=True)
+
+    def reuse(job: LawJob, unit: Unit) -> bool:
+        hit = store.get(unit.key, unit.kind)
+        if hit is not None:
+            finished(job, unit, hit, "reused", 0.0)
+        return hit is not None
+
+    try:
+        for job, fit, _ in plans:
+            if not reuse(job, fit):
+                executor.submit(job, fit, None, first=False)
+        for job, unit, payload, seconds in executor.completed():
+            store.put(unit.key, unit.kind, payload)
+            finished(job, unit, payload, "computed", seconds)
+    finally:
+        progress.close()
+    return payloads, skipped, timings
+
+
+def timing_table(rows: list[Timing], title: str = "time per stage") -> str:
+    """Per-stage summary of ``rows``: units computed / reused / skipped and seconds computed."""
+    stages: dict[str, list[float]] = {}
+    for r in rows:
+        entry = stages.setdefault(r.stage, [0, 0, 0, 0.0])
+        entry[("computed", "reused", "skipped").index(r.status)] += 1
+        entry[3] += r.seconds
+    lines = [f"{title}:", f"  {'stage':<11}{'computed':>9}{'reused':>8}{'skipped':>8}{'seconds':>10}"]
+    for stage, (done, reused, skip, secs) in stages.items():
+        lines.append(f"  {stage:<11}{done:>9}{reused:>8}{skip:>8}{secs:>10.1f}")
+    total = [sum(v[i] for v in stages.values()) for i in range(4)]
+    lines.append(f"  {'total':<11}{total[0]:>9}{total[1]:>8}{total[2]:>8}{total[3]:>10.1f}")
+    return "\n".join(lines)
+
+
+def write_timings(rows: list[Timing], path: Path) -> Path:
+    """Write ``rows`` as CSV (one row per unit) to ``path``."""
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow([f.name for f in fields(Timing)])
+    for r in rows:
+        writer.writerow([f"{v:.3f}" if isinstance(v, float) else v for v in astuple(r)])
+    path.write_text(buffer.getvalue())
+    return path

@@ -1,0 +1,256 @@
+"""The run store: content-addressed results of a study's units of work, for resume and reuse.
+
+Every unit of a study (a law's full fit, its PSIS-LOO, each cross-validation scheme, each
+evidence estimate, the checks) is a pure function of its inputs. Its *key* is a SHA-256 over
+everything it depends on (:func:`unit_key`): the law's name and the source of the module that
+declares it, the source of the computing code (every module of :mod:`bayesfric` except the report
+renderings and the command line), the package version, the resolved priors, noise model and
+constants, the content of the selected data, the scheme's masks, the sampler settings and the seed.
+A unit whose key is in the store is read back instead of computed.
+
+Layout: ``<root>/<key>.nc`` (a full fit, NetCDF) or ``<root>/<key>.npz`` (every other unit: its
+arrays plus one JSON record). ``root`` is :func:`store_folder`: ``$BAYESFRIC_STORE_DIR/<study>``
+if that variable is set, else ``<reports root>/.store/<study>``. Each entry is one file written
+atomically (temporary file in the same folder, then ``os.replace``), so a run killed at any moment
+leaves either the whole entry or none. An entry that cannot be read back (truncated by a full
+disk, edited, another format) counts as a miss and is computed again. The store may be deleted at
+any time; it only costs recomputation.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import inspect
+import io
+import json
+import os
+import secrets
+import socket
+import zipfile
+from collections.abc import Mapping
+from functools import lru_cache
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import xarray as xr
+
+__all__ = ["RunStore", "store_folder", "unit_key", "data_fingerprint", "code_fingerprint", "STORE_ENV"]
+
+#: Environment variable that moves the store out of the reports folder.
+STORE_ENV = "BAYESFRIC_STORE_DIR"
+_PACKAGE = Path(__file__).resolve().parents[1]
+#: Parts of the package that only render or parse options: their edits do not change any number.
+_NOT_COMPUTING = ("report", "cli.py", "__main__.py", "study/executor.py", "study/store.py")
+
+
+def store_folder(out_root: str | Path, study: str) -> Path:
+    """The store folder of ``study``: ``$BAYESFRIC_STORE_DIR/<study>`` or ``<out_root>/.store/<study>``."""
+    base = os.environ.get(STORE_ENV, "").strip()
+    return (Path(base).expanduser() if base else Path(out_root) / ".store") / study
+
+
+@lru_cache(maxsize=1)
+def code_fingerprint() -> str:
+    """SHA-256 of the package version and the source of every computing module (not laws/)."""
+    from bayesfric import __version__
+
+    digest = hashlib.sha256(str(__version__).encode())
+    for path in sorted(_PACKAGE.rglob("*.py")):
+        rel = path.relative_to(_PACKAGE).as_posix()
+        if rel.startswith(_NOT_COMPUTING) or (rel.startswith("laws/") and rel not in ("laws/base.py",
+                                                                                         "laws/__init__.py")):
+            continue
+        digest.update(rel.encode() + b"\0" + path.read_bytes())
+    return digest.hexdigest()
+
+
+def law_fingerprint(law) -> str:
+    """SHA-256 of the source of every module that declares ``law`` or a part of it, and its recipe.
+
+    A variant (:mod:`bayesfric.laws.variants`) is a recipe over registered laws: its base and
+    added parts are hashed with it, so an edit to any of their modules invalidates its units.
+    """
+    from bayesfric.laws import get_law
+
+    recipe = dict(getattr(law, "recipe", None) or {})
+    parts = [law] + [get_law(name) for name in [recipe.get("base"), *recipe.get("add", ())]
+                     if isinstance(name, str) and name not in ("", "offset", "viscous")]
+    digest = hashlib.sha256(json.dumps(recipe, sort_keys=True, default=str).encode())
+    for part in parts:
+        module = inspect.getmodule(part.fn) if getattr(part, "fn", None) is not None else None
+        digest.update((inspect.getsource(module) if module is not None else repr(part)).encode())
+    return digest.hexdigest()
+
+
+def data_fingerprint(ds: xr.Dataset) -> str:
+    """SHA-256 of a data set's content: every variable and coordinate (values, dtype, units)."""
+    digest = hashlib.sha256()
+    for name in sorted(map(str, list(ds.coords) + list(ds.data_vars))):
+        var = ds[name]
+        values = np.ascontiguousarray(var.values)
+        digest.update(json.dumps([name, str(values.dtype), list(values.shape), list(var.dims),
+                                  {k: str(v) for k, v in sorted(var.attrs.items())}]).encode())
+        digest.update(values.tobytes() if values.dtype != object else repr(values.tolist()).encode())
+    digest.update(json.dumps({k: str(v) for k, v in sorted(ds.attrs.items()) if k != "title"}).encode())
+    return digest.hexdigest()
+
+
+def _canonical(value: Any) -> Any:
+    """JSON-able, order-independent form of a key part (dataclasses, arrays, mappings)."""
+    if isinstance(value, np.ndarray):
+        return {"array": hashlib.sha256(np.ascontiguousarray(value).tobytes()).hexdigest(),
+                "shape": list(value.shape), "dtype": str(value.dtype)}
+    if isinstance(value, Mapping):
+        return {str(k): _canonical(v) for k, v in sorted(value.items(), key=lambda kv: str(kv[0]))}
+    if isinstance(value, list | tuple):
+        return [_canonical(v) for v in value]
+    if hasattr(value, "__dataclass_fields__"):
+        return {"type": type(value).__name__,
+                **{f: _canonical(getattr(value, f)) for f in value.__dataclass_fields__}}
+    if isinstance(value, float | int | str | bool) or value is None:
+        return value
+    if isinstance(value, np.generic):
+        return value.item()
+    return repr(value)
+
+
+def unit_key(**parts: Any) -> str:
+    """Key of a unit: SHA-256 (hex, 32 characters) over its canonicalised ``parts`` and the code."""
+    text = json.dumps({"code": code_fingerprint(), **_canonical(parts)}, sort_keys=True)
+    return hashlib.sha256(text.encode()).hexdigest()[:32]
+
+
+def _tmp_name(path: Path) -> Path:
+    """Temporary file of a write in progress: names its host and process (see :meth:`RunStore.clean`)."""
+    return path.parent / f".{path.name}.{socket.gethostname()}.{os.getpid()}.{secrets.token_hex(4)}.tmp"
+
+
+def _atomic_write(path: Path, payload: bytes) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = _tmp_name(path)
+    try:
+        with open(tmp, "wb") as fh:
+            fh.write(payload)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+
+
+def pack_record(record: dict[str, Any], arrays: Mapping[str, np.ndarray] | None = None) -> bytes:
+    """One unit's result as npz bytes: its arrays plus the JSON ``record`` under ``__record__``."""
+    buffer = io.BytesIO()
+    np.savez(buffer, __record__=np.array(json.dumps(record)), **{k: np.asarray(v) for k, v in (arrays or {}).items()})
+    return buffer.getvalue()
+
+
+def unpack_record(payload: bytes) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    """Inverse of :func:`pack_record`."""
+    with np.load(io.BytesIO(payload), allow_pickle=False) as npz:
+        arrays = {k: npz[k] for k in npz.files}
+    return json.loads(str(arrays.pop("__record__"))), arrays
+
+
+class RunStore:
+    """The store of one study (see the module docstring).
+
+    Parameters
+    ----------
+    folder : Path
+        Where entries live (created on the first write).
+    read : bool
+        False (``--fresh``): every lookup is a miss; results are still written for the next run.
+    """
+
+    def __init__(self, folder: Path, *, read: bool = True):
+        self.folder = Path(folder)
+        self.read = read
+
+    def path(self, key: str, kind: str) -> Path:
+        """File of the entry ``key``; ``kind`` is ``"nc"`` (a fit) or ``"npz"``."""
+        return self.folder / f"{key}.{kind}"
+
+    def get(self, key: str, kind: str) -> bytes | None:
+        """The entry's bytes if present and readable back, else None (a miss, never an error)."""
+        if not self.read:
+            return None
+        path = self.path(key, kind)
+        try:
+            payload = path.read_bytes()
+            if kind == "npz":
+                record, _ = unpack_record(payload)
+                if record.get("key") != key:
+                    return None
+            else:
+                load_fit_bytes(payload)
+        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, json.JSONDecodeError):
+            return None
+        except Exception:  # noqa: BLE001 - h5py/netCDF raise their own types on a damaged file: a miss
+            return None
+        return payload
+
+    def clean(self) -> list[Path]:
+        """Remove temporary files of writes killed part-way (their process on this host is gone)."""
+        removed = []
+        if not self.folder.is_dir():
+            return removed
+        host = socket.gethostname()
+        for tmp in self.folder.glob(".*.tmp"):
+            parts = tmp.name.rsplit(".", 4)  # .<entry>.<host>.<pid>.<token>.tmp
+            if len(parts) != 5 or parts[1] != host or not parts[2].isdigit() or _pid_alive(int(parts[2])):
+                continue
+            tmp.unlink(missing_ok=True)
+            removed.append(tmp)
+        return removed
+
+    def put(self, key: str, kind: str, payload: bytes) -> Path:
+        """Write an entry atomically (an existing one is replaced)."""
+        path = self.path(key, kind)
+        _atomic_write(path, payload)
+        return path
+
+
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def fit_to_bytes(dt: xr.DataTree) -> bytes:
+    """A fit as NetCDF bytes (h5netcdf, as :func:`bayesfric.inference.save_fit` writes; no temporary file)."""
+    buffer = io.BytesIO()
+    with _local_locks():
+        dt.to_netcdf(buffer, engine="h5netcdf")
+    return buffer.getvalue()
+
+
+def _local_locks():
+    """Inside a Dask worker xarray would take a *distributed* lock named after the file, which a
+    buffer cannot be; the synchronous scheduler makes it take a local lock (the write is local)."""
+    try:
+        import dask
+    except ImportError:
+        return contextlib.nullcontext()
+    return dask.config.set(scheduler="synchronous")
+
+
+def load_fit_bytes(payload: bytes) -> xr.DataTree:
+    """Inverse of :func:`fit_to_bytes` (the fit fully loaded into memory; a copy of its own).
+
+    Opening a fit costs about a second; a run opens each fit several times (validation, the
+    gate's verdict, the outcome), so the last few opened are kept (keyed by their bytes).
+    """
+    return _open_fit(bytes(payload)).copy()
+
+
+@lru_cache(maxsize=4)
+def _open_fit(payload: bytes) -> xr.DataTree:
+    return xr.open_datatree(io.BytesIO(payload), engine="h5netcdf").load()

@@ -1,0 +1,304 @@
+"""A law's work in a study, split into units with explicit inputs and plain serialisable outputs.
+
+Units of one law (:func:`plan_law`): ``fit`` (the full fit, NetCDF), then — all reading the fit —
+``loo`` (PSIS-LOO with exact refits of high-k points), one ``cv`` unit per cross-validation scheme,
+``bridge`` and ``importance`` evidence estimates, ``smc`` (opt-in) and ``checks`` (prior
+predictive, LOO-PIT, power-scaling sensitivity). Every unit runs through :func:`compute`, a pure
+function of a :class:`LawJob` (the law, its priors and constants, noise, selected data, sampler
+settings, seed), the :class:`Unit` and the fit's bytes; it returns bytes (NetCDF for the fit, an npz
+of arrays plus a JSON record otherwise), so a result can be stored (:mod:`bayesfric.study.store`),
+read back, or sent from a Dask worker. Each unit gets the study seed explicitly (no random stream
+is shared between units), so the order in which units run — serially or on any number of workers —
+does not change a number. :func:`assemble` turns the results back into a
+:class:`~bayesfric.study.outcome.LawOutcome`; the same function reads fresh and stored results.
+
+The fit's verdict decides the rest: under ``[compare] failed_fits = "skip"`` (the default) a law
+whose full fit failed the diagnostics gate gets no CV refits and no evidence (the costly stages);
+its outcome lists them in ``skipped`` and its flags say why. That is why every unit of a law waits
+for its fit, even those that could start without it (blocked CV, importance sampling).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import xarray as xr
+
+from bayesfric import compare
+from bayesfric.compare.loo import loo_from_values
+from bayesfric.inference import SAMPLERS, release_compiled_code
+from bayesfric.inference.diagnostics import Verdict
+from bayesfric.laws.variants import law_of_fit
+from bayesfric.model import Noise, build_program
+from bayesfric.study.outcome import Estimate, LawOutcome
+from bayesfric.study.store import (
+    data_fingerprint,
+    fit_to_bytes,
+    law_fingerprint,
+    load_fit_bytes,
+    pack_record,
+    unit_key,
+    unpack_record,
+)
+
+__all__ = ["LawJob", "Unit", "make_job", "plan_law", "compute", "assemble", "COSTLY"]
+
+#: Stages skipped for a law whose full fit failed the gate under ``failed_fits = "skip"``.
+COSTLY = ("cv", "bridge", "importance", "smc")
+
+
+@dataclass(frozen=True)
+class LawJob:
+    """Everything the units of one law depend on (picklable: sent to Dask workers as is)."""
+
+    spec: Any  # bayesfric.study.config.LawSpec
+    noise: Noise
+    ds: xr.Dataset
+    sampler: str
+    settings: dict
+    seed: int
+    key: str  # hash of all of the above (with the law's and the package's code)
+
+
+@dataclass(frozen=True)
+class Unit:
+    """One unit of work of a law: ``stage`` in fit, loo, cv, bridge, importance, smc, checks."""
+
+    law: str
+    stage: str
+    label: str  # display and result name: "fit", "loo", the CV scheme label, "bridge" ...
+    key: str
+    params: dict = field(default_factory=dict, compare=False, hash=False)
+
+    @property
+    def kind(self) -> str:
+        """Store file kind: ``"nc"`` for the fit, ``"npz"`` otherwise."""
+        return "nc" if self.stage == "fit" else "npz"
+
+    @property
+    def title(self) -> str:
+        return f"{self.law} {self.label if self.stage != 'cv' else 'cv ' + self.label}"
+
+
+def make_job(spec, noise: Noise, ds: xr.Dataset, sampler: str, settings: dict, seed: int) -> LawJob:
+    """The :class:`LawJob` of a study's law, keyed by everything the law's results depend on."""
+    program = build_program(spec.build(), ds, priors=spec.priors, noise=noise, constants=spec.constants)
+    law = program.law  # the entry's variant as it runs on this data, named by the entry's label
+    key = unit_key(law=law.name, law_code=law_fingerprint(law), priors=dict(program.priors),
+                   resolved=dict(program.resolved), noise=noise, constants=dict(program.constants),
+                   data=data_fingerprint(ds), sampler=sampler, settings=settings, seed=seed)
+    return LawJob(spec, noise, ds, sampler, dict(settings), seed, key)
+
+
+def plan_law(job: LawJob, study, schemes: list[tuple[str, Any, str]]) -> tuple[Unit, list[Unit]]:
+    """The fit unit of a law and the units that follow it (before any skip decision)."""
+    name = job.spec.name
+
+    def unit(stage: str, label: str, **params) -> Unit:
+        return Unit(name, stage, label, unit_key(law=job.key, stage=stage, params=params), params)
+
+    rest = []
+    if study.loo:
+        rest.append(unit("loo", "loo"))
+    for label, folds, kind in schemes:
+        rest.append(unit("cv", label, kind=kind, train=folds.train, heldout=folds.heldout,
+                         scheme=folds.scheme, labels=list(folds.labels)))
+    if study.evidence:
+        rest += [unit("bridge", "bridge"), unit("importance", "importance")]
+        if study.smc:
+            rest.append(unit("smc", "SMC", particles=study.smc_particles, runs=study.smc_runs))
+    rest.append(unit("checks", "checks"))
+    return unit("fit", "fit"), rest
+
+
+# -- computing ------------------------------------------------------------------------------------
+_ENGINES: dict[str, Any] = {}  # this process's compiled engine of ONE law (fit and folds: one compilation)
+
+
+def _program(job: LawJob):
+    return build_program(job.spec.build(), job.ds, priors=job.spec.priors, noise=job.noise,
+                         constants=job.spec.constants)
+
+
+def _base_engine(job: LawJob):
+    """The law's compiled NUTS engine, shared by its full fit and every fold refit in this process.
+
+    A NUTS study fits with the engine's all-true mask; folds that remove a region or series run
+    cold on the same compiled sampler (the full warm-up), folds that drop a few points start from
+    the full fit (:func:`_engine`). An emcee study's folds are refitted with NUTS at the NUTS
+    defaults' length.
+    """
+    if any(k != job.key for k in _ENGINES):
+        _ENGINES.clear()
+        release_compiled_code()  # the previous law's compiled samplers are not reused
+    if job.key not in _ENGINES:
+        settings = (dict(job.settings) if job.sampler == "nuts"
+                    else dict(draws=1000, tune=500, chains=4))
+        _ENGINES[job.key] = compare.RefitEngine(_program(job), seed=job.seed, **settings)
+    return _ENGINES[job.key]
+
+
+def _engine(job: LawJob, fit: xr.DataTree, warm: bool):
+    """The law's engine, warm-started from ``fit`` (a 250-step warm-up inside the compiled one) or cold."""
+    base = _base_engine(job)
+    warm_tune = min(250, base.tune)  # a warm start needs ≥ 120 warm-up steps within the engine's
+    return base.warm_started(fit, warm_tune) if warm and warm_tune >= 120 else base
+
+
+def _json_default(value: Any) -> Any:
+    return value.tolist() if hasattr(value, "tolist") else str(value)
+
+
+def _evidence_record(result) -> dict:
+    return {"log_z": result.log_z, "error": result.error, "method": result.method,
+            "diagnostics": json.loads(json.dumps(result.diagnostics, default=_json_default))}
+
+
+def _compute_rest(job: LawJob, unit: Unit, fit: xr.DataTree) -> tuple[dict, dict]:
+    """(record, arrays) of a unit after the fit."""
+    passed = compare.verdict_of(fit).passed
+    if unit.stage == "loo":
+        # refits that drop one point start from the full fit's draws when it passed the gate
+        loo = compare.psis_loo(fit, engine=_engine(job, fit, warm=passed), seed=job.seed)
+        return {"handling": loo.handling, "refit_failed": loo.refit_failed}, {"elpd_i": loo.elpd_i}
+    if unit.stage == "cv":
+        # random K-fold drops a few points (warm start); grouped and blocked folds start cold
+        p = unit.params
+        folds = compare.Folds(np.asarray(p["train"]), np.asarray(p["heldout"]), p["scheme"], p["labels"])
+        cv = compare.cross_validate(_engine(job, fit, warm=passed and p["kind"] == "kfold"), folds, seed=job.seed)
+        return ({"law": cv.law, "scheme": cv.scheme, "elpd": cv.elpd, "se": cv.se, "seconds": cv.seconds,
+                 "verdicts": [v.to_json() for v in cv.verdicts], "settings": cv.settings},
+                {"elpd_i": cv.elpd_i, "heldout": cv.heldout})
+    program = _program(job)
+    if unit.stage == "bridge":
+        return _evidence_record(compare.bridge_log_evidence(program, fit, seed=job.seed)), {}
+    if unit.stage == "importance":
+        return _evidence_record(compare.laplace_is_log_evidence(program, seed=job.seed)), {}
+    if unit.stage == "smc":
+        return _evidence_record(compare.smc_log_evidence(program, seed=job.seed, particles=unit.params["particles"],
+                                                         runs=unit.params["runs"])), {}
+    if unit.stage == "checks":
+        pit = compare.loo_pit_check(fit, seed=job.seed)
+        sens = compare.prior_sensitivity(fit)
+        return {"implausible": compare.prior_predictive_check(program, seed=job.seed).implausible,
+                "ks_pvalue": pit.ks_pvalue, "within_band": bool(pit.within_band), "ci_prob": pit.ci_prob,
+                "psense": [f"{i} ({d})" for i, d in zip(sens.index, sens["diagnosis"], strict=True) if d != "-"]}, {}
+    raise ValueError(f"unknown unit stage {unit.stage!r}")
+
+
+def compute(job: LawJob, unit: Unit, fit_payload: bytes | None = None) -> tuple[bytes, float]:
+    """Compute one unit; return its stored form (bytes) and its wall seconds.
+
+    ``fit_payload`` (the fit unit's bytes) is required by every unit except the fit itself. Runs
+    in this process or on a Dask worker alike.
+    """
+    start = time.perf_counter()
+    if unit.stage == "fit":
+        if job.sampler == "nuts":
+            dt = _base_engine(job).fit(job.ds)  # the all-true mask of the engine its folds reuse
+        else:
+            dt = SAMPLERS[job.sampler](_program(job), job.ds, seed=job.seed, **job.settings)
+        return fit_to_bytes(dt), time.perf_counter() - start
+    record, arrays = _compute_rest(job, unit, load_fit_bytes(fit_payload))
+    seconds = time.perf_counter() - start
+    return pack_record({"key": unit.key, "stage": unit.stage, "compute_s": seconds} | record, arrays), seconds
+
+
+def compute_seconds(unit: Unit, payload: bytes) -> float:
+    """Wall seconds the stored unit took when it was computed (NaN for a fit: not recorded)."""
+    if unit.kind == "nc":
+        return float("nan")
+    return float(unpack_record(payload)[0].get("compute_s", float("nan")))
+
+
+# -- assembling ----------------------------------------------------------------------------------
+def _evidence(payload: bytes) -> compare.Evidence:
+    record, _ = unpack_record(payload)
+    return compare.Evidence(record["log_z"], record["error"], record["method"], record["diagnostics"])
+
+
+def assemble(fit: xr.DataTree, fit_file, units: list[Unit], payloads: dict[str, bytes],
+             kinds: dict[str, str], skipped: list[Unit], failed_fits: str) -> LawOutcome:
+    """The :class:`LawOutcome` of a law from its fit and its units' results (fresh or stored).
+
+    ``kinds`` maps a CV label to its scheme kind (kfold, grouped, blocked); ``skipped`` lists the
+    units not run because the fit failed the gate.
+    """
+    law = law_of_fit(fit.attrs)
+    verdict = compare.verdict_of(fit)
+    out = LawOutcome(law=law, fit=fit, fit_file=fit_file, verdict=verdict)
+    if not verdict.passed:
+        out.flags.append("diagnostics FAILED: " + "; ".join(verdict.problems))
+    if skipped:
+        out.skipped = [u.label for u in skipped]
+        out.flags.append(f"{', '.join(out.skipped)} skipped: the full fit failed the diagnostics gate "
+                         f"([compare] failed_fits = \"{failed_fits}\"; \"run\" computes them anyway)")
+    by_stage = {u.label: (u, payloads[u.key]) for u in units if u.key in payloads}
+    loo = None
+    if "loo" in by_stage:
+        record, arrays = unpack_record(by_stage["loo"][1])
+        loo = loo_from_values(fit, arrays["elpd_i"], record["handling"], record["refit_failed"])
+        out.results["loo"] = loo
+        out.loo, out.loo_pointwise = Estimate(loo.elpd, loo.se), loo.elpd_i
+        out.p_loo, out.pareto_k_max, out.n_high_k = loo.p_loo, float(np.max(loo.pareto_k)), loo.n_high_k
+        out.high_k_handling = f"PSIS-LOO: {loo.n_high_k} points with Pareto k > {loo.k_threshold:.2f} ({loo.handling})"
+        if not loo.reliable:
+            why = "the full fit failed the gate" if not loo.fit_passed else loo.handling
+            out.flags.append(f"LOO unreliable ({why})")
+    for unit in units:
+        if unit.stage == "cv" and unit.key in payloads:
+            _add_cv(out, unit.label, kinds[unit.label], payloads[unit.key], loo)
+    if "bridge" in by_stage and "importance" in by_stage:
+        _add_evidence(out, _evidence(by_stage["bridge"][1]), _evidence(by_stage["importance"][1]))
+    if "SMC" in by_stage:
+        smc = _evidence(by_stage["SMC"][1])
+        out.evidence["SMC"] = Estimate(smc.log_z, smc.error)
+    if "checks" in by_stage:
+        _add_checks(out, unpack_record(by_stage["checks"][1])[0])
+    return out
+
+
+def _add_cv(out: LawOutcome, label: str, kind: str, payload: bytes, loo) -> None:
+    record, arrays = unpack_record(payload)
+    cv = compare.CVResult(law=record["law"], scheme=record["scheme"], elpd=record["elpd"], se=record["se"],
+                          elpd_i=arrays["elpd_i"], heldout=arrays["heldout"].astype(bool),
+                          verdicts=[Verdict.from_json(v) for v in record["verdicts"]], seconds=record["seconds"],
+                          settings=record["settings"])
+    out.results[label] = cv
+    out.cv[label] = Estimate(cv.elpd, cv.se)
+    out.cv_pointwise[label] = cv.elpd_i
+    out.cv_reliable[label] = cv.reliable
+    if not cv.reliable:
+        out.flags.append(f"{label}: folds {cv.failed_folds} failed the gate")
+    if kind == "blocked" and loo is not None:
+        out.penalty[label] = compare.extrapolation_penalty(loo, cv).per_point
+
+
+def _add_evidence(out: LawOutcome, bridge, importance) -> None:
+    # Two estimators that share only the density (bench_evidence.py); never averaged.
+    out.evidence = {"bridge": Estimate(bridge.log_z, bridge.error),
+                    "importance": Estimate(importance.log_z, importance.error)}
+    agreement = compare.compare_estimators(bridge, importance)
+    out.evidence_disagreement = agreement.difference
+    out.evidence_agree = agreement.agree
+    if not agreement.agree:
+        why = (f"importance weights heavy-tailed (Pareto k = {importance.diagnostics['pareto_k']:.2f})"
+               if not importance.diagnostics.get("reliable", True) else
+               f"> {agreement.threshold:.2f} nat")
+        out.flags.append(f"evidence estimators disagree by {abs(agreement.difference):.2f} nat ({why}); "
+                         "not ranked by evidence")
+
+
+def _add_checks(out: LawOutcome, record: dict) -> None:
+    out.prior_implausible = record["implausible"]
+    out.loo_pit_pvalue = record["ks_pvalue"]
+    out.loo_pit_ok = bool(record["within_band"])
+    if not record["within_band"]:
+        out.flags.append(f"LOO-PIT outside the {record['ci_prob']:.0%} band (KS p = {record['ks_pvalue']:.3f}): "
+                         "miscalibrated")
+    out.prior_sensitivity = ("psense flags " + ", ".join(record["psense"]) if record["psense"]
+                             else "no parameter flagged by power-scaling (psense)")

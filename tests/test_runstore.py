@@ -1,0 +1,238 @@
+"""The run store: unit keys, atomic entries, corrupt = miss, resume after kill -9, Dask = serial."""
+
+import csv
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bayesfric.study import load_study
+from bayesfric.study.runner import _fold_schemes, _run_settings, load_study_data
+from bayesfric.study.store import STORE_ENV, RunStore, pack_record, unpack_record
+from bayesfric.study.units import make_job, plan_law
+from tests.hostile.harness import assert_user_error
+from tests.test_study import data_csv, study_text  # noqa: F401 - the fixture is used by name
+
+REPO = Path(__file__).resolve().parents[1]
+LAWS = '[[laws]]\nname = "coulomb"\n[[laws]]\nname = "coulomb_viscous"\n'
+
+
+def _units(path: Path):
+    """(fit unit, later units) of the study's first law, as a run would key them."""
+    study = load_study(path)
+    ds = load_study_data(study)
+    settings, kfold = _run_settings(study, quick=True)
+    job = make_job(study.laws[0], study.noise, ds, study.sampler["name"], settings, study.sampler["seed"])
+    fit, rest = plan_law(job, study, _fold_schemes(study, ds, study.sampler["seed"], kfold))
+    return fit, {u.label: u.key for u in rest}
+
+
+def test_unit_keys_change_with_every_input_and_only_then(tmp_path, data_csv):  # noqa: F811
+    path = tmp_path / "s.toml"
+    path.write_text(study_text(LAWS))
+    fit, rest = _units(path)
+    assert _units(path) == (fit, rest)  # unchanged study: same keys (reused)
+    variants = {
+        "prior": study_text('[[laws]]\nname = "coulomb"\npriors = { T_C = { dist = "HalfNormal", scale = 3.0 } }\n'),
+        "seed": study_text(LAWS).replace("chains = 2\n", "chains = 2\nseed = 1\n"),
+        "sampler": study_text(LAWS).replace("chains = 2", "chains = 1"),  # draws are capped by --quick
+        "noise": study_text(LAWS) + '[noise]\nkind = "student_t"\n',
+        "selection": study_text(LAWS).replace('"bench.csv"\n', '"bench.csv"\nselect = { series = 0 }\n'),
+    }
+    for what, text in variants.items():
+        path.write_text(text)
+        assert _units(path)[0].key != fit.key, what
+    path.write_text(study_text(LAWS).replace("threshold = 1.0", "threshold = 1.5"))
+    fit2, rest2 = _units(path)
+    assert fit2.key == fit.key and rest2["loo"] == rest["loo"]  # another fold changes only its own unit
+    assert set(rest2.values()) - set(rest.values()) == {rest2[next(k for k in rest2 if "1.5" in k)]}
+    path.write_text(study_text(LAWS))
+    lines = data_csv.read_text().splitlines()
+    lines[5] = lines[5].split(",")[0] + ",9.5," + lines[5].split(",")[2]  # one response value changed
+    data_csv.write_text("\n".join(lines) + "\n")
+    assert _units(path)[0].key != fit.key
+
+
+def test_store_entries_round_trip_and_a_damaged_entry_is_a_miss(tmp_path):
+    store = RunStore(tmp_path / "store")
+    key = "a" * 32
+    payload = pack_record({"key": key, "value": 1.5}, {"x": np.arange(3.0)})
+    store.put(key, "npz", payload)
+    record, arrays = unpack_record(store.get(key, "npz"))
+    assert record["value"] == 1.5 and np.array_equal(arrays["x"], np.arange(3.0))
+    assert RunStore(tmp_path / "store", read=False).get(key, "npz") is None  # --fresh
+    other = "b" * 32
+    store.put(other, "npz", payload)  # an entry under another key's name: not trusted
+    assert store.get(other, "npz") is None
+    store.path(key, "npz").write_bytes(payload[: len(payload) // 2])  # truncated
+    assert store.get(key, "npz") is None
+    store.path(key, "nc").write_bytes(b"not a NetCDF file")
+    assert store.get(key, "nc") is None
+    assert store.get("c" * 32, "npz") is None  # absent
+
+
+def test_clean_removes_temporary_files_of_dead_writers_only(tmp_path):
+    store = RunStore(tmp_path)
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
+    host = os.uname().nodename
+    stale = tmp_path / f".{'a' * 32}.npz.{host}.{int(dead.stdout)}.0123abcd.tmp"
+    live = tmp_path / f".{'b' * 32}.npz.{host}.{os.getpid()}.0123abcd.tmp"
+    foreign = tmp_path / f".{'c' * 32}.npz.otherhost.1.0123abcd.tmp"
+    for p in (stale, live, foreign):
+        p.write_bytes(b"partial")
+    assert store.clean() == [stale]
+    assert live.exists() and foreign.exists() and not stale.exists()
+
+
+@pytest.mark.parametrize(("argv", "mention"), [
+    (["--workers", "-2"], "--workers"),
+    (["--workers", "2", "--scheduler", "tcp://127.0.0.1:1"], "--scheduler"),
+    (["--scheduler", "no-port"], "--scheduler no-port"),
+])
+def test_executor_options_are_one_line_errors(tmp_path, data_csv, argv, mention):  # noqa: F811
+    (tmp_path / "s.toml").write_text(study_text(LAWS))
+    assert_user_error(["study", "s.toml", "--out", "reports", *argv], tmp_path, [mention], cwd=tmp_path)
+
+
+def test_failed_fits_takes_skip_or_run(tmp_path, data_csv):  # noqa: F811
+    from bayesfric.study import StudyError
+
+    path = tmp_path / "s.toml"
+    path.write_text(study_text(LAWS, extra=""))
+    assert load_study(path).failed_fits == "skip"
+    path.write_text(study_text(LAWS).replace("loo = true", 'loo = true\nfailed_fits = "run"'))
+    assert load_study(path).failed_fits == "run"
+    path.write_text(study_text(LAWS).replace("loo = true", 'loo = true\nfailed_fits = "maybe"'))
+    with pytest.raises(StudyError, match=r"\[compare\] failed_fits"):
+        load_study(path)
+
+
+# -- whole runs (subprocesses, as a user runs them) --------------------------------------------------
+def _study(tmp_path: Path) -> Path:
+    """Two cheap laws, LOO + one blocked fold, every stage run (quick fits may miss the ESS gate)."""
+    path = tmp_path / "s.toml"
+    path.write_text(study_text(LAWS).replace("loo = true", 'loo = true\nfailed_fits = "run"'))
+    return path
+
+
+def _run(path: Path, out: Path, *extra: str, quick: bool = True) -> subprocess.Popen:
+    env = {k: v for k, v in os.environ.items() if k != STORE_ENV}  # the store under --out
+    return subprocess.Popen([sys.executable, "-m", "bayesfric", "study", str(path), "--out", str(out),
+                             *(["--quick"] if quick else []), *extra], cwd=REPO, stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True, env=env, start_new_session=True)
+
+
+def _entries(store: Path) -> list[Path]:
+    """Finished store entries (not temporary files of writes in progress)."""
+    return sorted(p for p in store.glob("*") if not p.name.startswith(".") and p.suffix in (".nc", ".npz"))
+
+
+def _finish(proc: subprocess.Popen) -> str:
+    out, _ = proc.communicate(timeout=600)
+    assert proc.returncode == 0, out[-3000:]
+    return out
+
+
+def _statuses(folder: Path) -> list[str]:
+    with (folder / "timings.csv").open() as fh:
+        return [row["status"] for row in csv.DictReader(fh)]
+
+
+@pytest.mark.slow
+def test_kill_minus_nine_then_rerun_equals_an_uninterrupted_run(tmp_path, data_csv):  # noqa: F811
+    path = _study(tmp_path)
+    _finish(_run(path, tmp_path / "ref"))
+    expected = (tmp_path / "ref" / "tiny" / "ranking.csv").read_text()
+
+    proc = _run(path, tmp_path / "out")
+    store = tmp_path / "out" / ".store" / "tiny"
+    deadline = time.monotonic() + 300
+    while not any(p.suffix == ".npz" for p in _entries(store)) and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.05)  # kill right after the first unit past a fit landed: mid-run
+    assert proc.poll() is None, "the run ended before it could be killed"
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.communicate()
+    done_before = len(_entries(store))
+    assert not (tmp_path / "out" / "tiny").exists()  # no report: the run never finished
+
+    out = _finish(_run(path, tmp_path / "out"))
+    folder = tmp_path / "out" / "tiny"
+    assert (folder / "ranking.csv").read_text() == expected
+    statuses = _statuses(folder)
+    assert statuses.count("reused") == done_before >= 2 and "computed" in statuses, out[-2000:]
+    leftovers = [p for p in (tmp_path / "out").rglob("*") if p.name.endswith(".tmp") or
+                 (p.parent == tmp_path / "out" and p.name.startswith(".tiny."))]
+    assert not leftovers  # no temporary file or work folder of the killed run is left
+
+    # one damaged entry is recomputed, not trusted; everything else is reused
+    victim = [p for p in _entries(store) if p.suffix == ".npz"][0]
+    victim.write_bytes(victim.read_bytes()[:100])
+    _finish(_run(path, tmp_path / "out"))
+    assert (folder / "ranking.csv").read_text() == expected
+    assert _statuses(folder).count("computed") == 1
+
+    # --fresh recomputes every unit, with the same numbers
+    _finish(_run(path, tmp_path / "out", "--fresh"))
+    assert set(_statuses(folder)) == {"computed"}
+    assert (folder / "ranking.csv").read_text() == expected
+
+
+@pytest.mark.slow
+def test_two_worker_local_cluster_equals_serial(tmp_path, data_csv):  # noqa: F811
+    pytest.importorskip("distributed")  # the dask extra (installed by make test's bootstrap)
+    path = _study(tmp_path)
+    _finish(_run(path, tmp_path / "serial"))
+    _finish(_run(path, tmp_path / "dask", "--workers", "2"))
+    for name in ("ranking.csv", "parameters.csv"):
+        assert (tmp_path / "dask" / "tiny" / name).read_text() == (tmp_path / "serial" / "tiny" / name).read_text()
+    assert set(_statuses(tmp_path / "dask" / "tiny")) == {"computed"}
+
+
+@pytest.mark.slow
+def test_a_failed_fit_skips_cv_and_evidence_unless_asked(tmp_path, data_csv):  # noqa: F811
+    """40 draws per chain cannot pass the ESS gate: CV and evidence are skipped, and the report says so
+    (not under --quick, which runs every stage as a smoke test)."""
+    text = (study_text('[[laws]]\nname = "coulomb_viscous"\n').replace("draws = 1000", "draws = 40")
+            .replace("tune = 500", "tune = 40").replace("evidence = false", "evidence = true"))
+    path = tmp_path / "s.toml"
+    path.write_text(text)
+    _finish(_run(path, tmp_path / "skip", quick=False))
+    folder = tmp_path / "skip" / "tiny"
+    with (folder / "timings.csv").open() as fh:
+        rows = {row["stage"]: row["status"] for row in csv.DictReader(fh)}
+    assert rows == {"fit": "computed", "loo": "computed", "cv": "skipped", "bridge": "skipped",
+                    "importance": "skipped", "checks": "computed"}
+    summary = (folder / "summary.md").read_text()
+    assert "failed the diagnostics gate, so" in summary and "were not computed" in summary
+    path.write_text(text.replace("evidence = true", 'evidence = true\nfailed_fits = "run"'))
+    _finish(_run(path, tmp_path / "skip", quick=False))
+    assert "skipped" not in _statuses(folder)
+    assert _statuses(folder).count("reused") == 3  # the fit, LOO and checks do not depend on the option
+
+
+def test_progress_lines_without_a_terminal_and_the_stage_table(tmp_path):
+    import io
+
+    from bayesfric.study.executor import Progress, Timing, timing_table, write_timings
+    from bayesfric.study.units import Unit
+
+    stream = io.StringIO()  # not a TTY: plain lines, no bar
+    progress = Progress(3, "tiny", stream)
+    progress.step(Unit("coulomb", "fit", "fit", "k1"), "computed", 2.5)
+    progress.step(Unit("coulomb", "cv", "blocked v", "k2"), "reused", 0.0)
+    lines = stream.getvalue().splitlines()
+    assert lines[0].startswith("[tiny] 1/3 coulomb fit: computed in 2.5 s (elapsed ")
+    assert lines[1].startswith("[tiny] 2/3 coulomb blocked v: reused (elapsed ") and "left)" in lines[1]
+    rows = [Timing("tiny", "coulomb", "fit", "fit", "computed", 2.5, 2.5),
+            Timing("tiny", "stribeck", "fit", "fit", "reused", 0.0, 4.0),
+            Timing("tiny", "stribeck", "cv", "blocked v", "skipped", 0.0, float("nan"))]
+    table = timing_table(rows).splitlines()
+    assert table[2].split() == ["fit", "1", "1", "0", "2.5"] and table[3].split() == ["cv", "0", "0", "1", "0.0"]
+    assert table[-1].split() == ["total", "1", "1", "1", "2.5"]
+    text = write_timings(rows, tmp_path / "timings.csv").read_text().splitlines()
+    assert text[0] == "study,law,stage,label,status,seconds,stored_seconds" and len(text) == 4
