@@ -2,6 +2,7 @@
 
 import csv
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -169,9 +170,15 @@ def test_kill_minus_nine_then_rerun_equals_an_uninterrupted_run(tmp_path, data_c
                  (p.parent == tmp_path / "out" and p.name.startswith(".tiny."))]
     assert not leftovers  # no temporary file or work folder of the killed run is left
 
+    # an unchanged rerun finds the report current: nothing recomputed, the report left as it is
+    before = {p.name: p.stat().st_mtime_ns for p in folder.iterdir()}
+    assert "unchanged" in _finish(_run(path, tmp_path / "out"))
+    assert {p.name: p.stat().st_mtime_ns for p in folder.iterdir()} == before
+
     # one damaged entry is recomputed, not trusted; everything else is reused
     victim = [p for p in _entries(store) if p.suffix == ".npz"][0]
     victim.write_bytes(victim.read_bytes()[:100])
+    shutil.rmtree(folder)  # without the report, the rerun rebuilds it from the store
     _finish(_run(path, tmp_path / "out"))
     assert (folder / "ranking.csv").read_text() == expected
     assert _statuses(folder).count("computed") == 1

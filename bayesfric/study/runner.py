@@ -22,6 +22,8 @@ question and a sizing section in ``summary.md`` and ``report.html``.
 from __future__ import annotations
 
 import contextlib
+import hashlib
+import json
 import time
 from pathlib import Path
 
@@ -37,9 +39,13 @@ from bayesfric.study.config import Study, StudyError, load_study, sampler_settin
 from bayesfric.study.executor import open_client, run_units, timing_table, write_timings
 from bayesfric.study.outcome import LawOutcome, StudyOutcome
 from bayesfric.study.scores import score_table
-from bayesfric.study.store import RunStore, load_fit_bytes, store_folder
+from bayesfric.study.store import RunStore, load_fit_bytes, package_fingerprint, store_folder
 
-__all__ = ["run_study", "validate_against_data", "sizing_questions", "load_study_data"]
+__all__ = ["run_study", "validate_against_data", "sizing_questions", "load_study_data", "INPUTS_FILE"]
+
+#: Written into a report folder: the key of everything the report was rendered from. A rerun
+#: whose key matches (an unchanged study, every unit in the store) leaves the report as it is.
+INPUTS_FILE = ".bayesfric-inputs"
 
 #: ``--quick`` caps per sampler (a setting is lowered to its cap, never raised) and the cap on
 #: K-fold folds: a smoke test of the whole pipeline, not for decisions (reports say so).
@@ -184,7 +190,35 @@ def _fold_schemes(study: Study, ds, seed: int, kfold: int) -> list[tuple[str, ob
     return schemes
 
 
-def _run_laws(study: Study, ds, work: Path, schemes, settings: dict, seed: int, *, out_root: Path,
+def _plan_laws(study: Study, ds, schemes, settings: dict, seed: int) -> list:
+    """(job, fit unit, following units) of every law, keyed by everything each depends on."""
+    sampler = study.sampler.get("name", "nuts")
+    plans = []
+    for spec in study.laws:
+        job = units.make_job(spec, study.noise, ds, sampler, settings, seed)
+        plans.append((job, *units.plan_law(job, study, schemes)))
+    return plans
+
+
+def _inputs_key(study: Study, plans: list, quick: bool) -> str:
+    """SHA-256 of everything a report is rendered from: the study file, every unit key (data,
+    laws, priors, settings, seed, computing code) and every source file and template."""
+    digest = hashlib.sha256(study.path.read_bytes())
+    digest.update(json.dumps({"quick": quick, "units": [[u.key for u in (fit, *rest)] for _, fit, rest in plans]},
+                             sort_keys=True).encode())
+    digest.update(package_fingerprint().encode())
+    return digest.hexdigest()
+
+
+def _report_is_current(final: Path, study: str, key: str) -> bool:
+    """The report folder was written by bayesfric for this study from exactly these inputs."""
+    try:
+        return fsutil.is_marked(final, study) and (final / INPUTS_FILE).read_text().strip() == key
+    except OSError:
+        return False
+
+
+def _run_laws(study: Study, ds, work: Path, plans: list, schemes, *, out_root: Path,
               fresh: bool, client, timings: list, quick: bool) -> list[LawOutcome]:
     """Every law's units through the run store and the executor; their outcomes, in study order.
 
@@ -198,11 +232,6 @@ def _run_laws(study: Study, ds, work: Path, schemes, settings: dict, seed: int, 
     store = RunStore(store_folder(out_root, study.name), read=not fresh)
     for tmp in store.clean():
         print(f"[{study.name}] removed a temporary file of an interrupted run: {tmp}", flush=True)
-    sampler = study.sampler.get("name", "nuts")
-    plans = []
-    for spec in study.laws:
-        job = units.make_job(spec, study.noise, ds, sampler, settings, seed)
-        plans.append((job, *units.plan_law(job, study, schemes)))
     failed_fits = "run" if quick else study.failed_fits
     payloads, skipped, rows = run_units(plans, store, study=study.name, failed_fits=failed_fits, client=client)
     timings += rows
@@ -338,12 +367,18 @@ def _write_study(prepared, out_root: Path, quick: bool, fresh: bool, client, tim
     study, final, ds, settings, kfold, schemes, questions = prepared
     seed = study.sampler["seed"]
     root = final.parent
+    plans = _plan_laws(study, ds, schemes, settings, seed)
+    inputs_key = _inputs_key(study, plans, quick)
+    if not fresh and _report_is_current(final, study.name, inputs_key):
+        print(f"[{study.name}] unchanged: the report in {final} was written from the same study file, data, "
+              "units and code; nothing recomputed or rewritten (--fresh recomputes)", flush=True)
+        return final
     for stale in fsutil.clean_stale_work(root, study.name):
         print(f"[{study.name}] removed the work folder of an interrupted run: {stale}", flush=True)
     work = fsutil.create_work_folder(root, study.name)
     try:
         rows: list = []
-        outcomes = _run_laws(study, ds, work, schemes, settings, seed, out_root=out_root, fresh=fresh,
+        outcomes = _run_laws(study, ds, work, plans, schemes, out_root=out_root, fresh=fresh,
                              client=client, timings=rows, quick=quick)
         write_timings(rows, work / "timings.csv")
         if timings is not None:
@@ -368,6 +403,7 @@ def _write_study(prepared, out_root: Path, quick: bool, fresh: bool, client, tim
         from bayesfric.report.summary import write_reports  # here: bayesfric.report reads bayesfric.study
 
         write_reports(outcome, work)
+        (work / INPUTS_FILE).write_text(inputs_key + "\n")  # an unchanged rerun reuses the whole report
         try:
             fsutil.install_folder(work, final, study.name)
         except fsutil.PathError as exc:

@@ -36,7 +36,8 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-__all__ = ["RunStore", "store_folder", "unit_key", "data_fingerprint", "code_fingerprint", "STORE_ENV"]
+__all__ = ["RunStore", "store_folder", "unit_key", "data_fingerprint", "code_fingerprint", "package_fingerprint",
+           "STORE_ENV"]
 
 #: Environment variable that moves the store out of the reports folder.
 STORE_ENV = "BAYESFRIC_STORE_DIR"
@@ -59,10 +60,21 @@ def code_fingerprint() -> str:
     digest = hashlib.sha256(str(__version__).encode())
     for path in sorted(_PACKAGE.rglob("*.py")):
         rel = path.relative_to(_PACKAGE).as_posix()
-        if rel.startswith(_NOT_COMPUTING) or (rel.startswith("laws/") and rel not in ("laws/base.py",
-                                                                                         "laws/__init__.py")):
+        if rel.startswith(_NOT_COMPUTING) or (rel.startswith("laws/") and rel not in (
+                "laws/base.py", "laws/__init__.py", "laws/variants.py")):
             continue
         digest.update(rel.encode() + b"\0" + path.read_bytes())
+    return digest.hexdigest()
+
+
+@lru_cache(maxsize=1)
+def package_fingerprint() -> str:
+    """SHA-256 of every source file and report template of the package (what a report renders with)."""
+    from bayesfric import __version__
+
+    digest = hashlib.sha256(str(__version__).encode())
+    for path in sorted(p for p in _PACKAGE.rglob("*") if p.suffix in (".py", ".j2")):
+        digest.update(path.relative_to(_PACKAGE).as_posix().encode() + b"\0" + path.read_bytes())
     return digest.hexdigest()
 
 
