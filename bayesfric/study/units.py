@@ -125,19 +125,19 @@ def _program(job: LawJob):
 
 
 def _base_engine(job: LawJob):
-    """The law's compiled NUTS engine, shared by its full fit and every fold refit in this process.
+    """The law's compiled NUTS refit engine, shared by every fold refit of the law in this process.
 
-    A NUTS study fits with the engine's all-true mask; folds that remove a region or series run
-    cold on the same compiled sampler (the full warm-up), folds that drop a few points start from
-    the full fit (:func:`_engine`). An emcee study's folds are refitted with NUTS at the NUTS
-    defaults' length.
+    Folds that remove a region or series run cold (a Stan warm-up of at most 500 steps), folds
+    that drop a few points start from the full fit on the same compiled sampler (:func:`_engine`).
+    An emcee study's folds are refitted with NUTS at the NUTS defaults' length.
     """
     if any(k != job.key for k in _ENGINES):
         _ENGINES.clear()
         release_compiled_code()  # the previous law's compiled samplers are not reused
     if job.key not in _ENGINES:
-        settings = (dict(job.settings) if job.sampler == "nuts"
-                    else dict(draws=1000, tune=500, chains=4))
+        s = job.settings
+        settings = (dict(draws=s["draws"], tune=min(500, s["tune"]), chains=s.get("chains", 4))
+                    if job.sampler == "nuts" else dict(draws=1000, tune=500, chains=4))
         _ENGINES[job.key] = compare.RefitEngine(_program(job), seed=job.seed, **settings)
     return _ENGINES[job.key]
 
@@ -198,10 +198,7 @@ def compute(job: LawJob, unit: Unit, fit_payload: bytes | None = None) -> tuple[
     """
     start = time.perf_counter()
     if unit.stage == "fit":
-        if job.sampler == "nuts":
-            dt = _base_engine(job).fit(job.ds)  # the all-true mask of the engine its folds reuse
-        else:
-            dt = SAMPLERS[job.sampler](_program(job), job.ds, seed=job.seed, **job.settings)
+        dt = SAMPLERS[job.sampler](_program(job), job.ds, seed=job.seed, **job.settings)
         return fit_to_bytes(dt), time.perf_counter() - start
     record, arrays = _compute_rest(job, unit, load_fit_bytes(fit_payload))
     seconds = time.perf_counter() - start
