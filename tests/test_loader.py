@@ -214,7 +214,11 @@ def test_row_limit_is_inclusive(tmp_path):
 def test_builtin_data_sets_load():
     from bayesfric.datasets import builtin_names, load_builtin
 
+    seeds = {"dahl_duplex", "drum_rollout", "pitch_bearing", "robot_joint", "unwinder"}  # from the papers
+    examples = {"asym_joint", "tribo_loops"}  # simulated with known truth (studies/examples/)
     names = builtin_names()
-    assert len(names) == 5
+    assert set(names) == seeds | examples
     for name in names:
-        assert load_builtin(name).sizes["obs"] > 100, name
+        ds = load_builtin(name)
+        assert ds.sizes["obs"] > 100, name
+        assert ds.attrs["provenance"] == ("reconstructed" if name in seeds else "simulated"), name
