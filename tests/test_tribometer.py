@@ -78,7 +78,7 @@ def test_dahl_fits_tribometer_loops_with_default_priors(tmp_path):
 def test_lugre_fits_tribometer_loops_with_default_priors(tmp_path):
     truth_law = vary(get_law("lugre"), motion="translational")
     ds = _write(tmp_path, truth_law, LUGRE, seed=4)
-    dt = fit(get_law("lugre"), ds, draws=500, tune=500, chains=4, seed=1)
+    dt = fit(get_law("lugre"), ds, seed=1)  # the default 4 × (1000 + 1000): 500 draws left R-hat at 1.011
     verdict = verdict_of(dt)
     assert verdict.passed, verdict.problems
     _within_90(dt, {k: LUGRE[k] for k in ("F_c", "sigma0")})
