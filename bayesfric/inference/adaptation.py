@@ -44,15 +44,16 @@ class ChainDraws(NamedTuple):
     acceptance_rate: jax.Array
 
 
-def sampling_schedule(steps: int, draws: int, active: int | None = None) -> np.ndarray:
+def sampling_schedule(steps: int, draws: int, active: int | None = None, warm: bool = True) -> np.ndarray:
     """``(steps + draws, 4)`` rows (stage, slow-window end, active, sampling) for :func:`nuts_chain`.
 
     The first ``steps`` rows are the warm-up, the last ``draws`` the sampling phase.
     ``active=None``: Stan's default warm-up over all ``steps`` (75-step fast window, doubling
     slow windows from 25 steps, 50-step final fast window). ``active=m ≤ steps``: the first
-    ``steps - m`` rows are inactive and the last ``m`` form a short warm-up for chains that
-    start inside the posterior: a 50-step fast window, one slow window that re-estimates the
-    mass matrix, and a 50-step fast window (``m`` ≥ 120).
+    ``steps - m`` rows are inactive and the last ``m`` form a shorter warm-up: with ``warm``
+    (chains that start inside the posterior) a 50-step fast window, one slow window that
+    re-estimates the mass matrix, and a 50-step fast window (``m`` ≥ 120); without, Stan's
+    default warm-up of ``m`` steps (chains that start cold, e.g. from the prior median).
     """
     sampling = np.column_stack([np.zeros((draws, 2), dtype=int), np.ones((draws, 2), dtype=int)])
     if active is None:
@@ -61,8 +62,11 @@ def sampling_schedule(steps: int, draws: int, active: int | None = None) -> np.n
         return np.vstack([warm, sampling])
     if not 120 <= active <= steps:
         raise ValueError(f"a short warm-up needs 120 to {steps} steps (got {active})")
-    short = np.asarray(build_schedule(active, initial_buffer_size=50, final_buffer_size=50,
-                                      first_window_size=active - 100), dtype=int).reshape(-1, 2)
+    if warm:
+        short = np.asarray(build_schedule(active, initial_buffer_size=50, final_buffer_size=50,
+                                          first_window_size=active - 100), dtype=int).reshape(-1, 2)
+    else:
+        short = np.asarray(build_schedule(active), dtype=int).reshape(-1, 2)
     idle = np.zeros((steps - active, 2), dtype=int)
     warm = np.column_stack([np.vstack([idle, short]),
                             np.r_[np.zeros(steps - active, dtype=int), np.ones(active, dtype=int)],

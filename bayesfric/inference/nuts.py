@@ -1,21 +1,20 @@
-"""NUTS backend for the full fit (numpyro).
+"""NUTS backend of the full fit: the all-true mask of the law's compiled engine.
 
-The compiled engine that refits the folds (:class:`bayesfric.inference.engine.NutsEngine`) can
-make the full fit too (``engine.fit(ds)``: its all-true mask, one compilation for fit and
-folds), and ``benchmarks/bench_refit.py`` measures that path. Full fits stay on numpyro's NUTS
-for now: on the skf_2014 bearing law the blackjax chain took hundreds of leapfrog steps per draw
-and the law's posterior-recovery test ran past 30 minutes, where numpyro's fit passes in a few
-(found at integration, 2026-11-23; not yet explained).
+:func:`sample_nuts` builds the program's :class:`~bayesfric.inference.engine.NutsEngine`
+(blackjax NUTS with Stan's window adaptation on the program's one log density) and takes its
+full fit, so a fit and every fold refit of a law are draws of one sampler and one compiled
+program. The sampler runs as one compiled call, so ``progress`` can only say when it starts and
+ends; a study shows progress per stage instead.
 """
 
 from __future__ import annotations
 
-import jax
-import numpy as np
-import xarray as xr
-from numpyro.infer import MCMC, NUTS, init_to_median
+import sys
+import time
 
-from bayesfric.inference.datatree import assemble
+import xarray as xr
+
+from bayesfric.inference.engine import NutsEngine
 from bayesfric.model import Program
 
 __all__ = ["sample_nuts"]
@@ -35,23 +34,16 @@ def sample_nuts(
 ) -> xr.DataTree:
     """Sample the program's posterior with NUTS and return the fit's DataTree.
 
-    Chains run vectorised in one process (``chain_method="vectorized"``); initialisation is at
-    the prior median so that every chain starts in the bulk.
+    Chains run vectorised in one compiled program and start at different prior-median points
+    (numpyro's ``init_to_median``), so every chain starts in the bulk of the prior.
     """
-    kernel = NUTS(program.model, target_accept_prob=target_accept, max_tree_depth=max_tree_depth,
-                  init_strategy=init_to_median(num_samples=15))
-    mcmc = MCMC(kernel, num_warmup=tune, num_samples=draws, num_chains=chains,
-                chain_method="vectorized", progress_bar=progress)
-    mcmc.run(jax.random.PRNGKey(seed), **program.model_kwargs, extra_fields=("diverging", "energy",
-             "num_steps", "accept_prob"))
-    samples = {k: np.asarray(v) for k, v in mcmc.get_samples(group_by_chain=True).items()}
-    extra = mcmc.get_extra_fields(group_by_chain=True)
-    stats = {
-        "diverging": np.asarray(extra["diverging"]),
-        "energy": np.asarray(extra["energy"]),
-        "n_steps": np.asarray(extra["num_steps"]),
-        "acceptance_rate": np.asarray(extra["accept_prob"]),
-    }
-    settings = dict(draws=draws, tune=tune, chains=chains, target_accept=target_accept,
-                    max_tree_depth=max_tree_depth)
-    return assemble(program, ds, samples, stats, sampler="nuts", settings=settings, seed=seed)
+    engine = NutsEngine(program, draws=draws, tune=tune, chains=chains, seed=seed,
+                        target_accept=target_accept, max_tree_depth=max_tree_depth)
+    start = time.perf_counter()
+    if progress:
+        print(f"sampling {program.law.name}: {chains} chains × ({tune} warm-up + {draws} draws), "
+              "compiling first unless cached …", file=sys.stderr, flush=True)
+    dt = engine.fit(ds)
+    if progress:
+        print(f"sampled in {time.perf_counter() - start:.1f} s", file=sys.stderr, flush=True)
+    return dt

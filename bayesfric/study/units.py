@@ -125,28 +125,33 @@ def _program(job: LawJob):
 
 
 def _base_engine(job: LawJob):
-    """The law's compiled NUTS refit engine, shared by every fold refit of the law in this process.
+    """The law's compiled NUTS engine: its full fit and every fold refit in this process.
 
-    Folds that remove a region or series run cold (a Stan warm-up of at most 500 steps), folds
-    that drop a few points start from the full fit on the same compiled sampler (:func:`_engine`).
-    An emcee study's folds are refitted with NUTS at the NUTS defaults' length.
+    The engine's compiled warm-up is the study's ``tune``; the full fit uses all of it. Folds
+    that remove a region or series start cold with a Stan warm-up of at most 500 steps, folds
+    that drop a few points start from the full fit (:func:`_engine`); both run inside the same
+    compiled sampler. An emcee study's folds are refitted with NUTS at the NUTS defaults' length.
     """
     if any(k != job.key for k in _ENGINES):
         _ENGINES.clear()
         release_compiled_code()  # the previous law's compiled samplers are not reused
     if job.key not in _ENGINES:
         s = job.settings
-        settings = (dict(draws=s["draws"], tune=min(500, s["tune"]), chains=s.get("chains", 4))
+        settings = (dict(draws=s["draws"], tune=s["tune"], chains=s.get("chains", 4),
+                         **{k: s[k] for k in ("target_accept", "max_tree_depth") if k in s})
                     if job.sampler == "nuts" else dict(draws=1000, tune=500, chains=4))
         _ENGINES[job.key] = compare.RefitEngine(_program(job), seed=job.seed, **settings)
     return _ENGINES[job.key]
 
 
 def _engine(job: LawJob, fit: xr.DataTree, warm: bool):
-    """The law's engine, warm-started from ``fit`` (a 250-step warm-up inside the compiled one) or cold."""
+    """The law's engine, warm-started from ``fit`` (a 250-step warm-up) or cold (≤ 500 steps)."""
     base = _base_engine(job)
     warm_tune = min(250, base.tune)  # a warm start needs ≥ 120 warm-up steps within the engine's
-    return base.warm_started(fit, warm_tune) if warm and warm_tune >= 120 else base
+    if warm and warm_tune >= 120:
+        return base.warm_started(fit, warm_tune)
+    cold_tune = min(500, base.tune)
+    return base.cold_started(cold_tune) if cold_tune >= 120 else base
 
 
 def _json_default(value: Any) -> Any:
@@ -198,7 +203,10 @@ def compute(job: LawJob, unit: Unit, fit_payload: bytes | None = None) -> tuple[
     """
     start = time.perf_counter()
     if unit.stage == "fit":
-        dt = SAMPLERS[job.sampler](_program(job), job.ds, seed=job.seed, **job.settings)
+        if job.sampler == "nuts":  # the all-true mask of the engine its folds will use
+            dt = _base_engine(job).fit(job.ds)
+        else:
+            dt = SAMPLERS[job.sampler](_program(job), job.ds, seed=job.seed, **job.settings)
         return fit_to_bytes(dt), time.perf_counter() - start
     record, arrays = _compute_rest(job, unit, load_fit_bytes(fit_payload))
     seconds = time.perf_counter() - start

@@ -154,8 +154,27 @@ def test_full_fit_and_every_fold_share_one_compilation(viscous_data):
     blocked = cross_validate(engine, blocked_masks(viscous_data, "velocity", quantile=0.8))
     near = engine.warm_started(dt, warm_tune=150)
     kfold = cross_validate(near, kfold_masks(viscous_data, k=3, seed=0))
+    short = cross_validate(engine.cold_started(200), blocked_masks(viscous_data, "velocity", quantile=0.8))
     assert engine.compilations == 1 and engine._sampler._cache_size() == 1
     assert near.settings["tune"] == 150 and engine.settings["tune"] == 300
+    assert engine.cold_started(200).settings["tune"] == 200 and np.isfinite(short.elpd)
+    with pytest.raises(ValueError, match="cold warm-up needs 120 to 300"):
+        engine.cold_started(100)
     assert np.isfinite(blocked.elpd) and np.isfinite(kfold.elpd) and kfold.heldout.all()
     with pytest.raises(ValueError, match="exceeds the engine's warm-up"):
         engine.warm_started(dt, warm_tune=301)
+
+
+def test_the_data_are_constants_of_the_compiled_sampler(viscous_data):
+    """Only keys, masks, starts, mass matrix and schedule are arguments; the data are folded in.
+
+    With the data as arguments, data-only work (the skf_2014 ball-load solve) ran at every
+    leapfrog step; as constants XLA evaluates it once, at compile time.
+    """
+    engine = RefitEngine(build_program(get_law("coulomb_viscous"), viscous_data), **SMALL)
+    masks = np.ones((1, viscous_data.sizes["obs"]), dtype=bool)
+    keys = np.zeros((1, 2, 2), dtype=np.uint32)
+    lowered = engine._sampler.lower(keys, masks, engine._init_z, engine._init_imm, engine._schedule)
+    shapes = [tuple(a.shape) for a in lowered.in_avals[0]]
+    assert shapes == [keys.shape, masks.shape, tuple(engine._init_z.shape), tuple(engine._init_imm.shape),
+                      engine._schedule.shape]
