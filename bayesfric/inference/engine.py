@@ -153,7 +153,7 @@ class NutsEngine:
         self.active_tune = self.tune
         self._schedule = sampling_schedule(self.tune, self.draws)
         # prior-median starts (numpyro's init_to_median), from different prior draws per chain
-        self._init_z = median_starts(program, [seed * 7919 + c for c in range(self.chains)])
+        self._init_z = self._cold_z = median_starts(program, [seed * 7919 + c for c in range(self.chains)])
         self._init_imm = jnp.ones(self._density.dim)
         self._sampler = jax.jit(self._sample_batch)
         if warm_start is not None:
@@ -188,7 +188,7 @@ class NutsEngine:
         if not 120 <= tune <= self.tune:
             raise ValueError(f"a cold warm-up needs 120 to {self.tune} steps (got {tune})")
         view = copy.copy(self)
-        view._init_z = median_starts(self.program, [self.seed * 7919 + c for c in range(self.chains)])
+        view._init_z = self._cold_z  # the prior-median starts, computed once in __init__
         view._init_imm = jnp.ones(self._density.dim)
         view._schedule = sampling_schedule(self.tune, self.draws, active=tune, warm=False)
         view.warm, view.active_tune = False, tune
