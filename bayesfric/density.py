@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from functools import partial
+from functools import cached_property, partial
 from typing import TYPE_CHECKING, Any
 
 import jax
@@ -28,6 +28,8 @@ from jax.flatten_util import ravel_pytree
 from numpyro import handlers
 from numpyro.infer import init_to_median
 from numpyro.infer.util import constrain_fn, log_likelihood, potential_energy, unconstrain_fn
+
+from bayesfric.exported import program_jit
 
 if TYPE_CHECKING:
     from bayesfric.model import Program
@@ -74,6 +76,21 @@ class Density:
         """
         return -potential_energy(self.program.model, (), self._kwargs(data, mask), self.unravel(x))
 
+    @cached_property
+    def log_joint_batch(self) -> Callable[[jax.Array], jax.Array]:
+        """Compiled :meth:`log_joint` over a batch ``(n, dim)`` of flat vectors (traces kept on disk)."""
+        return program_jit(self.program, "log_joint_batch", jax.vmap(self.log_joint))
+
+    @cached_property
+    def neg_value_and_grad(self) -> Callable[[jax.Array], tuple[jax.Array, jax.Array]]:
+        """Compiled ``x -> (-log_joint(x), -∇log_joint(x))``, for optimisers."""
+        return program_jit(self.program, "neg_value_and_grad", jax.value_and_grad(lambda x: -self.log_joint(x)))
+
+    @cached_property
+    def neg_grad(self) -> Callable[[jax.Array], jax.Array]:
+        """Compiled ``x -> -∇log_joint(x)`` (finite-difference Hessians)."""
+        return program_jit(self.program, "neg_grad", jax.grad(lambda x: -self.log_joint(x)))
+
     def log_prior(self, x: jax.Array) -> jax.Array:
         """``log p(θ(x)) + log|J|``: the log joint with every observation masked out."""
         return self.log_joint(x, mask=jnp.zeros(self.program.n_obs, dtype=bool))
@@ -99,7 +116,8 @@ class Density:
         draws = {k: jnp.asarray(constrained[k]) for k in self.sites}
         # one compiled program: run eagerly, the transforms dispatch (and the first time in a
         # process compile) op by op -- 27 s for a warm start of stribeck on the loaded 2-core box
-        return jax.jit(jax.vmap(lambda p: ravel_pytree(unconstrain_fn(model, (), kwargs, p))[0]))(draws)
+        to_flat = jax.vmap(lambda p: ravel_pytree(unconstrain_fn(model, (), kwargs, p))[0])
+        return program_jit(self.program, "to_unconstrained", to_flat)(draws)
 
 
 def _median_start(program: Program, key: jax.Array) -> dict[str, jax.Array]:
@@ -119,7 +137,7 @@ def median_starts(program: Program, seeds: list[int]) -> jax.Array:
     each of its few hundred operations one by one.
     """
     keys = jnp.stack([jax.random.PRNGKey(s) for s in seeds])
-    starts = jax.jit(jax.vmap(partial(_median_start, program)))(keys)
+    starts = program_jit(program, "median_starts", jax.vmap(partial(_median_start, program)))(keys)
     return jax.vmap(lambda tree: ravel_pytree(tree)[0])(starts)
 
 

@@ -145,7 +145,7 @@ def bridge_log_evidence(
     rng = np.random.default_rng(seed)
     proposal_draws = np.atleast_2d(proposal.rvs(size=n2, random_state=rng)).reshape(n2, density.dim)
 
-    log_joint = jax.jit(jax.vmap(density.log_joint))
+    log_joint = density.log_joint_batch
     flat_bridge = bridge_half.reshape(-1, density.dim)
     q11 = _finite(log_joint(jnp.asarray(flat_bridge)))  # unnormalised posterior at posterior draws
     q12 = proposal.logpdf(flat_bridge).reshape(-1)  # proposal at posterior draws

@@ -131,9 +131,7 @@ def laplace_is_log_evidence(
     """
     start = time.perf_counter()
     density = program.density(seed)
-    neg = jax.jit(jax.value_and_grad(lambda x: -density.log_joint(x)))
-    grad = jax.jit(jax.grad(lambda x: -density.log_joint(x)))
-    log_joint = jax.jit(jax.vmap(density.log_joint))
+    neg, grad, log_joint = density.neg_value_and_grad, density.neg_grad, density.log_joint_batch
 
     x_median = np.asarray(density.x0)
     key = jax.random.PRNGKey(seed)

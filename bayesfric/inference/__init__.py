@@ -35,11 +35,13 @@ SAMPLERS = {"nuts": sample_nuts, "emcee": sample_emcee}
 def release_compiled_code() -> None:
     """Free every compiled JAX executable held by this process.
 
-    Every fit compiles fresh closures of its model (numpyro builds them per run), and on the CPU
-    backend each fit leaves ~740 memory mappings behind that nothing reuses. A long loop of fits
-    (a study, a model-recovery grid, the test suite) passes the kernel's ``vm.max_map_count``
-    (65530 by default) after roughly 80 fits and XLA then aborts mid-compilation. Long loops
-    call this between items; it costs only the recompilation of code still in use.
+    Every fit compiles fresh closures of its model, and on the CPU backend each compiled
+    executable stays mapped in memory. When each fit compiled a few hundred small programs, a
+    fit left ~740 mappings behind and a long loop of fits (a study, a model-recovery grid, the
+    test suite) passed the kernel's ``vm.max_map_count`` (65530 by default) after roughly 80
+    fits, and XLA then aborted mid-compilation; with the few exported programs of
+    :mod:`bayesfric.exported` a small fit leaves ~75. Long loops still call this between items;
+    it costs only the recompilation of code still in use.
     """
     jax.clear_caches()
     gc.collect()

@@ -15,6 +15,7 @@ from numpyro.handlers import substitute, trace
 from numpyro.infer import Predictive, log_likelihood
 
 from bayesfric.datasets.loader import OBS_DIM
+from bayesfric.exported import program_jit
 from bayesfric.inference.diagnostics import check
 from bayesfric.model import OBS_SITE, Program
 
@@ -106,7 +107,8 @@ def assemble(
     key_pp, key_prior = jax.random.split(jax.random.PRNGKey(seed + 1))
 
     # one compiled program for every per-draw table (it used to be three scans, compiled apart)
-    ll, log_prior, pp, prior = jax.jit(partial(_draw_tables, program, n_prior))(flat, key_pp, key_prior)
+    tables = program_jit(program, f"draw_tables n_prior={n_prior}", partial(_draw_tables, program, n_prior))
+    ll, log_prior, pp, prior = tables(flat, key_pp, key_prior)
     prior_pred = {OBS_SITE: prior.pop(OBS_SITE)}
     # posterior keeps sampled + derived sites; drop nothing the sampler returned
     posterior = {k: v for k, v in samples.items()}

@@ -45,6 +45,8 @@ import numpy as np
 import xarray as xr
 
 from bayesfric.density import median_starts
+from bayesfric.exported import exported_jit
+from bayesfric.fingerprint import program_parts
 from bayesfric.inference.adaptation import nuts_chain, sampling_schedule
 from bayesfric.inference.datatree import assemble
 from bayesfric.inference.diagnostics import GATE, Gate, Verdict, check
@@ -120,8 +122,9 @@ class NutsEngine:
 
     Notes
     -----
-    ``compilations`` counts how often the sampler was traced (i.e. compiled): it stays at 1 for
-    every later call (any mask, seed, warm or cold start) on the engine and its views.
+    ``compilations`` counts how often the sampler was built -- traced, or read from the exported
+    programs on disk (:mod:`bayesfric.exported`; ``loaded`` says which): it stays at 1
+    for every later call (any mask, seed, warm or cold start) on the engine and its views.
     """
 
     def __init__(
@@ -155,7 +158,8 @@ class NutsEngine:
         # prior-median starts (numpyro's init_to_median), from different prior draws per chain
         self._init_z = self._cold_z = median_starts(program, [seed * 7919 + c for c in range(self.chains)])
         self._init_imm = jnp.ones(self._density.dim)
-        self._sampler = jax.jit(self._sample_batch)
+        self._sampler, self.loaded = exported_jit(self._sample_batch, self._program_parts(), self._example_args())
+        self.compilations += int(self.loaded)  # a program read from disk counts as its one compilation
         if warm_start is not None:
             self._start_from(warm_start, int(warm_tune))
 
@@ -210,6 +214,17 @@ class NutsEngine:
                     warm_start="from the full fit's draws and mass matrix" if self.warm else "no")
 
     # -- the compiled function ------------------------------------------------------------
+    def _program_parts(self) -> dict:
+        """What the traced sampler depends on besides the package source (its disk-cache key)."""
+        return dict(program=program_parts(self.program), what="NutsEngine._sample_batch", draws=self.draws,
+                    target_accept=self.target_accept, max_tree_depth=self.max_tree_depth)
+
+    def _example_args(self) -> tuple:
+        keys = jax.ShapeDtypeStruct((self.fold_batch, self.chains) + jax.random.PRNGKey(0).shape, jnp.uint32)
+        masks = jax.ShapeDtypeStruct((self.fold_batch, self.program.n_obs), jnp.bool_)
+        schedule = jnp.asarray(self._schedule)
+        return (keys, masks, self._init_z, self._init_imm, jax.ShapeDtypeStruct(schedule.shape, schedule.dtype))
+
     def _sample_batch(self, keys, masks, init_z, init_imm, schedule):
         self.compilations += 1  # runs only while tracing, i.e. once per compilation
         density = self._density  # the program's one log density
@@ -259,8 +274,10 @@ class NutsEngine:
                           for k in range(padded.shape[0])])
         parts = []
         for lo in range(0, padded.shape[0], b):
-            out = self._sampler(keys[lo:lo + b], jnp.asarray(padded[lo:lo + b]), self._init_z,
-                                self._init_imm, jnp.asarray(self._schedule))
+            # host arrays: a device-committed start would count as another signature of the
+            # exported program and compile it again
+            out = self._sampler(keys[lo:lo + b], padded[lo:lo + b], np.asarray(self._init_z),
+                                np.asarray(self._init_imm), np.asarray(self._schedule))
             parts.append(jax.tree.map(np.asarray, out))
         samples, stats, lpd = jax.tree.map(lambda *xs: np.concatenate(xs)[:n_folds], *parts)
         verdicts = [self._verdict({k: v[i] for k, v in samples.items()}, stats["diverging"][i],

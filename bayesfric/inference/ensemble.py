@@ -16,9 +16,8 @@ from bayesfric.model import Program
 __all__ = ["sample_emcee"]
 
 
-def _map_point(log_joint, x0: np.ndarray) -> np.ndarray:
-    """Posterior mode in unconstrained space (L-BFGS on the jitted log density and its gradient)."""
-    value_and_grad = jax.jit(jax.value_and_grad(lambda v: -log_joint(v)))
+def _map_point(value_and_grad, x0: np.ndarray) -> np.ndarray:
+    """Posterior mode in unconstrained space (L-BFGS on the compiled ``-log density`` and its gradient)."""
 
     def fun(x):
         value, grad = value_and_grad(jnp.asarray(x))
@@ -50,14 +49,14 @@ def sample_emcee(
     density = program.density(seed)
     ndim = density.dim
     n_walkers = walkers or max(32, 4 * ndim)
-    log_prob_batch = jax.jit(jax.vmap(density.log_joint))
+    log_prob_batch = density.log_joint_batch
 
     def log_prob(x):
         lp = np.asarray(log_prob_batch(jnp.asarray(x)))
         return np.where(np.isfinite(lp), lp, -np.inf)
 
     rng = np.random.default_rng(seed)
-    centre = _map_point(density.log_joint, np.asarray(density.x0))
+    centre = _map_point(density.neg_value_and_grad, np.asarray(density.x0))
     p0 = centre + 1e-3 * rng.standard_normal((n_walkers, ndim))
     moves = [(emcee.moves.DEMove(), 0.8), (emcee.moves.DESnookerMove(), 0.2)]
     sampler = emcee.EnsembleSampler(n_walkers, ndim, log_prob, vectorize=True, moves=moves)

@@ -29,6 +29,7 @@ from pathlib import Path
 
 from bayesfric import compare, fsutil, sizing
 from bayesfric.datasets import DataError, load_dataset, resolve, select
+from bayesfric.fingerprint import package_fingerprint
 from bayesfric.laws.variants import for_data
 from bayesfric.model import build_program
 from bayesfric.priors import PriorError
@@ -39,7 +40,7 @@ from bayesfric.study.config import Study, StudyError, load_study, sampler_settin
 from bayesfric.study.executor import open_client, run_units, timing_table, write_timings
 from bayesfric.study.outcome import LawOutcome, StudyOutcome
 from bayesfric.study.scores import score_table
-from bayesfric.study.store import RunStore, load_fit_bytes, package_fingerprint, store_folder
+from bayesfric.study.store import RunStore, load_fit_bytes, store_folder
 
 __all__ = ["run_study", "validate_against_data", "sizing_questions", "load_study_data", "INPUTS_FILE"]
 

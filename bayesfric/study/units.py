@@ -30,20 +30,13 @@ import xarray as xr
 
 from bayesfric import compare
 from bayesfric.compare.loo import loo_from_values
+from bayesfric.fingerprint import data_fingerprint, law_fingerprint, unit_key
 from bayesfric.inference import SAMPLERS, release_compiled_code
 from bayesfric.inference.diagnostics import Verdict
 from bayesfric.laws.variants import law_of_fit
 from bayesfric.model import Noise, build_program
 from bayesfric.study.outcome import Estimate, LawOutcome
-from bayesfric.study.store import (
-    data_fingerprint,
-    fit_to_bytes,
-    law_fingerprint,
-    load_fit_bytes,
-    pack_record,
-    unit_key,
-    unpack_record,
-)
+from bayesfric.study.store import fit_to_bytes, load_fit_bytes, pack_record, unpack_record
 
 __all__ = ["LawJob", "Unit", "make_job", "plan_law", "compute", "assemble", "COSTLY"]
 

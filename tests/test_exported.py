@@ -1,0 +1,128 @@
+"""Traced programs kept on disk (bayesfric.exported): read back only for the same content, and
+then the very same program; unreadable files and the off switch fall back to tracing."""
+
+import json
+import os
+import subprocess
+import sys
+import textwrap
+
+import jax
+import numpy as np
+import pytest
+
+import bayesfric.exported as exported
+from bayesfric.datasets.synthetic import simulate
+from bayesfric.inference.engine import NutsEngine
+from bayesfric.laws import get_law
+from bayesfric.model import build_program
+
+SMALL = dict(draws=100, tune=150, chains=2, seed=3)
+
+
+@pytest.fixture(scope="module")
+def data():
+    law = get_law("coulomb_viscous")
+    return simulate(law, {"velocity": np.linspace(-2, 2, 24)}, {"T_C": 1.0, "c_v": 0.5}, sigma=0.05, seed=4)
+
+
+@pytest.fixture
+def cache(monkeypatch, tmp_path):
+    monkeypatch.setenv("BAYESFRIC_CACHE_DIR", str(tmp_path))
+    monkeypatch.delenv("BAYESFRIC_NO_CACHE", raising=False)
+    return tmp_path / "exported"
+
+
+def _engine(ds):
+    return NutsEngine(build_program(get_law("coulomb_viscous"), ds), **SMALL)
+
+
+def test_an_engine_on_equal_content_reads_the_same_program_back(cache, data):
+    first = _engine(data)
+    assert not first.loaded and first.compilations == 1
+    assert list(cache.glob(f"*{exported.SUFFIX}"))
+    second = _engine(data.copy(deep=True))  # a new program object with the same content
+    assert second.loaded and second.compilations == 1
+    a, b = first.fit(data), second.fit(data)
+    np.testing.assert_array_equal(a["posterior"]["T_C"].values, b["posterior"]["T_C"].values)
+    assert second.compilations == 1  # reading it back was its one compilation; nothing was traced
+
+
+def test_other_data_or_settings_trace_a_program_of_their_own(cache, data):
+    _engine(data)
+    shifted = data.copy(deep=True)
+    shifted["torque"] = shifted["torque"] + 0.1
+    assert not _engine(shifted).loaded
+    assert not NutsEngine(build_program(get_law("coulomb_viscous"), data), **(SMALL | dict(draws=120))).loaded
+
+
+def test_an_unreadable_file_is_traced_again_and_replaced(cache, data):
+    _engine(data)
+    for path in cache.glob(f"*{exported.SUFFIX}"):
+        path.write_bytes(path.read_bytes()[:100])  # truncated, as by a full disk
+    again = _engine(data)
+    assert not again.loaded and again.compilations == 1
+    assert _engine(data).loaded  # the replacement is whole
+
+
+def test_the_off_switch_keeps_nothing(monkeypatch, tmp_path, data):
+    monkeypatch.setenv("BAYESFRIC_CACHE_DIR", str(tmp_path))
+    monkeypatch.setenv("BAYESFRIC_NO_CACHE", "1")
+    engine = _engine(data)
+    assert not engine.loaded and engine.compilations == 0  # plain jax.jit: traced at the first call
+    engine.fit(data)
+    assert engine.compilations == 1 and not (tmp_path / "exported").exists()
+
+
+def test_program_functions_give_what_plain_jit_gives(cache, data):
+    density = build_program(get_law("coulomb_viscous"), data).density()
+    x = np.random.default_rng(0).normal(size=(5, density.dim))
+    np.testing.assert_allclose(density.log_joint_batch(x), jax.jit(jax.vmap(density.log_joint))(x), rtol=1e-12)
+    np.testing.assert_allclose(density.log_joint_batch(x[:3]), jax.jit(jax.vmap(density.log_joint))(x[:3]),
+                               rtol=1e-12)  # another batch size: another exported program
+    value, grad = density.neg_value_and_grad(x[0])
+    np.testing.assert_allclose(grad, density.neg_grad(x[0]), rtol=1e-12)
+    assert float(value) == pytest.approx(-float(density.log_joint(x[0])), rel=1e-12)
+
+
+def test_the_folder_stays_under_its_bound(cache, data, monkeypatch):
+    density = build_program(get_law("coulomb_viscous"), data).density()
+    for n in (2, 3, 4):
+        density.log_joint_batch(np.zeros((n, density.dim)))
+    files = sorted(cache.glob(f"*{exported.SUFFIX}"), key=lambda p: p.stat().st_mtime)
+    os.utime(files[0], (1, 1))  # the least recently used
+    limit = sum(p.stat().st_size for p in files)  # one more file must push the oldest out
+    monkeypatch.setattr(exported, "EXPORTED_MAX_BYTES", limit)
+    density.log_joint_batch(np.zeros((5, density.dim)))
+    left = set(cache.glob(f"*{exported.SUFFIX}"))
+    assert files[0] not in left and len(left - set(files)) == 1  # the oldest went, the new one stays
+    assert sum(p.stat().st_size for p in left) <= limit
+
+
+PROBE = textwrap.dedent("""
+    import json, jax.monitoring
+    traces = []
+    jax.monitoring.register_event_duration_secs_listener(
+        lambda name, secs, **kw: traces.append(secs) if name.endswith("jaxpr_trace_duration") else None)
+    import numpy as np
+    from bayesfric.datasets.synthetic import simulate
+    from bayesfric.inference import fit
+    from bayesfric.laws import get_law
+    law = get_law("coulomb_viscous")
+    ds = simulate(law, {"velocity": np.linspace(-2, 2, 30)}, {"T_C": 1.0, "c_v": 0.5}, sigma=0.1, seed=1)
+    dt = fit(law, ds, draws=100, tune=150, chains=2, seed=5)
+    print(json.dumps(dict(trace_seconds=sum(traces), T_C=dt["posterior"]["T_C"].values.ravel().tolist())))
+""")
+
+
+@pytest.mark.slow
+def test_a_second_process_traces_almost_nothing(tmp_path):
+    """The second fit in a new process reads the sampler and the draw tables back instead of tracing them."""
+    def run():
+        out = subprocess.run([sys.executable, "-c", PROBE], capture_output=True, text=True, check=True, timeout=600,
+                             env=os.environ | {"BAYESFRIC_CACHE_DIR": str(tmp_path)})
+        return json.loads(out.stdout.strip().splitlines()[-1])
+
+    first, second = run(), run()
+    assert second["T_C"] == first["T_C"]  # the same program, the same draws
+    assert second["trace_seconds"] < 0.25 * first["trace_seconds"], (first["trace_seconds"], second["trace_seconds"])
