@@ -54,15 +54,24 @@ class Density:
         Length of the flat vector.
     unravel : callable
         Flat vector -> dict of unconstrained site values.
-    x0 : jax.Array
-        The prior-median starting point (numpyro's ``init_to_median(num_samples=15)``).
+    seed : int
+        Seed of the prior draws behind :attr:`x0`.
     """
 
     program: Program
     sites: list[str]
     dim: int
     unravel: Callable[[jax.Array], dict[str, jax.Array]]
-    x0: jax.Array
+    seed: int = 0
+
+    @cached_property
+    def x0(self) -> jax.Array:
+        """The prior-median starting point (numpyro's ``init_to_median(num_samples=15)``).
+
+        Computed on first use: the NUTS engine draws its own starts per chain, so a fit never
+        compiles this one.
+        """
+        return median_starts(self.program, [self.seed])[0]
 
     def _kwargs(self, data: Mapping[str, Any] | None, mask: Any = None) -> dict[str, Any]:
         kwargs = dict(self.program.model_kwargs if data is None else data)
@@ -137,13 +146,15 @@ def median_starts(program: Program, seeds: list[int]) -> jax.Array:
     each of its few hundred operations one by one.
     """
     keys = jnp.stack([jax.random.PRNGKey(s) for s in seeds])
-    starts = program_jit(program, "median_starts", jax.vmap(partial(_median_start, program)))(keys)
-    return jax.vmap(lambda tree: ravel_pytree(tree)[0])(starts)
+
+    def flat_starts(keys):
+        return jax.vmap(lambda key: ravel_pytree(_median_start(program, key))[0])(keys)
+
+    return program_jit(program, "median_starts", flat_starts)(keys)
 
 
 def build_density(program: Program, seed: int = 0) -> Density:
     """The density of ``program``; its latent sites are found by an abstract trace (no compilation)."""
     shapes = jax.eval_shape(partial(_median_start, program), jax.random.PRNGKey(seed))
-    _, unravel = ravel_pytree(jax.tree.map(lambda s: jnp.zeros(s.shape, s.dtype), shapes))
-    x0 = median_starts(program, [seed])[0]
-    return Density(program=program, sites=sorted(shapes), dim=int(x0.size), unravel=unravel, x0=x0)
+    flat, unravel = ravel_pytree(jax.tree.map(lambda s: jnp.zeros(s.shape, s.dtype), shapes))
+    return Density(program=program, sites=sorted(shapes), dim=int(flat.size), unravel=unravel, seed=seed)

@@ -53,6 +53,8 @@ class LooResult:
         High-k points whose exact refit failed the diagnostics gate (their elpd is flagged).
     fit_passed : bool
         Whether the full fit passed the diagnostics gate (``fit.attrs["diagnostics"]``).
+    refitted : bool
+        Whether every high-k point was refitted exactly (False: their PSIS values were kept).
     elpd_data : arviz_stats.ELPDDataLOO
         arviz-stats' object with the refit values substituted (feeds ``arviz.compare``).
     """
@@ -69,6 +71,7 @@ class LooResult:
     refit_failed: list[int]
     fit_passed: bool
     elpd_data: object
+    refitted: bool = True
 
     @property
     def n_high_k(self) -> int:
@@ -77,7 +80,7 @@ class LooResult:
     @property
     def reliable(self) -> bool:
         """Full fit passed the gate, and every high-k point was refitted by a passing fit."""
-        return self.fit_passed and "not refitted" not in self.handling and not self.refit_failed
+        return self.fit_passed and self.refitted and not self.refit_failed
 
     def __str__(self) -> str:
         flag = "" if self.reliable else "  [FLAGGED: unreliable]"
@@ -111,8 +114,8 @@ def psis_loo(
     Returns
     -------
     LooResult
-        If high-k points exist and no data were given to refit them, ``handling`` says
-        "not refitted" and the result is flagged unreliable.
+        If high-k points exist and no data were given to refit them, ``refitted`` is False,
+        ``handling`` says so and the result is flagged unreliable.
     """
     data = az.loo(fit, pointwise=True, var_name=OBS_SITE)
     pareto_k = np.asarray(data.pareto_k.values, dtype=float).ravel()
@@ -120,10 +123,12 @@ def psis_loo(
     threshold = float(data.good_k)
     high = np.flatnonzero(pareto_k > threshold)
     refit_failed: list[int] = []
+    refitted = True
     if high.size == 0:
         handling = "none above threshold"
     elif engine is None and program is None and ds is None:
         handling = f"{high.size} point(s) not refitted: no data given (PSIS values kept)"
+        refitted = False
     else:
         passed = "diagnostics" in fit.attrs and verdict_of(fit).passed
         engine = engine or RefitEngine(program or program_from_fit(fit, ds), warm_start=fit if passed else None)
@@ -135,11 +140,11 @@ def psis_loo(
         handling = f"exact refits leaving out each of {high.size} point(s)"
         if refit_failed:
             handling += f"; refits of {refit_failed} failed the gate"
-    return _result(fit, data, elpd_i, threshold, high, handling, refit_failed)
+    return _result(fit, data, elpd_i, threshold, high, handling, refit_failed, refitted)
 
 
 def _result(fit: xr.DataTree, data, elpd_i: np.ndarray, threshold: float, high: np.ndarray, handling: str,
-            refit_failed: list[int]) -> LooResult:
+            refit_failed: list[int], refitted: bool) -> LooResult:
     """The :class:`LooResult` of ``fit`` from arviz-stats' ``data`` and the (refitted) ``elpd_i``."""
     ll = np.asarray(fit["log_likelihood"][OBS_SITE].values)
     lppd_i = pointwise_lpd(ll.reshape((-1, ll.shape[-1])))
@@ -149,7 +154,7 @@ def _result(fit: xr.DataTree, data, elpd_i: np.ndarray, threshold: float, high: 
     updated = dataclasses.replace(
         data, elpd=elpd, se=se, p=p_loo,
         elpd_i=data.elpd_i.copy(data=elpd_i.reshape(data.elpd_i.shape)),
-        warning=bool(high.size) and (bool(refit_failed) or "not refitted" in handling),
+        warning=bool(high.size) and (bool(refit_failed) or not refitted),
     )
     return LooResult(
         law=str(fit.attrs.get("law", "")),
@@ -157,11 +162,12 @@ def _result(fit: xr.DataTree, data, elpd_i: np.ndarray, threshold: float, high: 
         pareto_k=np.asarray(data.pareto_k.values, dtype=float).ravel(),
         k_threshold=threshold, high_k=high, handling=handling, refit_failed=refit_failed,
         fit_passed=verdict_of(fit).passed if "diagnostics" in fit.attrs else False,
-        elpd_data=updated,
+        elpd_data=updated, refitted=refitted,
     )
 
 
-def loo_from_values(fit: xr.DataTree, elpd_i: np.ndarray, handling: str, refit_failed: list[int]) -> LooResult:
+def loo_from_values(fit: xr.DataTree, elpd_i: np.ndarray, handling: str, refit_failed: list[int],
+                    refitted: bool) -> LooResult:
     """Rebuild the :class:`LooResult` of ``fit`` from a stored ``elpd_i`` (refit values in place).
 
     The Pareto-smoothed part is recomputed from the fit (deterministic, cheap); only the exact
@@ -170,7 +176,8 @@ def loo_from_values(fit: xr.DataTree, elpd_i: np.ndarray, handling: str, refit_f
     data = az.loo(fit, pointwise=True, var_name=OBS_SITE)
     threshold = float(data.good_k)
     high = np.flatnonzero(np.asarray(data.pareto_k.values, dtype=float).ravel() > threshold)
-    return _result(fit, data, np.asarray(elpd_i, dtype=float), threshold, high, handling, list(refit_failed))
+    return _result(fit, data, np.asarray(elpd_i, dtype=float), threshold, high, handling, list(refit_failed),
+                   refitted)
 
 
 @dataclass(frozen=True)

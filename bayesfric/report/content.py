@@ -11,11 +11,14 @@ import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from bayesfric.report import findings as fd
 from bayesfric.report import sizing as sizing_report
 from bayesfric.report.figures import provenance_label
 from bayesfric.report.tables import parameter_rows
 from bayesfric.study import scores as sc
+from bayesfric.study.outcome import Checks
 
 if TYPE_CHECKING:
     from bayesfric.study.outcome import StudyOutcome
@@ -182,14 +185,23 @@ def _law_sections(outcome: StudyOutcome, figures: dict[str, FigureRef]) -> list[
     return out
 
 
+def _loo_numbers(w) -> dict:
+    """p_loo, the number of high-k points and the largest Pareto k of a law's PSIS-LOO (NaN: not run)."""
+    if w.loo is None:
+        return dict(p_loo=math.nan, n_high_k=0, pareto_k_max=math.nan)
+    return dict(p_loo=w.loo.p_loo, n_high_k=w.loo.n_high_k, pareto_k_max=float(np.max(w.loo.pareto_k)))
+
+
 def _checks(outcome: StudyOutcome) -> Table:
     rows, warn = [], []
     for i, w in enumerate(outcome.laws):
-        rows.append([w.name, "passed" if w.reliable else "FAILED", _num(w.p_loo, 1),
-                     f"{w.n_high_k} (max {_num(w.pareto_k_max)})",
-                     _num(w.loo_pit_pvalue, 3) + ("" if w.loo_pit_ok else " ⚠"),
-                     f"{w.prior_implausible:.1%}" if math.isfinite(w.prior_implausible) else "–",
-                     w.prior_sensitivity or "–", "; ".join(w.flags) or "–", f"fits/{w.fit_file.name}"])
+        loo, checks = _loo_numbers(w), w.checks or Checks()
+        rows.append([w.name, "passed" if w.reliable else "FAILED", _num(loo["p_loo"], 1),
+                     f"{loo['n_high_k']} (max {_num(loo['pareto_k_max'])})",
+                     _num(checks.loo_pit_pvalue, 3) + ("" if checks.loo_pit_ok else " ⚠"),
+                     f"{checks.prior_implausible:.1%}" if math.isfinite(checks.prior_implausible) else "–",
+                     checks.prior_sensitivity if w.checks else "–", "; ".join(w.flags) or "–",
+                     f"fits/{w.fit_file.name}"])
         if not w.reliable or not w.loo_pit_ok or w.flags:
             warn.append(i)
     header = ["law", "diagnostics", "p_loo", "Pareto k > thr", "LOO-PIT p", "unphysical prior draws",
@@ -279,9 +291,10 @@ def ranking_records(outcome: StudyOutcome) -> list[dict]:
                 err = {"elpd_loo": "elpd_loo_se", "elpd_cv": f"se[{r.scheme}]"}.get(r.metric, f"{key}_error")
                 rec[err] = r.se
             rec[f"reliable[{r.metric} {r.scheme}]".replace(" ]", "]")] = r.reliable
-        if len(w.evidence) > 1:
-            rec["evidence_disagreement"] = abs(w.evidence_disagreement)
-        rec.update(p_loo=w.p_loo, n_high_k=w.n_high_k, pareto_k_max=w.pareto_k_max,
-                   loo_pit_pvalue=w.loo_pit_pvalue, loo_pit_ok=w.loo_pit_ok, flags="; ".join(w.flags))
+        if w.agreement is not None:
+            rec["evidence_disagreement"] = abs(w.agreement.difference)
+        checks = w.checks or Checks()
+        rec.update(_loo_numbers(w), loo_pit_pvalue=checks.loo_pit_pvalue, loo_pit_ok=checks.loo_pit_ok,
+                   flags="; ".join(w.flags))
         records.append(rec)
     return records

@@ -130,7 +130,7 @@ def _warnings(outcome: StudyOutcome) -> list[Finding]:
     if outcome.ranking_changed:
         out.append(plain("The LOO ranking CHANGES when the priors are scaled (α = 0.5 or 2): the ranking is "
                          "prior-sensitive.", warning=True))
-    unreliable_cv = sorted({w.name for w in outcome.laws if w.reliable and not all(w.cv_reliable.values())})
+    unreliable_cv = sorted({w.name for w in outcome.laws if w.reliable and not w.cv_reliable})
     if unreliable_cv:
         out.append(plain(f"Some cross-validation folds failed the gate for: {', '.join(unreliable_cv)} "
                          "(those scores are not ranked).", warning=True))

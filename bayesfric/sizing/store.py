@@ -50,9 +50,9 @@ def weights_record(outcome) -> dict[str, Any]:
             "diagnostics_passed": bool(w.verdict.passed),
             "diagnostics_problems": list(w.verdict.problems),
             "evidence_agree": bool(w.evidence_agree),
-            "evidence_disagreement": _number(w.evidence_disagreement),
-            "weights": {k: _number(v) for k, v in w.weights.items()},
-            "weight_exclusions": dict(getattr(w, "weight_exclusions", {})),
+            "evidence_disagreement": _number(w.agreement.difference if w.agreement is not None else math.nan),
+            "weights": {k: _number(v.value) for k, v in w.weights.items()},
+            "weight_exclusions": {k: v.excluded for k, v in w.weights.items() if v.excluded},
         })
     return {
         "format": FORMAT,

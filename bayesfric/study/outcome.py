@@ -4,6 +4,7 @@ derived from them once (:mod:`bayesfric.study.scores`)."""
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -15,54 +16,57 @@ from bayesfric.inference.diagnostics import Verdict
 from bayesfric.laws.base import Law
 from bayesfric.study.config import Study
 
-__all__ = ["Estimate", "LawOutcome", "StudyOutcome"]
+__all__ = ["Checks", "LawOutcome", "StudyOutcome", "Weight"]
 
 
 @dataclass(frozen=True)
-class Estimate:
-    """A number with its standard error (or Monte Carlo error); NaN when not computed."""
+class Checks:
+    """The checks unit of one law (:mod:`bayesfric.compare.checks`), as computed."""
 
-    value: float = math.nan
-    error: float = math.nan
+    prior_implausible: float = math.nan  # fraction of prior draws with unphysical friction
+    loo_pit_pvalue: float = math.nan  # KS p-value of the LOO-PIT values against uniform
+    loo_pit_ok: bool = True  # False: the LOO-PIT ECDF leaves its simultaneous band (miscalibrated)
+    ci_prob: float = 0.94  # coverage of that band
+    psense: tuple[str, ...] = ()  # parameters power-scaling flags as prior- or likelihood-sensitive
 
-    def fmt(self, digits: int = 1) -> str:
-        if not math.isfinite(self.value):
-            return "–"
-        return f"{self.value:.{digits}f} ± {self.error:.{digits}f}"
+    @property
+    def prior_sensitivity(self) -> str:
+        return ("psense flags " + ", ".join(self.psense) if self.psense
+                else "no parameter flagged by power-scaling (psense)")
 
 
-@dataclass
+@dataclass(frozen=True)
+class Weight:
+    """A law's weight under one weighting, or why the weighting left it out (weight 0)."""
+
+    value: float
+    excluded: str = ""
+
+
+@dataclass(frozen=True)
 class LawOutcome:
-    """Everything the study computed for one law."""
+    """What the study computed for one law: its fit and each scorer's result object, computed once.
+
+    Every score, verdict and flag is read from these results (the law × metric table of
+    :mod:`bayesfric.study.scores`, the report's flags); nothing is stored as text to be parsed back.
+    The record is frozen: the runner adds study-level results (weights, timings) with
+    :func:`dataclasses.replace`.
+    """
 
     law: Law
     fit: xr.DataTree
     fit_file: Path
     verdict: Verdict
-    loo: Estimate = field(default_factory=Estimate)
-    loo_pointwise: np.ndarray | None = None
-    p_loo: float = math.nan
-    pareto_k_max: float = math.nan
-    n_high_k: int = 0
-    high_k_handling: str = ""
-    cv: dict[str, Estimate] = field(default_factory=dict)  # scheme label -> elpd ± se
-    cv_pointwise: dict[str, np.ndarray] = field(default_factory=dict)
-    cv_reliable: dict[str, bool] = field(default_factory=dict)
-    penalty: dict[str, float] = field(default_factory=dict)  # blocked label -> nats per held-out point
-    evidence: dict[str, Estimate] = field(default_factory=dict)  # estimator -> log Z ± MC error
-    evidence_disagreement: float = math.nan
-    evidence_agree: bool = True  # False: the two estimators disagree; the law leaves the evidence ranking
-    weights: dict[str, float] = field(default_factory=dict)  # method -> weight
-    weight_exclusions: dict[str, str] = field(default_factory=dict)  # method -> why the weighting left it out
-    prior_implausible: float = math.nan  # fraction of prior draws with unphysical friction
-    loo_pit_pvalue: float = math.nan
-    loo_pit_ok: bool = True  # False: the LOO-PIT ECDF leaves its simultaneous band (miscalibrated)
-    prior_sensitivity: str = ""
-    flags: list[str] = field(default_factory=list)
-    skipped: list[str] = field(default_factory=list)  # stages not run: the full fit failed the gate
-    results: dict[str, Any] = field(default_factory=dict)  # "loo" / scheme label -> LooResult / CVResult
-    timings: dict[str, float] = field(default_factory=dict)  # stage -> wall seconds computed in this run
-    seconds: float = 0.0
+    loo: Any = None  # bayesfric.compare.LooResult
+    cv: Mapping[str, Any] = field(default_factory=dict)  # scheme label -> bayesfric.compare.CVResult
+    penalty: Mapping[str, float] = field(default_factory=dict)  # blocked label -> nats per held-out point
+    evidence: Mapping[str, Any] = field(default_factory=dict)  # estimator -> bayesfric.compare.Evidence
+    agreement: Any = None  # bayesfric.compare.EstimatorAgreement of bridge and importance
+    checks: Checks | None = None
+    weights: Mapping[str, Weight] = field(default_factory=dict)  # weighting -> weight
+    skipped: tuple[str, ...] = ()  # stages not run: the full fit failed the gate
+    failed_fits: str = "skip"  # the study's [compare] failed_fits, for the message about them
+    timings: Mapping[str, float] = field(default_factory=dict)  # stage -> wall seconds computed in this run
 
     @property
     def name(self) -> str:
@@ -71,6 +75,51 @@ class LawOutcome:
     @property
     def reliable(self) -> bool:
         return self.verdict.passed
+
+    @property
+    def seconds(self) -> float:
+        return float(sum(self.timings.values()))
+
+    @property
+    def evidence_agree(self) -> bool:
+        """False when the two estimators disagree: the law leaves the evidence ranking."""
+        return self.agreement is None or self.agreement.agree
+
+    @property
+    def cv_reliable(self) -> bool:
+        """Every fold of every cross-validation scheme passed the gate."""
+        return all(cv.reliable for cv in self.cv.values())
+
+    @property
+    def loo_pit_ok(self) -> bool:
+        return self.checks is None or self.checks.loo_pit_ok
+
+    @property
+    def flags(self) -> list[str]:
+        """One line per problem found in this law's results, in the order the stages ran."""
+        out = []
+        if not self.verdict.passed:
+            out.append("diagnostics FAILED: " + "; ".join(self.verdict.problems))
+        if self.skipped:
+            out.append(f"{', '.join(self.skipped)} skipped: the full fit failed the diagnostics gate "
+                       f"([compare] failed_fits = \"{self.failed_fits}\"; \"run\" computes them anyway)")
+        if self.loo is not None and not self.loo.reliable:
+            why = "the full fit failed the gate" if not self.loo.fit_passed else self.loo.handling
+            out.append(f"LOO unreliable ({why})")
+        out += [f"{label}: folds {cv.failed_folds} failed the gate" for label, cv in self.cv.items() if not cv.reliable]
+        if not self.evidence_agree:
+            out.append(_disagreement(self.agreement))
+        if self.checks is not None and not self.checks.loo_pit_ok:
+            out.append(f"LOO-PIT outside the {self.checks.ci_prob:.0%} band (KS p = {self.checks.loo_pit_pvalue:.3f}): "
+                       "miscalibrated")
+        return out
+
+
+def _disagreement(agreement) -> str:
+    importance = agreement.b
+    why = (f"importance weights heavy-tailed (Pareto k = {importance.diagnostics['pareto_k']:.2f})"
+           if not importance.diagnostics.get("reliable", True) else f"> {agreement.threshold:.2f} nat")
+    return f"evidence estimators disagree by {abs(agreement.difference):.2f} nat ({why}); not ranked by evidence"
 
 
 @dataclass

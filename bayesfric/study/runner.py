@@ -22,6 +22,7 @@ question and a sizing section in ``summary.md`` and ``report.html``.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import hashlib
 import json
 import time
@@ -38,7 +39,7 @@ from bayesfric.study import units
 from bayesfric.study.claims import ClaimError, check_claim, evaluate_claims
 from bayesfric.study.config import Study, StudyError, load_study, sampler_settings, walkers_problem
 from bayesfric.study.executor import open_client, run_units, timing_table, write_timings
-from bayesfric.study.outcome import LawOutcome, StudyOutcome
+from bayesfric.study.outcome import LawOutcome, StudyOutcome, Weight
 from bayesfric.study.scores import score_table
 from bayesfric.study.store import RunStore, load_fit_bytes, store_folder
 
@@ -244,11 +245,9 @@ def _run_laws(study: Study, ds, work: Path, plans: list, schemes, *, out_root: P
         fit_file.write_bytes(payloads[fit.key])  # inside the work folder: installed atomically with the report
         out = units.assemble(load_fit_bytes(payloads[fit.key]), fit_file, rest, payloads, kinds, skipped[job.spec.name],
                              failed_fits)
-        for r in rows:
-            if r.law == job.spec.name and r.status == "computed":
-                out.timings[r.label if r.stage != "cv" else f"cv {r.label}"] = r.seconds
-        out.seconds = sum(out.timings.values())
-        outcomes.append(out)
+        seconds = {r.label if r.stage != "cv" else f"cv {r.label}": r.seconds for r in rows
+                   if r.law == job.spec.name and r.status == "computed"}
+        outcomes.append(dataclasses.replace(out, timings=seconds))
     return outcomes
 
 
@@ -261,18 +260,19 @@ def _assign_weights(out: StudyOutcome) -> None:
         bases += [("stacking LOO", "loo", "stacking"), ("pseudo-BMA+ LOO", "loo", "pseudo-BMA+")]
     if out.blocked:
         bases.append((f"stacking {out.blocked[0]}", out.blocked[0], "stacking"))
+    by_law: dict[str, dict[str, Weight]] = {w.name: {} for w in out.laws}
     for label, key, method in bases:
-        results = {w.name: w.results[key] for w in out.laws if key in w.results}
+        results = {w.name: r for w in out.laws if (r := w.loo if key == "loo" else w.cv.get(key)) is not None}
         try:
             weights = compare.model_weights(results, method=method, include_failed=out.study.include_failed,
                                             fits=fits)
         except ValueError as exc:  # e.g. every fit excluded
             out.extra.setdefault("weight_errors", []).append((label, str(exc)))
             continue
-        for w in out.laws:
-            w.weights[label] = weights.weights.get(w.name, 0.0 if w.name in weights.excluded else float("nan"))
-            if w.name in weights.excluded:
-                w.weight_exclusions[label] = weights.excluded[w.name]
+        for name in by_law:
+            excluded = weights.excluded.get(name, "")
+            by_law[name][label] = Weight(weights.weights.get(name, 0.0 if excluded else float("nan")), excluded)
+    out.laws = [dataclasses.replace(w, weights=by_law[w.name]) for w in out.laws]
     if out.study.loo and len(fits) > 1:
         reliable = {w.name: w.fit for w in out.laws if w.reliable or out.study.include_failed}
         if len(reliable) > 1:

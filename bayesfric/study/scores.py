@@ -69,23 +69,22 @@ def _gate(w, include_failed: bool) -> tuple[bool, str]:
 
 
 def _loo_rows(w, gate) -> list[tuple]:
-    if not math.isfinite(w.loo.value):
+    loo = w.loo
+    if loo is None or not math.isfinite(loo.elpd):
         return []
     ok, why = gate
-    loo = w.results.get("loo")
-    if ok and loo is not None and not loo.reliable:
+    if ok and not loo.reliable:
         ok, why = False, f"high Pareto k not resolved ({loo.handling})"
-    return [(w.name, "elpd_loo", "", w.loo.value, w.loo.error, ok, why)]
+    return [(w.name, "elpd_loo", "", loo.elpd, loo.se, ok, why)]
 
 
 def _cv_rows(w, gate, blocked: list[str]) -> list[tuple]:
     rows = []
-    for label, est in w.cv.items():
+    for label, cv in w.cv.items():
         ok, why = gate
-        if ok and not w.cv_reliable.get(label, True):
-            failed = getattr(w.results.get(label), "failed_folds", None)
-            ok, why = False, f"folds {failed} failed the diagnostics gate" if failed else "a fold failed the gate"
-        rows.append((w.name, "elpd_cv", label, est.value, est.error, ok, why))
+        if ok and not cv.reliable:
+            ok, why = False, f"folds {cv.failed_folds} failed the diagnostics gate"
+        rows.append((w.name, "elpd_cv", label, cv.elpd, cv.se, ok, why))
         if label in blocked and label in w.penalty:
             # No standard error: the penalty is a difference of two estimates on the same points,
             # whose errors are strongly correlated (approximate: reported as NaN, not guessed).
@@ -95,18 +94,18 @@ def _cv_rows(w, gate, blocked: list[str]) -> list[tuple]:
 
 def _evidence_rows(w, gate) -> list[tuple]:
     rows = []
-    for estimator, est in w.evidence.items():
+    for estimator, ev in w.evidence.items():
         ok, why = gate
         if ok and not w.evidence_agree:
-            ok, why = False, (f"evidence estimators disagree by {abs(w.evidence_disagreement):.2f} nat: "
+            ok, why = False, (f"evidence estimators disagree by {abs(w.agreement.difference):.2f} nat: "
                               "left out of the evidence ranking")
-        rows.append((w.name, "log_evidence", estimator, est.value, est.error, ok, why))
+        rows.append((w.name, "log_evidence", estimator, ev.log_z, ev.error, ok, why))
     return rows
 
 
 def _weight_rows(w) -> list[tuple]:
-    return [(w.name, "weight", method, weight, math.nan, method not in w.weight_exclusions,
-             w.weight_exclusions.get(method, "")) for method, weight in w.weights.items()]
+    return [(w.name, "weight", method, weight.value, math.nan, not weight.excluded, weight.excluded)
+            for method, weight in w.weights.items()]
 
 
 def score_table(outcome: StudyOutcome) -> pd.DataFrame:

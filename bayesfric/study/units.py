@@ -35,7 +35,7 @@ from bayesfric.inference import SAMPLERS, release_compiled_code
 from bayesfric.inference.diagnostics import Verdict
 from bayesfric.laws.variants import law_of_fit
 from bayesfric.model import Noise, build_program
-from bayesfric.study.outcome import Estimate, LawOutcome
+from bayesfric.study.outcome import Checks, LawOutcome
 from bayesfric.study.store import fit_to_bytes, load_fit_bytes, pack_record, unpack_record
 
 __all__ = ["LawJob", "Unit", "make_job", "plan_law", "compute", "assemble", "COSTLY"]
@@ -162,7 +162,8 @@ def _compute_rest(job: LawJob, unit: Unit, fit: xr.DataTree) -> tuple[dict, dict
     if unit.stage == "loo":
         # refits that drop one point start from the full fit's draws when it passed the gate
         loo = compare.psis_loo(fit, engine=_engine(job, fit, warm=passed), seed=job.seed)
-        return {"handling": loo.handling, "refit_failed": loo.refit_failed}, {"elpd_i": loo.elpd_i}
+        return ({"handling": loo.handling, "refit_failed": loo.refit_failed, "refitted": loo.refitted},
+                {"elpd_i": loo.elpd_i})
     if unit.stage == "cv":
         # random K-fold drops a few points (warm start); grouped and blocked folds start cold
         p = unit.params
@@ -226,77 +227,32 @@ def assemble(fit: xr.DataTree, fit_file, units: list[Unit], payloads: dict[str, 
     ``kinds`` maps a CV label to its scheme kind (kfold, grouped, blocked); ``skipped`` lists the
     units not run because the fit failed the gate.
     """
-    law = law_of_fit(fit.attrs)
-    verdict = compare.verdict_of(fit)
-    out = LawOutcome(law=law, fit=fit, fit_file=fit_file, verdict=verdict)
-    if not verdict.passed:
-        out.flags.append("diagnostics FAILED: " + "; ".join(verdict.problems))
-    if skipped:
-        out.skipped = [u.label for u in skipped]
-        out.flags.append(f"{', '.join(out.skipped)} skipped: the full fit failed the diagnostics gate "
-                         f"([compare] failed_fits = \"{failed_fits}\"; \"run\" computes them anyway)")
-    by_stage = {u.label: (u, payloads[u.key]) for u in units if u.key in payloads}
+    by_stage = {u.label: payloads[u.key] for u in units if u.key in payloads}
     loo = None
     if "loo" in by_stage:
-        record, arrays = unpack_record(by_stage["loo"][1])
-        loo = loo_from_values(fit, arrays["elpd_i"], record["handling"], record["refit_failed"])
-        out.results["loo"] = loo
-        out.loo, out.loo_pointwise = Estimate(loo.elpd, loo.se), loo.elpd_i
-        out.p_loo, out.pareto_k_max, out.n_high_k = loo.p_loo, float(np.max(loo.pareto_k)), loo.n_high_k
-        out.high_k_handling = f"PSIS-LOO: {loo.n_high_k} points with Pareto k > {loo.k_threshold:.2f} ({loo.handling})"
-        if not loo.reliable:
-            why = "the full fit failed the gate" if not loo.fit_passed else loo.handling
-            out.flags.append(f"LOO unreliable ({why})")
-    for unit in units:
-        if unit.stage == "cv" and unit.key in payloads:
-            _add_cv(out, unit.label, kinds[unit.label], payloads[unit.key], loo)
-    if "bridge" in by_stage and "importance" in by_stage:
-        _add_evidence(out, _evidence(by_stage["bridge"][1]), _evidence(by_stage["importance"][1]))
-    if "SMC" in by_stage:
-        smc = _evidence(by_stage["SMC"][1])
-        out.evidence["SMC"] = Estimate(smc.log_z, smc.error)
-    if "checks" in by_stage:
-        _add_checks(out, unpack_record(by_stage["checks"][1])[0])
-    return out
-
-
-def _add_cv(out: LawOutcome, label: str, kind: str, payload: bytes, loo) -> None:
-    record, arrays = unpack_record(payload)
-    cv = compare.CVResult(law=record["law"], scheme=record["scheme"], elpd=record["elpd"], se=record["se"],
-                          elpd_i=arrays["elpd_i"], heldout=arrays["heldout"].astype(bool),
-                          verdicts=[Verdict.from_json(v) for v in record["verdicts"]], seconds=record["seconds"],
-                          settings=record["settings"])
-    out.results[label] = cv
-    out.cv[label] = Estimate(cv.elpd, cv.se)
-    out.cv_pointwise[label] = cv.elpd_i
-    out.cv_reliable[label] = cv.reliable
-    if not cv.reliable:
-        out.flags.append(f"{label}: folds {cv.failed_folds} failed the gate")
-    if kind == "blocked" and loo is not None:
-        out.penalty[label] = compare.extrapolation_penalty(loo, cv).per_point
-
-
-def _add_evidence(out: LawOutcome, bridge, importance) -> None:
+        record, arrays = unpack_record(by_stage["loo"])
+        loo = loo_from_values(fit, arrays["elpd_i"], record["handling"], record["refit_failed"], record["refitted"])
+    cv = {u.label: _cv(payloads[u.key]) for u in units if u.stage == "cv" and u.key in payloads}
+    penalty = {label: compare.extrapolation_penalty(loo, result).per_point for label, result in cv.items()
+               if kinds[label] == "blocked" and loo is not None}
+    evidence = {name: _evidence(by_stage[name]) for name in ("bridge", "importance", "SMC") if name in by_stage}
     # Two estimators that share only the density (bench_evidence.py); never averaged.
-    out.evidence = {"bridge": Estimate(bridge.log_z, bridge.error),
-                    "importance": Estimate(importance.log_z, importance.error)}
-    agreement = compare.compare_estimators(bridge, importance)
-    out.evidence_disagreement = agreement.difference
-    out.evidence_agree = agreement.agree
-    if not agreement.agree:
-        why = (f"importance weights heavy-tailed (Pareto k = {importance.diagnostics['pareto_k']:.2f})"
-               if not importance.diagnostics.get("reliable", True) else
-               f"> {agreement.threshold:.2f} nat")
-        out.flags.append(f"evidence estimators disagree by {abs(agreement.difference):.2f} nat ({why}); "
-                         "not ranked by evidence")
+    agreement = (compare.compare_estimators(evidence["bridge"], evidence["importance"])
+                 if {"bridge", "importance"} <= set(evidence) else None)
+    checks = _checks(unpack_record(by_stage["checks"])[0]) if "checks" in by_stage else None
+    return LawOutcome(law=law_of_fit(fit.attrs), fit=fit, fit_file=fit_file, verdict=compare.verdict_of(fit),
+                      loo=loo, cv=cv, penalty=penalty, evidence=evidence, agreement=agreement, checks=checks,
+                      skipped=tuple(u.label for u in skipped), failed_fits=failed_fits)
 
 
-def _add_checks(out: LawOutcome, record: dict) -> None:
-    out.prior_implausible = record["implausible"]
-    out.loo_pit_pvalue = record["ks_pvalue"]
-    out.loo_pit_ok = bool(record["within_band"])
-    if not record["within_band"]:
-        out.flags.append(f"LOO-PIT outside the {record['ci_prob']:.0%} band (KS p = {record['ks_pvalue']:.3f}): "
-                         "miscalibrated")
-    out.prior_sensitivity = ("psense flags " + ", ".join(record["psense"]) if record["psense"]
-                             else "no parameter flagged by power-scaling (psense)")
+def _cv(payload: bytes) -> compare.CVResult:
+    record, arrays = unpack_record(payload)
+    return compare.CVResult(law=record["law"], scheme=record["scheme"], elpd=record["elpd"], se=record["se"],
+                            elpd_i=arrays["elpd_i"], heldout=arrays["heldout"].astype(bool),
+                            verdicts=[Verdict.from_json(v) for v in record["verdicts"]], seconds=record["seconds"],
+                            settings=record["settings"])
+
+
+def _checks(record: dict) -> Checks:
+    return Checks(prior_implausible=record["implausible"], loo_pit_pvalue=record["ks_pvalue"],
+                  loo_pit_ok=bool(record["within_band"]), ci_prob=record["ci_prob"], psense=tuple(record["psense"]))

@@ -9,10 +9,11 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from bayesfric.compare import CVResult, Evidence, LooResult
 from bayesfric.datasets.synthetic import simulate
 from bayesfric.inference.diagnostics import Verdict
 from bayesfric.laws import get_law
-from bayesfric.study.outcome import Estimate, LawOutcome, StudyOutcome
+from bayesfric.study.outcome import Checks, LawOutcome, StudyOutcome, Weight
 from bayesfric.study.scores import score_table
 
 OK = Verdict(True, 1.0, 1000.0, 1000.0, 0, 1.0, 0.9)
@@ -43,6 +44,25 @@ def fake_fit(name: str, ds: xr.Dataset, centre: dict[str, float], sd: float = 0.
     return tree
 
 
+def loo_result(name: str, elpd: float, se: float, n: int = 40, reliable: bool = True) -> LooResult:
+    """A PSIS-LOO result with the given estimate (pointwise values spread evenly; p_loo 2, k̂ ≤ 0.3)."""
+    return LooResult(law=name, elpd=elpd, se=se, p_loo=2.0, elpd_i=np.full(n, elpd / n),
+                     pareto_k=np.linspace(0.0, 0.3, n), k_threshold=0.7, high_k=np.array([], dtype=int),
+                     handling="none above threshold", refit_failed=[], fit_passed=True, elpd_data=None,
+                     refitted=reliable)
+
+
+def cv_result(name: str, scheme: str, elpd: float, se: float, heldout: np.ndarray, reliable: bool = True) -> CVResult:
+    """A cross-validation result with the given estimate; ``reliable=False``: fold 0 failed the gate."""
+    elpd_i = np.where(heldout, elpd / max(int(heldout.sum()), 1), np.nan)
+    return CVResult(law=name, scheme=scheme, elpd=elpd, se=se, elpd_i=elpd_i, heldout=heldout,
+                    verdicts=[OK if reliable else BAD], seconds=0.0)
+
+
+def evidence(log_z: float, error: float, method: str) -> Evidence:
+    return Evidence(log_z, error, method, {"reliable": True})
+
+
 def outcome(study, tmp: Path, *, failed: str | None = None) -> StudyOutcome:
     """Two laws (coulomb, coulomb_viscous) with LOO, one blocked scheme and stacking weights;
     ``failed`` names a law whose fit failed the gate."""
@@ -54,9 +74,9 @@ def outcome(study, tmp: Path, *, failed: str | None = None) -> StudyOutcome:
                                           ("coulomb_viscous", {"T_C": 5.0, "c_v": 2.0}, 9.0, -4.0, 0.5, 1.0)):
         laws.append(LawOutcome(
             law=get_law(name), fit=fake_fit(name, ds, centre), fit_file=tmp / f"{name}.nc",
-            verdict=BAD if name == failed else OK, loo=Estimate(loo, 3.0), p_loo=2.0, pareto_k_max=0.3,
-            cv={label: Estimate(cv, 2.0)}, cv_reliable={label: True}, penalty={label: pen},
-            weights={f"stacking {label}": w, "stacking LOO": w}, loo_pit_pvalue=0.4))
+            verdict=BAD if name == failed else OK, loo=loo_result(name, loo, 3.0, n=held.size),
+            cv={label: cv_result(name, label, cv, 2.0, held)}, penalty={label: pen},
+            weights={f"stacking {label}": Weight(w), "stacking LOO": Weight(w)}, checks=Checks(loo_pit_pvalue=0.4)))
     out = StudyOutcome(study=study, data=ds, laws=laws, schemes=[label], blocked=[label], heldout={label: held})
     out.table = score_table(out)
     return out

@@ -2,14 +2,16 @@
 
 import math
 
+import numpy as np
 import pytest
 
+from bayesfric.compare import EstimatorAgreement
 from bayesfric.inference.diagnostics import Verdict
 from bayesfric.laws import get_law
 from bayesfric.study import load_study
 from bayesfric.study import scores as sc
-from bayesfric.study.outcome import Estimate, LawOutcome, StudyOutcome
-from tests.report.fakes import OK
+from bayesfric.study.outcome import LawOutcome, StudyOutcome
+from tests.report.fakes import OK, cv_result, evidence, loo_result
 
 LABEL = "train inside, score outside"
 STUDY = ('[study]\nname = "tiny"\n[data]\ndataset = "robot_joint"\n[[laws]]\nname = "coulomb"\n'
@@ -23,11 +25,14 @@ def study(tmp_path):
     return load_study(tmp_path / "tiny.toml")
 
 
-def law(tmp_path, name, loo, blocked=None, blocked_ok=True, verdict=OK, evidence=None, agree=True):
-    cv = {LABEL: Estimate(blocked, 1.0)} if blocked is not None else {}
-    return LawOutcome(law=get_law(name), fit=None, fit_file=tmp_path, verdict=verdict, loo=Estimate(loo, 1.0),
-                      cv=cv, cv_reliable={LABEL: blocked_ok} if cv else {}, penalty={LABEL: 0.5} if cv else {},
-                      evidence=evidence or {}, evidence_agree=agree, evidence_disagreement=3.0)
+def law(tmp_path, name, loo, blocked=None, blocked_ok=True, verdict=OK, estimates=None, agree=True):
+    held = np.arange(10) > 6
+    cv = {LABEL: cv_result(name, LABEL, blocked, 1.0, held, reliable=blocked_ok)} if blocked is not None else {}
+    agreement = None
+    if estimates:
+        agreement = EstimatorAgreement(estimates["bridge"], estimates["importance"], 3.0, 0.2, agree)
+    return LawOutcome(law=get_law(name), fit=None, fit_file=tmp_path, verdict=verdict, loo=loo_result(name, loo, 1.0),
+                      cv=cv, penalty={LABEL: 0.5} if cv else {}, evidence=estimates or {}, agreement=agreement)
 
 
 def test_table_is_tidy_one_row_per_law_metric_scheme(study, tmp_path):
@@ -51,18 +56,18 @@ def test_winner_skips_unreliable_fold_and_names_it(study, tmp_path):
     assert sc.best(table, "elpd_loo") == "coulomb_viscous" and sc.passed_over(table, "elpd_loo") == []
     assert sc.best(table, "elpd_cv", LABEL) == "coulomb_viscous"
     assert sc.passed_over(table, "elpd_cv", LABEL) == ["coulomb"]
-    assert "failed the gate" in sc.value(table, "coulomb", "elpd_cv", LABEL)["reason"]
+    assert "failed the diagnostics gate" in sc.value(table, "coulomb", "elpd_cv", LABEL)["reason"]
     assert sc.ranking_order(table, ["coulomb", "coulomb_viscous"], sc.Criterion("elpd_cv", LABEL, "x")) == [
         "coulomb_viscous", "coulomb"]  # the unreliable higher score sinks below
 
 
 def test_evidence_disagreement_keeps_a_law_out_of_the_evidence_ranking(study, tmp_path):
     def ev(z):
-        return {"bridge": Estimate(z, 0.01), "importance": Estimate(z + 3, 0.01)}
+        return {"bridge": evidence(z, 0.01, "bridge"), "importance": evidence(z + 3, 0.01, "laplace-is")}
 
     out = StudyOutcome(study=study, data=None, schemes=[], blocked=[],
-                       laws=[law(tmp_path, "coulomb", -5.0, evidence=ev(-1.0), agree=False),
-                             law(tmp_path, "coulomb_viscous", -5.0, evidence=ev(-4.0))])
+                       laws=[law(tmp_path, "coulomb", -5.0, estimates=ev(-1.0), agree=False),
+                             law(tmp_path, "coulomb_viscous", -5.0, estimates=ev(-4.0))])
     table = sc.score_table(out)
     assert sc.best(table, "log_evidence", "bridge") == sc.best(table, "log_evidence", "importance") == "coulomb_viscous"
     assert sc.passed_over(table, "log_evidence", "bridge") == ["coulomb"]
