@@ -125,7 +125,7 @@ def _fit_settings(args: argparse.Namespace) -> dict[str, object]:
     from bayesfric.study.schema import SchemaError, parse
 
     options = {"name": args.sampler, "seed": args.seed, "draws": args.draws, "tune": args.tune,
-               "chains": args.chains, "walkers": args.walkers}
+               "chains": args.chains, "walkers": args.walkers, "init": args.init}
     try:
         section = parse(SAMPLER, {k: v for k, v in options.items() if v is not None})
     except SchemaError as exc:
@@ -337,6 +337,7 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--draws", type=int, default=None, help="draws per chain, ≥ 1 (emcee: steps before thinning)")
     q.add_argument("--tune", type=int, default=None, help="warm-up draws / burn-in steps, ≥ 0")
     q.add_argument("--chains", type=int, default=None, help="NUTS chains, ≥ 1")
+    q.add_argument("--init", default=None, help="NUTS chain starts: median (default) | pathfinder")
     q.add_argument("--walkers", type=int, default=None, help="emcee walkers, ≥ 2 × free parameters")
     q.add_argument("--seed", type=int, default=0, help="seed, 0 … 2**32 - 1")
     q.add_argument("--noise", choices=["normal", "student_t", "proportional", "ar1"], default="normal")

@@ -1,5 +1,6 @@
 """Both backends return the same DataTree contract; the gate; saving; noise models."""
 
+import json
 from pathlib import Path
 
 import arviz as az
@@ -97,3 +98,23 @@ def test_release_compiled_code_frees_memory_mappings(simulator):
     release_compiled_code()
     assert grown - before > 20  # the fit's compiled code is mapped (74 mappings measured, 2026-11-23)
     assert mappings() - before < 0.2 * (grown - before)
+
+
+def test_pathfinder_starts_lie_in_the_posterior_bulk(small_ds):
+    """Multi-path Pathfinder starts (bayesfric.inference.init) have a higher log density than the
+    prior-median starts, and the fit records how its chains started."""
+    import jax
+
+    from bayesfric.inference.init import chain_starts
+    from bayesfric.model import build_program
+
+    program = build_program(get_law("coulomb_viscous"), small_ds)
+    density = program.density()
+    log_joint = jax.vmap(density.log_joint)
+    median, pathfinder = (chain_starts(program, 3, seed=2, init=init) for init in ("median", "pathfinder"))
+    assert pathfinder.shape == median.shape == (3, density.dim) and np.isfinite(pathfinder).all()
+    assert np.min(log_joint(pathfinder)) > np.max(log_joint(median))
+    with pytest.raises(ValueError, match="unknown init"):
+        chain_starts(program, 3, seed=2, init="uniform")
+    dt = fit(get_law("coulomb_viscous"), small_ds, draws=100, tune=150, chains=2, init="pathfinder")
+    assert json.loads(dt.attrs["sampler_settings"])["init"] == "pathfinder"

@@ -215,7 +215,7 @@ def test_builtin_data_sets_load():
     from bayesfric.datasets import builtin_names, load_builtin
 
     seeds = {"dahl_duplex", "drum_rollout", "pitch_bearing", "robot_joint", "unwinder"}  # from the papers
-    examples = {"asym_joint", "tribo_loops"}  # simulated with known truth (studies/examples/)
+    examples = {"asym_joint", "gms_loops", "tribo_loops"}  # simulated with known truth (studies/examples/)
     names = builtin_names()
     assert set(names) == seeds | examples
     for name in names:

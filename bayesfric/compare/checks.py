@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import logging
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -234,13 +235,24 @@ def prior_sensitivity(dt: xr.DataTree, threshold: float = 0.05) -> pd.DataFrame:
     """Power-scaling prior and likelihood sensitivity per parameter (arviz-stats ``psense_summary``,
     Kallioinen et al. 2024): columns ``prior``, ``likelihood``, ``diagnosis``.
 
-    arviz-stats also prints a paragraph on how to read the diagnosis whenever one is flagged;
+    arviz-stats also prints and logs a paragraph on how to read the diagnosis whenever one is flagged;
     it is held back here (the diagnosis is in the table and reaches the report from there).
     """
     if "log_prior" not in dt.children:
         raise ValueError("fit has no log_prior group; refit with a current bayesfric")
-    with contextlib.redirect_stdout(io.StringIO()):
+    with contextlib.redirect_stdout(io.StringIO()), _quiet(logging.getLogger("arviz_stats.psense")):
         return az.psense_summary(dt, var_names=_parameters(dt), threshold=threshold)
+
+
+@contextlib.contextmanager
+def _quiet(logger: logging.Logger):
+    """Hold back ``logger``'s warnings for the duration (arviz-stats logs its reading advice)."""
+    level = logger.level
+    logger.setLevel(logging.ERROR)
+    try:
+        yield
+    finally:
+        logger.setLevel(level)
 
 
 def power_scaled_loo(dt: xr.DataTree, alpha: float):

@@ -44,12 +44,12 @@ import jax.numpy as jnp
 import numpy as np
 import xarray as xr
 
-from bayesfric.density import median_starts
 from bayesfric.exported import exported_jit
 from bayesfric.fingerprint import program_parts
 from bayesfric.inference.adaptation import nuts_chain, sampling_schedule
 from bayesfric.inference.datatree import assemble
 from bayesfric.inference.diagnostics import GATE, Gate, Verdict, check
+from bayesfric.inference.init import Init, chain_starts
 from bayesfric.model import Program
 
 __all__ = ["NutsEngine", "FoldFits"]
@@ -119,6 +119,9 @@ class NutsEngine:
         fit and takes ``engine.warm_started(fit)``, which shares the compiled sampler.
     warm_tune : int
         Warm-up steps per chain under ``warm_start`` (default 250; at least 120).
+    init : {"median", "pathfinder"}
+        Starting points of chains that start cold (:mod:`bayesfric.inference.init`): prior
+        medians (default), or draws of multi-path Pathfinder for posteriors with minor modes.
 
     Notes
     -----
@@ -141,6 +144,7 @@ class NutsEngine:
         seed: int = 0,
         warm_start: xr.DataTree | None = None,
         warm_tune: int = 250,
+        init: Init = "median",
     ):
         self.program = program
         self.draws, self.chains = int(draws), int(chains)
@@ -155,8 +159,8 @@ class NutsEngine:
         self.warm = False
         self.active_tune = self.tune
         self._schedule = sampling_schedule(self.tune, self.draws)
-        # prior-median starts (numpyro's init_to_median), from different prior draws per chain
-        self._init_z = self._cold_z = median_starts(program, [seed * 7919 + c for c in range(self.chains)])
+        self.init = init  # how cold chains start (bayesfric.inference.init)
+        self._init_z = self._cold_z = chain_starts(program, self.chains, seed, init)
         self._init_imm = jnp.ones(self._density.dim)
         self._sampler, self.loaded = exported_jit(self._sample_batch, self._program_parts(), self._example_args())
         self.compilations += int(self.loaded)  # a program read from disk counts as its one compilation
@@ -210,7 +214,7 @@ class NutsEngine:
         """Sampler settings, as stored with results."""
         return dict(draws=self.draws, tune=self.active_tune, chains=self.chains,
                     target_accept=self.target_accept, max_tree_depth=self.max_tree_depth,
-                    fold_batch=self.fold_batch, sampler="blackjax NUTS, window adaptation",
+                    fold_batch=self.fold_batch, init=self.init, sampler="blackjax NUTS, window adaptation",
                     warm_start="from the full fit's draws and mass matrix" if self.warm else "no")
 
     # -- the compiled function ------------------------------------------------------------
@@ -295,7 +299,7 @@ class NutsEngine:
         samples = {k: v[0] for k, v in fits.samples.items()}
         stats = {k: v[0] for k, v in fits.stats.items()}
         settings = dict(draws=self.draws, tune=self.active_tune, chains=self.chains,
-                        target_accept=self.target_accept, max_tree_depth=self.max_tree_depth,
+                        target_accept=self.target_accept, max_tree_depth=self.max_tree_depth, init=self.init,
                         algorithm="blackjax NUTS, Stan window adaptation")
         return assemble(self.program, ds, samples, stats, sampler="nuts", settings=settings, seed=seed)
 

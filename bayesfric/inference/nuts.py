@@ -15,6 +15,7 @@ import time
 import xarray as xr
 
 from bayesfric.inference.engine import NutsEngine
+from bayesfric.inference.init import Init
 from bayesfric.model import Program
 
 __all__ = ["sample_nuts"]
@@ -30,15 +31,17 @@ def sample_nuts(
     seed: int = 0,
     target_accept: float = 0.9,
     max_tree_depth: int = 10,
+    init: Init = "median",
     progress: bool = False,
 ) -> xr.DataTree:
     """Sample the program's posterior with NUTS and return the fit's DataTree.
 
     Chains run vectorised in one compiled program and start at different prior-median points
-    (numpyro's ``init_to_median``), so every chain starts in the bulk of the prior.
+    (numpyro's ``init_to_median``), so every chain starts in the bulk of the prior; ``init =
+    "pathfinder"`` starts them at multi-path Pathfinder draws instead (:mod:`bayesfric.inference.init`).
     """
     engine = NutsEngine(program, draws=draws, tune=tune, chains=chains, seed=seed,
-                        target_accept=target_accept, max_tree_depth=max_tree_depth)
+                        target_accept=target_accept, max_tree_depth=max_tree_depth, init=init)
     start = time.perf_counter()
     if progress:
         print(f"sampling {program.law.name}: {chains} chains × ({tune} warm-up + {draws} draws), "

@@ -22,6 +22,7 @@ sampler settings, comparison methods and extrapolation folds::
     tune = 1000                        # ≥ 0
     chains = 4                         # nuts only, ≥ 1
     target_accept = 0.9                # nuts only, in (0, 1)
+    init = "median"                    # nuts only: median | pathfinder (chains start at Pathfinder draws)
     # walkers = 32                     # emcee only: ≥ 2 × free parameters (default max(32, 4 × them))
     # thin = 10                        # emcee only, ≥ 1
     seed = 0                           # 0 … 2³² − 1
@@ -111,6 +112,7 @@ from numpyro import handlers
 from bayesfric.errors import UserError
 from bayesfric.fsutil import name_problem
 from bayesfric.inference import SAMPLERS
+from bayesfric.inference.init import INITS
 from bayesfric.laws import Law, get_law
 from bayesfric.laws.variants import VariantError, vary
 from bayesfric.model import Noise, Program
@@ -244,6 +246,8 @@ SAMPLER = Schema((
     Field("chains", "int", _backend("chains"), min=1, only=("name", NUTS), doc="NUTS chains"),
     Field("target_accept", "number", _backend("target_accept"), gt=0, lt=1, only=("name", NUTS),
           doc="NUTS target acceptance probability"),
+    Field("init", "str", _backend("init"), choices=INITS, only=("name", NUTS),
+          doc="chain starts: prior medians, or multi-path Pathfinder draws (posteriors with minor modes)"),
     Field("walkers", "int", _backend("walkers"), min=2, only=("name", EMCEE),
           doc="emcee walkers: at least 2 × free parameters (default max(32, 4 × free parameters))"),
     Field("thin", "int", _backend("thin"), min=1, only=("name", EMCEE), doc="emcee thinning"),
