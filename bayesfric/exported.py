@@ -150,11 +150,14 @@ class _ProgramJit:
 
     def __call__(self, *args: Any) -> Any:
         leaves, treedef = jax.tree.flatten(args)
+        if any(isinstance(a, jax.core.Tracer) for a in leaves):
+            # called inside another transformation (a vmapped or jitted caller, e.g. tempered
+            # SMC): inline the function into the caller's trace; an exported program has no
+            # batching rule, and the caller's own compilation covers it
+            return self._fn(*args)
         # host arrays: a device-committed argument would be another signature of the exported
         # program to compile (measured: a second compilation of the NUTS engine per warm start)
-        leaves = [np.asarray(a) if isinstance(a, jax.Array) and not isinstance(a, jax.core.Tracer) else a
-                  for a in leaves]
-        args = jax.tree.unflatten(treedef, leaves)
+        args = jax.tree.unflatten(treedef, [np.asarray(a) if isinstance(a, jax.Array) else a for a in leaves])
         signature = (treedef, tuple((tuple(jax.numpy.shape(a)), str(jax.numpy.result_type(a))) for a in leaves))
         if signature not in self._compiled:
             if self._parts is None:

@@ -80,6 +80,8 @@ def test_program_functions_give_what_plain_jit_gives(cache, data):
     np.testing.assert_allclose(density.log_joint_batch(x), jax.jit(jax.vmap(density.log_joint))(x), rtol=1e-12)
     np.testing.assert_allclose(density.log_joint_batch(x[:3]), jax.jit(jax.vmap(density.log_joint))(x[:3]),
                                rtol=1e-12)  # another batch size: another exported program
+    inside = jax.jit(jax.vmap(lambda row: density.log_joint_batch(row[None])[0]))(x)  # e.g. tempered SMC
+    np.testing.assert_allclose(inside, jax.vmap(density.log_joint)(x), rtol=1e-12)  # inlined: no exported call
     value, grad = density.neg_value_and_grad(x[0])
     np.testing.assert_allclose(grad, density.neg_grad(x[0]), rtol=1e-12)
     assert float(value) == pytest.approx(-float(density.log_joint(x[0])), rel=1e-12)
