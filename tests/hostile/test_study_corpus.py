@@ -105,6 +105,7 @@ CASES = [
     S("tune-negative", {"sampler.tune": -1}, "[sampler] tune", "≥ 0"),
     S("seed-negative", {"sampler.seed": -1}, "[sampler] seed", "≥ 0"),
     S("target-accept-one", {"sampler.target_accept": 1.0}, "[sampler] target_accept", "< 1"),
+    S("init-unknown", {"sampler.init": "uniform"}, "[sampler] init", "must be one of"),
     S("quantile-above-one", {"compare.blocked.0.threshold": DELETE, "compare.blocked.0.quantile": 1.5},
       "compare.blocked[0].quantile", "< 1"),
     S("threshold-and-quantile", {"compare.blocked.0.quantile": 0.5}, "compare.blocked[0]", "exactly one"),
