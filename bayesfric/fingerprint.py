@@ -109,16 +109,19 @@ def unit_key(**parts: Any) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:32]
 
 
-def program_parts(program: Any) -> dict[str, Any]:
+def program_parts(program: Any, response: bool = True) -> dict[str, Any]:
     """What a program's traced functions depend on besides the package source.
 
     ``program`` is a :class:`bayesfric.model.Program`: its law as declared (every field but the
     functions, whose source :func:`law_fingerprint` covers), the resolved priors, noise model,
     constants, data scale and the data arrays, which are constants of the compiled code.
+    ``response=False`` leaves the response values out (keeping their shape) for functions that
+    take the response as an argument.
     """
     law = program.law
     declared = {f: getattr(law, f) for f in law.__dataclass_fields__ if f not in ("fn", "derived")}
     return dict(law=declared, law_code=law_fingerprint(law), derived=sorted(law.derived), noise=program.noise,
                 resolved=program.resolved, constants=program.constants, scale=program.scale,
-                inputs=program.inputs, response=program.response, group_index=program.group_index,
+                inputs=program.inputs, group_index=program.group_index,
+                response=program.response if response else list(np.shape(program.response)),
                 chain_start=program.chain_start)

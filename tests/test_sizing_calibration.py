@@ -23,7 +23,6 @@ The truth at a point is a fresh observation there (what the drive meets), so the
 
 from __future__ import annotations
 
-import dataclasses
 import math
 
 import arviz as az
@@ -63,8 +62,8 @@ class Sampler:
     def sources(self, ds, seed: int) -> list[sizing.LawSource]:
         fits, cvs = {}, {}
         y = np.asarray(ds["torque"].values, dtype=float)
-        for name, engine in self.engines.items():
-            engine.program = dataclasses.replace(engine.program, response=y)
+        for name, base in self.engines.items():
+            engine = base.with_response(y)  # the same compiled sampler on this replicate's data
             full = engine.run(np.ones((1, y.size), dtype=bool), seed=seed)
             dt = az.from_dict({"posterior": {k: v[0] for k, v in full.samples.items()}})
             dt.attrs.update(provenance(engine.program, ds, "nuts", {}, seed))

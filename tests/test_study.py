@@ -118,7 +118,8 @@ def test_evidence_pair_end_to_end(tmp_path, data_csv):
 
 @pytest.mark.parametrize(("sampler", "full", "quick"), [
     ("draws = 1000\ntune = 500\nchains = 2\n",
-     {"draws": 1000, "tune": 500, "chains": 2, "target_accept": 0.9}, {"draws": 300, "tune": 300, "chains": 2}),
+     {"draws": 1000, "tune": 500, "chains": 2, "target_accept": 0.9, "init": "median"},
+     {"draws": 300, "tune": 300, "chains": 2}),
     ('name = "emcee"\ndraws = 5000\ntune = 2000\nwalkers = 16\nthin = 20\n',
      {"draws": 5000, "tune": 2000, "walkers": 16, "thin": 20}, {"draws": 1000, "tune": 1000, "thin": 10}),
     ('name = "emcee"\ndraws = 100\nthin = 2\n', {"draws": 100, "tune": 2500, "thin": 2}, {"tune": 1000}),

@@ -3,12 +3,14 @@
 A program's likelihood takes a 0/1 ``mask`` *as data* (:class:`bayesfric.model.Program`), so
 the sampler below is one ``jax.jit`` function of ``(keys, masks, initial points, inverse mass
 matrix, schedule)``: the full fit is its all-true mask, a fold refit any other mask, and
-changing the fold, the seed or the warm-up length reuses the compiled code. The data set is a
-*constant* of the compiled code, not an argument: XLA then computes everything that depends on
-the data alone once, at compile time. With the data as arguments, the skf_2014 bearing law
-re-solved its rigid-ring ball loads (60 Newton steps per observation) at every leapfrog step,
-2.4 ms a step instead of 7 µs, and its fit ran past 30 minutes (found 2026-11-23). A repeated
-fit of the same data still loads its compiled program from the persistent cache.
+changing the fold, the seed or the warm-up length reuses the compiled code. The data set's
+*inputs* are constants of the compiled code, not arguments: XLA then computes everything that
+depends on the inputs alone once, at compile time. With the inputs as arguments, the skf_2014
+bearing law re-solved its rigid-ring ball loads (60 Newton steps per observation) at every
+leapfrog step, 2.4 ms a step instead of 7 µs, and its fit ran past 30 minutes (found
+2026-11-23). The *response* is an argument: :meth:`NutsEngine.with_response` refits other
+responses on the same inputs (simulation studies, calibration replicates) with the same
+compiled code. A repeated fit of the same data still loads its compiled program from disk.
 
 Every chain is :func:`bayesfric.inference.adaptation.nuts_chain` (blackjax NUTS,
 Stan's window adaptation from blackjax's public primitives) on the program's one log density
@@ -36,7 +38,7 @@ from __future__ import annotations
 
 import copy
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import arviz_base
 import jax
@@ -146,7 +148,7 @@ class NutsEngine:
         warm_tune: int = 250,
         init: Init = "median",
     ):
-        self.program = program
+        self._program = program
         self.draws, self.chains = int(draws), int(chains)
         self.target_accept, self.max_tree_depth = float(target_accept), int(max_tree_depth)
         self.fold_batch = int(fold_batch)
@@ -166,6 +168,26 @@ class NutsEngine:
         self.compilations += int(self.loaded)  # a program read from disk counts as its one compilation
         if warm_start is not None:
             self._start_from(warm_start, int(warm_tune))
+
+    @property
+    def program(self) -> Program:
+        """The program this engine samples (read-only: :meth:`with_response` swaps the response)."""
+        return self._program
+
+    def with_response(self, response: np.ndarray) -> NutsEngine:
+        """This engine (same compiled sampler) on another response at the same inputs.
+
+        The priors stay those the program was built with (data-scaled on its own response);
+        ``response`` must have the program's shape and be finite.
+        """
+        y = np.asarray(response, dtype=self._program.response.dtype)
+        if y.shape != self._program.response.shape:
+            raise ValueError(f"response must have shape {self._program.response.shape}; got {y.shape}")
+        if not np.isfinite(y).all():
+            raise ValueError("response has non-finite values")
+        view = copy.copy(self)
+        view._program = replace(self._program, response=y)
+        return view
 
     def warm_started(self, fit: xr.DataTree, warm_tune: int = 250) -> NutsEngine:
         """This engine (same compiled sampler) with chains started from the full fit ``fit``.
@@ -220,20 +242,23 @@ class NutsEngine:
     # -- the compiled function ------------------------------------------------------------
     def _program_parts(self) -> dict:
         """What the traced sampler depends on besides the package source (its disk-cache key)."""
-        return dict(program=program_parts(self.program), what="NutsEngine._sample_batch", draws=self.draws,
+        return dict(program=program_parts(self.program, response=False), what="NutsEngine._sample_batch",
+                    draws=self.draws,
                     target_accept=self.target_accept, max_tree_depth=self.max_tree_depth)
 
     def _example_args(self) -> tuple:
         keys = jax.ShapeDtypeStruct((self.fold_batch, self.chains) + jax.random.PRNGKey(0).shape, jnp.uint32)
         masks = jax.ShapeDtypeStruct((self.fold_batch, self.program.n_obs), jnp.bool_)
+        y = self.program.response
         schedule = jnp.asarray(self._schedule)
-        return (keys, masks, self._init_z, self._init_imm, jax.ShapeDtypeStruct(schedule.shape, schedule.dtype))
+        return (keys, masks, jax.ShapeDtypeStruct(y.shape, y.dtype), self._init_z, self._init_imm,
+                jax.ShapeDtypeStruct(schedule.shape, schedule.dtype))
 
-    def _sample_batch(self, keys, masks, init_z, init_imm, schedule):
+    def _sample_batch(self, keys, masks, response, init_z, init_imm, schedule):
         self.compilations += 1  # runs only while tracing, i.e. once per compilation
         density = self._density  # the program's one log density
-        p = self.program  # its data: constants of the compiled code (see the module notes)
-        data = dict(inputs=p.inputs, group_index=p.group_index, response=p.response)
+        p = self.program  # its inputs: constants of the compiled code (see the module notes)
+        data = dict(inputs=p.inputs, group_index=p.group_index, response=response)
         tune = schedule.shape[0] - self.draws
 
         def one_fold(fold_keys, mask):
@@ -280,8 +305,8 @@ class NutsEngine:
         for lo in range(0, padded.shape[0], b):
             # host arrays: a device-committed start would count as another signature of the
             # exported program and compile it again
-            out = self._sampler(keys[lo:lo + b], padded[lo:lo + b], np.asarray(self._init_z),
-                                np.asarray(self._init_imm), np.asarray(self._schedule))
+            out = self._sampler(keys[lo:lo + b], padded[lo:lo + b], self.program.response,
+                                np.asarray(self._init_z), np.asarray(self._init_imm), np.asarray(self._schedule))
             parts.append(jax.tree.map(np.asarray, out))
         samples, stats, lpd = jax.tree.map(lambda *xs: np.concatenate(xs)[:n_folds], *parts)
         verdicts = [self._verdict({k: v[i] for k, v in samples.items()}, stats["diverging"][i],

@@ -165,16 +165,39 @@ def test_full_fit_and_every_fold_share_one_compilation(viscous_data):
         engine.warm_started(dt, warm_tune=301)
 
 
-def test_the_data_are_constants_of_the_compiled_sampler(viscous_data):
-    """Only keys, masks, starts, mass matrix and schedule are arguments; the data are folded in.
+def test_the_inputs_are_constants_and_the_response_an_argument(viscous_data):
+    """Keys, masks, response, starts, mass matrix and schedule are arguments; the inputs are folded in.
 
-    With the data as arguments, data-only work (the skf_2014 ball-load solve) ran at every
+    With the inputs as arguments, input-only work (the skf_2014 ball-load solve) ran at every
     leapfrog step; as constants XLA evaluates it once, at compile time.
     """
     engine = RefitEngine(build_program(get_law("coulomb_viscous"), viscous_data), **SMALL)
     masks = np.ones((1, viscous_data.sizes["obs"]), dtype=bool)
     keys = np.zeros((1, 2, 2), dtype=np.uint32)
-    lowered = engine._sampler.lower(keys, masks, engine._init_z, engine._init_imm, engine._schedule)
+    y = engine.program.response
+    lowered = engine._sampler.lower(keys, masks, y, engine._init_z, engine._init_imm, engine._schedule)
     shapes = [tuple(a.shape) for a in lowered.in_avals[0]]
-    assert shapes == [keys.shape, masks.shape, tuple(engine._init_z.shape), tuple(engine._init_imm.shape),
-                      engine._schedule.shape]
+    assert shapes == [keys.shape, masks.shape, y.shape, tuple(engine._init_z.shape),
+                      tuple(engine._init_imm.shape), engine._schedule.shape]
+
+
+def test_another_response_is_refitted_by_the_same_compiled_sampler(viscous_data):
+    """``with_response`` fits the new data (not the data the sampler was traced on), compiling nothing."""
+    from dataclasses import replace
+
+    program = build_program(get_law("coulomb_viscous"), viscous_data)
+    engine = RefitEngine(program, seed=3, **SMALL)
+    all_true = np.ones((1, program.n_obs), dtype=bool)
+    base = engine.run(all_true).samples["T_C"]
+    shifted = engine.with_response(program.response + 2.0)  # T_C 1.0 -> 3.0
+    moved = shifted.run(all_true).samples["T_C"]
+    assert engine.compilations == 1 and engine._sampler._cache_size() == 1
+    assert abs(np.median(base) - 1.0) < 0.1 and abs(np.median(moved) - 3.0) < 0.1
+    # the same draws as an engine built on that response with the same priors
+    fresh = RefitEngine(replace(program, response=program.response + 2.0), seed=3, **SMALL)
+    np.testing.assert_allclose(fresh.run(all_true).samples["T_C"], moved, rtol=1e-10)
+    assert shifted.program.response[0] == pytest.approx(program.response[0] + 2.0)
+    with pytest.raises(AttributeError):
+        engine.program = program  # a swapped program would not reach the compiled sampler
+    with pytest.raises(ValueError, match="response must have shape"):
+        engine.with_response(program.response[:-1])

@@ -1,8 +1,9 @@
 """Posterior recovery of Maxwell-slip and elasto-plastic on SIMULATED loops with default priors.
 
-GMS is not here: on the loops of :func:`loops` (gms_n2, 1 % noise) two NUTS chains with default
-priors stuck in different local modes far from the truth (R-hat 2.7, noise sd 0.11 and 0.38 for a
-true 0.01; measured 2026-11-22), so its recovery and the GMS-wins case are open work."""
+GMS is recovered in ``tests/test_gms_loops.py`` (the shipped GMS example study, with Pathfinder
+chain starts): on the short loops of :func:`loops`, two NUTS chains started at prior medians
+stuck in different local modes far from the truth (R-hat 2.7, noise sd 0.11 and 0.38 for a true
+0.01; measured 2026-11-22)."""
 
 from __future__ import annotations
 
