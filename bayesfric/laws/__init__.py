@@ -9,6 +9,8 @@ from bayesfric.laws.variants import alias
 
 for _name, _recipe in hysteresis.DAHL_ALIASES.items():  # names users type; one declaration each
     alias(_name, _recipe)
+for _name, _recipe in drum.ORING_ALIASES.items():  # seed 003's O-ring law is Coulomb + viscous
+    alias(_name, _recipe, notes=drum.ORING_NOTES)
 
 __all__ = ["REGISTRY", "Law", "Param", "Constant", "Derived", "get_law", "law", "all_laws"]
 

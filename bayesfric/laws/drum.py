@@ -4,12 +4,14 @@ Seed 003 models the bearings and O-ring seals of a drum motor and identifies the
 roll-out (coast-down) tests: a return pulley is spun up and left to decelerate under friction
 alone. This module declares
 
-* the O-ring law τ = k_o ω + τ_o0 (Eq. 6);
+* the O-ring law τ = k_o ω + τ_o0 (Eq. 6) as names only: it is Coulomb + viscous, so ``oring``
+  and ``coastdown_oring_closed_form`` are thin aliases (τ_o0 = T_C, k_o = c_v), see
+  :data:`ORING_ALIASES`;
 * the rolling friction of a radially loaded ball bearing from per-ball normal forces (Eq. 1–5),
   which gives both the torque against radial load and its ripple with the ball-set angle;
 * a smooth non-parametric torque–speed law, the Bayesian counterpart of the seed's look-up tables;
 * coast-down laws J dω/dt = −T_f(ω) whose observations are speed trajectories ω(t): closed forms
-  for Coulomb + viscous and for the O-ring law, and :func:`coastdown`, a factory that turns any
+  for Coulomb + viscous and for Coulomb alone, and :func:`coastdown`, a factory that turns any
   registered velocity law into a coast-down law integrated with diffrax.
 
 Inertia
@@ -69,38 +71,16 @@ INERTIA = Constant(
 )
 
 # --- O-ring law (Eq. 6) ---------------------------------------------------------------------------
-k_o = Param(
-    "N*m*s/rad",
-    Prior("HalfNormal", scale=1.0, scaled_by={"response": 1, "velocity": -1}),
-    "velocity-proportional O-ring friction coefficient",
-    f"{SEED} Eq. 6; §4 reports ≈ 0.1 N·m per 1000 rpm (9.5e-4 N·m·s/rad); {_GENERIC}",
-)
-tau_o0 = Param(
-    "N*m",
-    Prior("HalfNormal", scale=1.0, scaled_by={"response": 1}),
-    "constant O-ring friction torque",
-    f"{SEED} Eq. 6; §4 reports ≈ 0.95 N·m (bearings + O-rings); {_GENERIC}",
-)
-
-
-@law(
-    name="oring",
-    family="drum",
-    rotary_only=_ROTARY,
-    inputs=("velocity",),
-    response="torque",
-    source=f"{SEED}, Eq. 6 (O-ring friction)",
-    params={"k_o": k_o, "tau_o0": tau_o0},
-    notes="Same form as Coulomb + viscous; both parameters are identified from a speed sweep.",
-)
-def oring(velocity, k_o, tau_o0):
-    """O-ring friction: τ = k_o ω + τ_o0 sign(ω).
-
-    The formula is ``coulomb_viscous``'s (called, not restated); the law stays registered under
-    seed 003's name because its parameters carry that seed's names, meanings and reported values,
-    which the closed-form O-ring coast-down and the drum study read.
-    """
-    return classical.coulomb_viscous.fn(velocity, T_C=tau_o0, c_v=k_o)
+#: Seed 003's O-ring law τ = k_o ω + τ_o0 sign(ω) (Eq. 6) *is* Coulomb + viscous with τ_o0 = T_C
+#: and k_o = c_v, so it is not declared again: its names are thin aliases (registered by
+#: :mod:`bayesfric.laws` with :func:`bayesfric.laws.variants.alias`) of the one declaration.
+ORING_NOTES = (f"{SEED}, Eq. 6 (O-ring friction τ = k_o ω + τ_o0): the seed's k_o is c_v and its τ_o0 is "
+               "T_C. §4 reports ≈ 0.95 N·m (bearings + O-rings) and ≈ 0.1 N·m per 1000 rpm "
+               "(9.5e-4 N·m·s/rad).")
+ORING_ALIASES = {
+    "oring": {"base": "coulomb_viscous"},
+    "coastdown_oring_closed_form": {"base": "coastdown_coulomb_viscous_closed_form"},
+}
 
 
 # --- rolling friction of a radially loaded ball bearing (Eq. 1–5) ---------------------------------
@@ -378,13 +358,6 @@ def _closed_form_coastdown(name: str, friction: Law, notes: str):
 def coastdown_coulomb_viscous_closed_form(time, initial_velocity, trajectory_start, T_C, c_v, J):
     """Coast-down under Coulomb + viscous friction, closed form (0 after the stop)."""
     return coulomb_viscous_coastdown(time, initial_velocity, T_C, c_v, J)
-
-
-@_closed_form_coastdown("coastdown_oring_closed_form", oring,
-                        "k_o and tau_o0 are separated by the curvature of ω(t).")
-def coastdown_oring_closed_form(time, initial_velocity, trajectory_start, k_o, tau_o0, J):
-    """Coast-down under O-ring friction τ = k_o ω + τ_o0, closed form (0 after the stop)."""
-    return coulomb_viscous_coastdown(time, initial_velocity, tau_o0, k_o, J)
 
 
 def integrate_coastdown(torque: Callable, time, initial_velocity, inertia, *,

@@ -453,8 +453,10 @@ def for_data(law: Law, ds) -> Law:
     return vary(law, without=without, motion=motion)
 
 
-def alias(name: str, recipe: Mapping[str, Any]) -> Law:
+def alias(name: str, recipe: Mapping[str, Any], notes: str = "") -> Law:
     """Register ``name`` as a thin alias: the variant ``recipe`` of a registered law.
+
+    ``notes`` (e.g. how the alias's source names the parameters) precede the base law's notes.
 
     Raises
     ------
@@ -463,7 +465,8 @@ def alias(name: str, recipe: Mapping[str, Any]) -> Law:
     """
     if name in REGISTRY:
         raise LawDeclarationError(f"alias {name!r}: a law named {name!r} is already registered")
-    REGISTRY[name] = build(recipe, name)
+    law = build(recipe, name)
+    REGISTRY[name] = dataclasses.replace(law, notes=" ".join(filter(None, (notes, law.notes))))
     return REGISTRY[name]
 
 
@@ -471,7 +474,11 @@ def law_of_fit(attrs: Mapping[str, Any]) -> Law:
     """The law of a stored fit: its recipe if it was a variant, else the registered name."""
     recipe = attrs.get("law_recipe")
     if recipe:
-        return build(json.loads(recipe), str(attrs["law"]))
+        recipe = json.loads(recipe)
+        registered = REGISTRY.get(str(attrs["law"]))
+        if registered is not None and registered.recipe == recipe:  # an alias, with its own notes
+            return registered
+        return build(recipe, str(attrs["law"]))
     return get_law(str(attrs["law"]))
 
 
