@@ -34,10 +34,13 @@ from bayesfric.exported import program_jit
 if TYPE_CHECKING:
     from bayesfric.model import Program
 
-__all__ = ["Density", "build_density", "median_starts", "OBS_SITE"]
+__all__ = ["Density", "build_density", "median_starts", "pending_median_starts", "start_seeds", "N_STARTS",
+           "OBS_SITE"]
 
 #: The observation site of every program (over dimension ``obs``).
 OBS_SITE = "response"
+#: Prior-median starts computed together by :attr:`Density.starts` (the NUTS chains' default).
+N_STARTS = 4
 
 
 @dataclass(frozen=True)
@@ -65,13 +68,20 @@ class Density:
     seed: int = 0
 
     @cached_property
-    def x0(self) -> jax.Array:
-        """The prior-median starting point (numpyro's ``init_to_median(num_samples=15)``).
+    def starts(self) -> jax.Array:
+        """:data:`N_STARTS` prior-median starting points ``(N_STARTS, dim)`` (numpyro's
+        ``init_to_median(num_samples=15)``, one seed each: :func:`start_seeds`).
 
-        Computed on first use: the NUTS engine draws its own starts per chain, so a fit never
-        compiles this one.
+        The same compiled program (and the same points) as the NUTS engine's default four
+        chain starts, so the optimisers of the evidence estimators and of emcee compile nothing
+        of their own for it. Computed on first use.
         """
-        return median_starts(self.program, [self.seed])[0]
+        return median_starts(self.program, start_seeds(self.seed, N_STARTS))
+
+    @property
+    def x0(self) -> jax.Array:
+        """The first of :attr:`starts`."""
+        return self.starts[0]
 
     def _kwargs(self, data: Mapping[str, Any] | None, mask: Any = None) -> dict[str, Any]:
         kwargs = dict(self.program.model_kwargs if data is None else data)
@@ -94,11 +104,6 @@ class Density:
     def neg_value_and_grad(self) -> Callable[[jax.Array], tuple[jax.Array, jax.Array]]:
         """Compiled ``x -> (-log_joint(x), -∇log_joint(x))``, for optimisers."""
         return program_jit(self.program, "neg_value_and_grad", jax.value_and_grad(lambda x: -self.log_joint(x)))
-
-    @cached_property
-    def neg_grad(self) -> Callable[[jax.Array], jax.Array]:
-        """Compiled ``x -> -∇log_joint(x)`` (finite-difference Hessians)."""
-        return program_jit(self.program, "neg_grad", jax.grad(lambda x: -self.log_joint(x)))
 
     def log_prior(self, x: jax.Array) -> jax.Array:
         """``log p(θ(x)) + log|J|``: the log joint with every observation masked out."""
@@ -139,18 +144,38 @@ def _median_start(program: Program, key: jax.Array) -> dict[str, jax.Array]:
     return unconstrain_fn(model, (), kwargs, latent)
 
 
+def start_seeds(seed: int, n: int) -> list[int]:
+    """Seeds of ``n`` prior-median starting points of a run with seed ``seed``."""
+    return [seed * 7919 + c for c in range(n)]
+
+
+def _median_starts_jit(program: Program) -> Callable:
+    def flat_starts(keys):
+        return jax.vmap(lambda key: ravel_pytree(_median_start(program, key))[0])(keys)
+
+    return program_jit(program, "median_starts", flat_starts)
+
+
+def _seed_keys(seeds: list[int]) -> jax.Array:
+    return jnp.stack([jax.random.PRNGKey(s) for s in seeds])
+
+
 def median_starts(program: Program, seeds: list[int]) -> jax.Array:
     """Flat prior-median starting points ``(len(seeds), dim)``, one per seed, in ONE compiled call.
 
     Executing the model eagerly instead dispatches (and, the first time in a process, compiles)
     each of its few hundred operations one by one.
     """
-    keys = jnp.stack([jax.random.PRNGKey(s) for s in seeds])
+    return _median_starts_jit(program)(_seed_keys(seeds))
 
-    def flat_starts(keys):
-        return jax.vmap(lambda key: ravel_pytree(_median_start(program, key))[0])(keys)
 
-    return program_jit(program, "median_starts", flat_starts)(keys)
+def pending_median_starts(program: Program, seeds: list[int]) -> Callable[[], jax.Array]:
+    """:func:`median_starts`, compiling in the background (:mod:`bayesfric.exported`) from now on;
+    call the returned function for the value (it waits for the compilation)."""
+    keys = _seed_keys(seeds)
+    starts = _median_starts_jit(program)
+    starts.ahead(keys)
+    return lambda: starts(keys)
 
 
 def build_density(program: Program, seed: int = 0) -> Density:

@@ -18,6 +18,13 @@ flag. A law defined outside the package is covered by the source of its own modu
 numbers come from a module it *imports* (not its own) is not, and needs the cache cleared
 (``BAYESFRIC_NO_CACHE=1`` for one run, or delete the folder) after such an edit.
 
+**Compiling ahead.** ``exported_jit(..., ahead=True)`` and :meth:`_ProgramJit.ahead` lower the
+program in the calling thread and hand its XLA compilation to one background thread (created on
+first use), so the caller can trace the next program, or sample, while this one compiles: on the
+2-core machine a law's sampler, its starting points and its DataTree tables used to compile one
+after the other. Tracing stays in the calling thread because numpyro's effect-handler stack is a
+module-level list, not thread-local. The first call waits for the compilation to finish.
+
 With the cache switched off (``BAYESFRIC_NO_CACHE``) this is plain ``jax.jit``. A file that
 cannot be read back (truncated, another JAX) is traced again and replaced; writes are atomic;
 the folder keeps at most :data:`EXPORTED_MAX_BYTES`, the least recently used files leaving first.
@@ -30,6 +37,7 @@ import json
 import os
 import secrets
 from collections.abc import Callable, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -40,11 +48,60 @@ import numpy as np
 from bayesfric.fingerprint import canonical, code_fingerprint
 from bayesfric.runtime import cache_dir
 
-__all__ = ["exported_jit", "program_jit", "EXPORTED_MAX_BYTES", "SUFFIX"]
+__all__ = ["exported_jit", "program_jit", "AheadCompiled", "EXPORTED_MAX_BYTES", "SUFFIX"]
 
 #: Upper bound of the exported programs kept on disk (oldest read first to go).
 EXPORTED_MAX_BYTES = 512 * 1024**2
 SUFFIX = ".jaxexport"
+
+
+_COMPILER: ThreadPoolExecutor | None = None  # the background compilation thread, made on first use
+
+
+def _compiler() -> ThreadPoolExecutor:
+    global _COMPILER
+    if _COMPILER is None:
+        _COMPILER = ThreadPoolExecutor(max_workers=1, thread_name_prefix="bayesfric-compile")
+    return _COMPILER
+
+
+class AheadCompiled:
+    """A jitted function lowered for one signature, its XLA compilation running in the background.
+
+    Parameters
+    ----------
+    jitted : callable
+        A ``jax.jit`` function.
+    example_args : sequence
+        Arrays or ``jax.ShapeDtypeStruct`` of the later calls (lowered here, in the caller's thread).
+
+    Attributes
+    ----------
+    out_shapes
+        Pytree of ``jax.ShapeDtypeStruct``: the outputs' shapes, known before compiling ends.
+    fallbacks : int
+        Calls whose arguments did not match the lowered signature (each ran through plain
+        ``jax.jit``, which compiles once per new signature): 0 when every call was as planned.
+    """
+
+    def __init__(self, jitted: Callable, example_args: Sequence[Any]):
+        self._jitted = jitted
+        self.fallbacks = 0
+        lowered = jitted.lower(*example_args)
+        self.out_shapes = lowered.out_info
+        self._future: Future = _compiler().submit(lowered.compile)
+
+    def __call__(self, *args: Any) -> Any:
+        compiled = self._future.result()  # waits for the compilation; re-raises its error
+        try:
+            return compiled(*args)
+        except TypeError:  # arguments of another signature than the lowered one: plain jit
+            self.fallbacks += 1
+            return self._jitted(*args)
+
+    def lower(self, *args: Any) -> Any:
+        """``jax.jit(...).lower`` of the function, e.g. to inspect its arguments."""
+        return self._jitted.lower(*args)
 
 
 def _folder() -> Path | None:
@@ -99,7 +156,8 @@ def _evict(folder: Path, keep: Path) -> None:
             old.unlink(missing_ok=True)
 
 
-def exported_jit(fn: Callable, parts: dict[str, Any], example_args: Sequence[Any]) -> tuple[Callable, bool]:
+def exported_jit(fn: Callable, parts: dict[str, Any], example_args: Sequence[Any],
+                 ahead: bool = False) -> tuple[Callable, bool]:
     """``jax.jit(fn)``, traced at most once per key across processes.
 
     Parameters
@@ -112,6 +170,9 @@ def exported_jit(fn: Callable, parts: dict[str, Any], example_args: Sequence[Any
         on (canonicalised with :func:`bayesfric.fingerprint.canonical`).
     example_args : sequence
         Arrays (or ``jax.ShapeDtypeStruct``) with the shapes and dtypes of the later calls.
+    ahead : bool
+        Return an :class:`AheadCompiled` whose compilation for ``example_args`` has started in
+        the background (see the module notes) instead of a function compiled on first call.
 
     Returns
     -------
@@ -120,15 +181,18 @@ def exported_jit(fn: Callable, parts: dict[str, Any], example_args: Sequence[Any
         in this process).
     """
     folder = _folder()
+    loaded = False
     if folder is None:
-        return jax.jit(fn), False
-    path = folder / f"{_key(parts, example_args)}{SUFFIX}"
-    exported = _load(path)
-    if exported is not None:
-        return jax.jit(exported.call), True
-    exported = jax.export.export(jax.jit(fn))(*example_args)
-    _save(path, exported)
-    return jax.jit(exported.call), False
+        jitted = jax.jit(fn)
+    else:
+        path = folder / f"{_key(parts, example_args)}{SUFFIX}"
+        exported = _load(path)
+        loaded = exported is not None
+        if not loaded:
+            exported = jax.export.export(jax.jit(fn))(*example_args)
+            _save(path, exported)
+        jitted = jax.jit(exported.call)
+    return (AheadCompiled(jitted, example_args) if ahead else jitted), loaded
 
 
 def program_jit(program: Any, what: str, fn: Callable) -> Callable:
@@ -158,11 +222,35 @@ class _ProgramJit:
         # host arrays: a device-committed argument would be another signature of the exported
         # program to compile (measured: a second compilation of the NUTS engine per warm start)
         args = jax.tree.unflatten(treedef, [np.asarray(a) if isinstance(a, jax.Array) else a for a in leaves])
-        signature = (treedef, tuple((tuple(jax.numpy.shape(a)), str(jax.numpy.result_type(a))) for a in leaves))
+        signature = _signature(treedef, leaves)
         if signature not in self._compiled:
-            if self._parts is None:
-                from bayesfric.fingerprint import program_parts
-
-                self._parts = dict(program=program_parts(self._program), what=self._what)
-            self._compiled[signature] = exported_jit(self._fn, self._parts, args)[0]
+            self._compiled[signature] = exported_jit(self._fn, self._key_parts(), args)[0]
         return self._compiled[signature](*args)
+
+    def ahead(self, *example_args: Any) -> Any:
+        """Start compiling for the signature of ``example_args`` (arrays or ``ShapeDtypeStruct``)
+        in the background; return the outputs' shapes. A later call of that signature waits
+        for it instead of compiling."""
+        leaves, treedef = jax.tree.flatten(example_args)
+        signature = _signature(treedef, leaves)
+        if signature not in self._compiled:
+            self._compiled[signature] = exported_jit(self._fn, self._key_parts(), example_args, ahead=True)[0]
+        compiled = self._compiled[signature]
+        return compiled.out_shapes if isinstance(compiled, AheadCompiled) else None
+
+    def _key_parts(self) -> dict[str, Any]:
+        if self._parts is None:
+            from bayesfric.fingerprint import program_parts
+
+            self._parts = dict(program=program_parts(self._program), what=self._what)
+        return self._parts
+
+
+def _signature(treedef: Any, leaves: list[Any]) -> tuple:
+    """Argument structure, shapes and dtypes (arrays, scalars or ``ShapeDtypeStruct``)."""
+    def one(a: Any) -> tuple:
+        if isinstance(a, jax.ShapeDtypeStruct):
+            return tuple(a.shape), str(np.dtype(a.dtype))
+        return tuple(jax.numpy.shape(a)), str(jax.numpy.result_type(a))
+
+    return treedef, tuple(one(a) for a in leaves)

@@ -66,4 +66,4 @@ def test_every_consumer_reads_the_one_density(case):
     # the refit engine samples this very density object
     engine = RefitEngine(program, draws=50, tune=50, chains=1)
     assert engine._density is density
-    assert np.isfinite(float(jax.jit(density.log_joint)(engine._init_z[0])))
+    assert np.isfinite(float(jax.jit(density.log_joint)(engine._starts()[0])))

@@ -58,7 +58,7 @@ def test_a_second_fit_in_a_new_process_compiles_nothing(tmp_path):
     """Two processes fit the same law to the same data: the second loads every program from disk."""
     first = json.loads(_run(PROBE, BAYESFRIC_CACHE_DIR=str(tmp_path)))
     second = json.loads(_run(PROBE, BAYESFRIC_CACHE_DIR=str(tmp_path)))
-    assert first.get("cache_misses", 0) > 20  # a fit is tens of small programs (38 in Nov 2026), all written
+    assert first.get("cache_misses", 0) >= 10  # a fit is a few tens of programs (20 in Nov 2026), all written
     assert second.get("cache_misses", 0) == 0, second
     # every program the first process wrote, the second read back. (blackjax compiles one tiny
     # program at import, before bayesfric configures the cache: it counts as neither, in both.)

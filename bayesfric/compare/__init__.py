@@ -10,6 +10,7 @@ from bayesfric.compare.checks import (
     PitCheck,
     PlausibilityReport,
     RankingSensitivity,
+    fit_prior_draws,
     loo_pit_check,
     power_scaled_loo,
     prior_predictive_check,
@@ -37,6 +38,6 @@ __all__ = [
     "averaged_predictive", "bayes_factors", "blocked_masks", "bridge_log_evidence", "compare_estimators",
     "cross_validate", "extrapolation_penalty", "grouped_masks", "kfold_masks", "laplace_is_log_evidence",
     "loo_pit_check", "model_recovery",
-    "model_weights", "power_scaled_loo", "prior_predictive_check", "prior_sensitivity", "psis_loo",
+    "model_weights", "power_scaled_loo", "prior_predictive_check", "fit_prior_draws", "prior_sensitivity", "psis_loo",
     "ranking_sensitivity", "smc_log_evidence", "verdict_of",
 ]

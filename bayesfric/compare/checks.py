@@ -18,11 +18,11 @@ import io
 import logging
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from functools import partial
 from typing import Any
 
 import arviz as az
 import jax
-import jax.numpy as jnp
 import numpy as np
 import pandas as pd
 import xarray as xr
@@ -30,6 +30,7 @@ from arviz_stats.ecdf_utils import ecdf_pit
 from numpyro.infer import Predictive
 from scipy.stats import kstest
 
+from bayesfric.exported import program_jit
 from bayesfric.model import OBS_SITE, Program
 
 __all__ = [
@@ -39,6 +40,7 @@ __all__ = [
     "sign_rule",
     "plausible_draws",
     "prior_predictive_check",
+    "fit_prior_draws",
     "loo_pit_check",
     "prior_sensitivity",
     "power_scaled_loo",
@@ -127,9 +129,11 @@ def plausible_draws(
     """
     law = program.law
     points = _envelope_points(program, envelope_points, np.random.default_rng(seed))
-    inputs = {k: jnp.asarray(v) for k, v in points.items()}
-    law_params = {k: jnp.asarray(params[k]) for k in law.params}
-    means = np.asarray(jax.vmap(lambda p: law.mean(inputs, p, program.constants))(law_params))
+    inputs = {k: np.asarray(v) for k, v in points.items()}
+    law_params = {k: np.asarray(params[k]) for k in law.params}
+    # one compiled program (kept on disk), not the law's operations dispatched one by one
+    means = np.asarray(program_jit(program, "plausible_draws means", partial(_means, law, program.constants))(
+        law_params, inputs))
     means = means.reshape(means.shape[0], -1)
     non_finite = ~np.all(np.isfinite(means), axis=1)
     rule = sign_rule(program)
@@ -151,8 +155,13 @@ def plausible_draws(
     return ok, failures
 
 
+def _means(law, constants, params, inputs):
+    return jax.vmap(lambda p: law.mean(inputs, p, constants))(params)
+
+
 def prior_predictive_check(
-    program: Program, *, draws: int = 500, seed: int = 0, envelope_points: int = 200
+    program: Program, *, draws: int = 500, seed: int = 0, envelope_points: int = 200,
+    prior: Mapping[str, np.ndarray] | None = None,
 ) -> PlausibilityReport:
     """Fractions of prior draws of ``program`` that give physically wrong friction.
 
@@ -167,10 +176,16 @@ def prior_predictive_check(
     envelope_points : int
         Uniform random points in the bounding box of the inputs, added to the data's own
         (ignored for stateful laws, which only make sense along the measured trajectories).
+    prior : mapping, optional
+        Prior draws of the law's parameters already at hand (leading axis: draws), e.g. a fit's
+        ``prior`` group (:func:`fit_prior_draws`); ``draws`` is then their number. Drawn here
+        otherwise.
     """
-    prior = Predictive(program.model, num_samples=draws, return_sites=list(program.law.params))(
-        jax.random.PRNGKey(seed), **dict(program.model_kwargs, response=None)
-    )
+    if prior is None:
+        prior = Predictive(program.model, num_samples=draws, return_sites=list(program.law.params))(
+            jax.random.PRNGKey(seed), **dict(program.model_kwargs, response=None)
+        )
+    draws = len(next(iter(prior.values())))
     ok, failures = plausible_draws(program, prior, envelope_points=envelope_points, seed=seed)
     n_points = program.n_obs + (0 if program.law.trajectory else envelope_points)
     static = failures.get("static_below_kinetic")
@@ -184,6 +199,12 @@ def prior_predictive_check(
         implausible=float(1.0 - ok.mean()),
         n_points=n_points,
     )
+
+
+def fit_prior_draws(fit: xr.DataTree, names: Sequence[str]) -> dict[str, np.ndarray]:
+    """The prior draws of parameters ``names`` stored with a fit (chain and draw flattened)."""
+    prior = fit["prior"]
+    return {k: np.asarray(prior[k].values).reshape((-1,) + prior[k].shape[2:]) for k in names}
 
 
 # -- posterior predictive: LOO-PIT ----------------------------------------------------------------

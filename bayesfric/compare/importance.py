@@ -4,9 +4,12 @@ The check on :func:`bayesfric.compare.evidence.bridge_log_evidence` must share n
 but the program's log density, and must cost less than the fit. This estimator:
 
 1. finds the posterior mode in numpyro's unconstrained space by L-BFGS (scipy) on the jitted
-   log joint density and its gradient, from the prior median and a few prior draws;
-2. takes the Hessian there by central differences of that gradient (``2 d`` gradient calls;
-   no second compiled program);
+   log joint density and its gradient, from ``starts`` prior-median points of different seeds
+   (:attr:`bayesfric.density.Density.starts`: the NUTS chains' own starting points, so no
+   program of its own is compiled for them; they used to be the median and prior draws, which
+   cost two more compilations per law);
+2. takes the Hessian there by central differences of that gradient (``2 d`` calls of the same
+   compiled value-and-gradient program);
 3. draws ``draws`` points from a multivariate Student-t (``df`` degrees of freedom) centred at the
    mode with scale ``inflation × H⁻¹`` -- heavier tails and a wider scale than the posterior,
    so the importance weights have finite variance on the skewed and correlated posteriors of
@@ -30,16 +33,15 @@ from __future__ import annotations
 
 import time
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 import xarray as xr
-from numpyro.infer import Predictive
 from scipy.optimize import minimize
 from scipy.special import logsumexp
 from scipy.stats import multivariate_t
 
 from bayesfric.compare.evidence import Evidence, _finite
+from bayesfric.density import N_STARTS, median_starts, start_seeds
 from bayesfric.model import Program
 
 __all__ = ["laplace_is_log_evidence", "K_HAT_LIMIT"]
@@ -116,7 +118,8 @@ def laplace_is_log_evidence(
     inflation : float
         Scale of the proposal covariance relative to the Laplace covariance ``H⁻¹``.
     starts : int
-        L-BFGS starting points: the prior median and ``starts - 1`` prior draws.
+        L-BFGS starting points: prior medians of ``starts`` seeds (at the default 4, the NUTS
+        chains' starting points).
     adapt_rounds : int
         Rounds of population Monte Carlo before the final draws: each refits the t proposal's
         centre and scale (``inflation ×`` the weighted covariance) to the previous round's
@@ -131,17 +134,12 @@ def laplace_is_log_evidence(
     """
     start = time.perf_counter()
     density = program.density(seed)
-    neg, grad, log_joint = density.neg_value_and_grad, density.neg_grad, density.log_joint_batch
+    neg, log_joint = density.neg_value_and_grad, density.log_joint_batch
 
-    x_median = np.asarray(density.x0)
-    key = jax.random.PRNGKey(seed)
-    extra = np.zeros((0, density.dim))
-    if starts > 1:
-        prior = Predictive(program.model, num_samples=starts - 1, return_sites=density.sites)
-        drawn = prior(key, **dict(program.model_kwargs, response=None))
-        extra = np.asarray(density.to_unconstrained({k: drawn[k] for k in density.sites}))
-    mode, _, n_eval = _mode(neg, np.vstack([x_median[None], extra]))
-    scale = _proposal_scale(_hessian(grad, mode), inflation)
+    points = (density.starts if starts == N_STARTS
+              else median_starts(program, start_seeds(seed, starts)))
+    mode, _, n_eval = _mode(neg, np.asarray(points))
+    scale = _proposal_scale(_hessian(lambda x: neg(x)[1], mode), inflation)
 
     rng = np.random.default_rng(seed)
     loc = mode

@@ -19,7 +19,10 @@ from bayesfric.exported import program_jit
 from bayesfric.inference.diagnostics import check
 from bayesfric.model import OBS_SITE, Program
 
-__all__ = ["assemble", "provenance", "log_prior_draws"]
+__all__ = ["assemble", "provenance", "log_prior_draws", "draw_tables_jit", "draw_tables_args"]
+
+#: Prior (and prior predictive) draws stored with every fit.
+N_PRIOR = 500
 
 
 def _flatten(samples: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -84,6 +87,19 @@ def _draw_tables(program: Program, n_prior: int, flat: dict, key_pp, key_prior):
     return ll, log_prior, pp, prior
 
 
+def draw_tables_jit(program: Program, n_prior: int = N_PRIOR):
+    """The one compiled program of a fit's per-draw tables (see :func:`_draw_tables`)."""
+    return program_jit(program, f"draw_tables n_prior={n_prior}", partial(_draw_tables, program, n_prior))
+
+
+def draw_tables_args(site_shapes: dict[str, Any], n_draws: int, seed: int) -> tuple:
+    """Example arguments of :func:`draw_tables_jit` (for compiling ahead): ``n_draws`` draws of
+    every site, ``site_shapes`` giving one draw's shape and dtype per site."""
+    flat = {k: jax.ShapeDtypeStruct((n_draws,) + tuple(v.shape), v.dtype) for k, v in site_shapes.items()}
+    key = jax.random.PRNGKey(seed + 1)
+    return flat, key, key
+
+
 def assemble(
     program: Program,
     ds: xr.Dataset,
@@ -93,21 +109,23 @@ def assemble(
     sampler: str,
     settings: dict,
     seed: int,
-    n_prior: int = 500,
+    n_prior: int = N_PRIOR,
+    tables: Any = None,
 ) -> xr.DataTree:
     """Build the fit's DataTree: posterior, sample_stats, log_likelihood, log_prior,
     posterior_predictive, prior, prior_predictive, observed_data, constant_data, with provenance
     and the gate verdict.
 
     ``samples`` are constrained draws shaped (chain, draw, ...); every latent site of the
-    program must be present.
+    program must be present. ``tables`` is :func:`draw_tables_jit` of the program with
+    ``n_prior``, when the caller already has it compiling.
     """
     n_chains = next(iter(samples.values())).shape[0]
     flat = _flatten(samples)
     key_pp, key_prior = jax.random.split(jax.random.PRNGKey(seed + 1))
 
     # one compiled program for every per-draw table (it used to be three scans, compiled apart)
-    tables = program_jit(program, f"draw_tables n_prior={n_prior}", partial(_draw_tables, program, n_prior))
+    tables = draw_tables_jit(program, n_prior) if tables is None else tables
     ll, log_prior, pp, prior = tables(flat, key_pp, key_prior)
     prior_pred = {OBS_SITE: prior.pop(OBS_SITE)}
     # posterior keeps sampled + derived sites; drop nothing the sampler returned

@@ -16,7 +16,12 @@ Every chain is :func:`bayesfric.inference.adaptation.nuts_chain` (blackjax NUTS,
 Stan's window adaptation from blackjax's public primitives) on the program's one log density
 (:mod:`bayesfric.density`), vectorised with ``jax.vmap`` over chains and optionally over a
 fixed-size batch of folds (``fold_batch``; the last batch is padded with copies of its first
-fold so the batch shape, and so the compilation, never changes).
+fold so the batch shape, and so the compilation, never changes). A fold's chains run as
+``chains / chain_batch`` groups (default two groups of two), each one call of the compiled
+sampler from its own thread: XLA releases the GIL, so on the 2-core machine a single fit, the
+full one included, samples on both cores, and a vmapped step waits for the longest trajectory
+of two chains instead of four. The chains' keys and starts do not depend on the grouping of
+the calls, and the grouping is fixed per engine, not per machine.
 
 Warm starts: :meth:`NutsEngine.warm_started` returns a view of the same compiled sampler whose
 chains start at draws of a full fit, with its unconstrained posterior variance as the initial
@@ -37,24 +42,37 @@ fold that fails is *flagged* in the result, never silently used as if healthy.
 from __future__ import annotations
 
 import copy
+import os
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import arviz_base
 import jax
 import jax.numpy as jnp
 import numpy as np
 import xarray as xr
+from scipy.special import logsumexp
 
 from bayesfric.exported import exported_jit
 from bayesfric.fingerprint import program_parts
 from bayesfric.inference.adaptation import nuts_chain, sampling_schedule
-from bayesfric.inference.datatree import assemble
+from bayesfric.inference.datatree import assemble, draw_tables_args, draw_tables_jit
 from bayesfric.inference.diagnostics import GATE, Gate, Verdict, check
-from bayesfric.inference.init import Init, chain_starts
+from bayesfric.inference.init import Init, pending_chain_starts
 from bayesfric.model import Program
 
-__all__ = ["NutsEngine", "FoldFits"]
+__all__ = ["NutsEngine", "FoldFits", "available_cpus"]
+
+
+def available_cpus() -> int:
+    """CPUs this process may run on (its affinity mask where the OS has one)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
 
 @dataclass
 class FoldFits:
@@ -124,6 +142,17 @@ class NutsEngine:
     init : {"median", "pathfinder"}
         Starting points of chains that start cold (:mod:`bayesfric.inference.init`): prior
         medians (default), or draws of multi-path Pathfinder for posteriors with minor modes.
+    threads : int, optional
+        Fold batches sampled at once, each from its own thread (the compiled sampler releases
+        the GIL, so XLA runs them on separate cores). Default: the CPUs this process may use.
+        Draws do not depend on it (each fold's keys are fixed by the seed and its index).
+    chain_batch : int, optional
+        Chains vectorised in one call of the compiled sampler (a divisor of ``chains``); a
+        fold's chains are split over ``chains / chain_batch`` calls, which run on separate
+        threads. Default: half the chains when their number is even (two calls per fold, so a
+        single fit, the full one included, uses two cores), else all. Fixed per engine (it is
+        the compiled shape) and independent of ``threads``, so the draws do not depend on the
+        machine.
 
     Notes
     -----
@@ -147,8 +176,12 @@ class NutsEngine:
         warm_start: xr.DataTree | None = None,
         warm_tune: int = 250,
         init: Init = "median",
+        threads: int | None = None,
+        chain_batch: int | None = None,
     ):
         self._program = program
+        self.threads = available_cpus() if threads is None else max(1, int(threads))
+        self.chain_batch = _chain_batch(int(chains), chain_batch)
         self.draws, self.chains = int(draws), int(chains)
         self.target_accept, self.max_tree_depth = float(target_accept), int(max_tree_depth)
         self.fold_batch = int(fold_batch)
@@ -162,9 +195,13 @@ class NutsEngine:
         self.active_tune = self.tune
         self._schedule = sampling_schedule(self.tune, self.draws)
         self.init = init  # how cold chains start (bayesfric.inference.init)
-        self._init_z = self._cold_z = chain_starts(program, self.chains, seed, init)
+        # cold starts compile in the background while the sampler is traced (bayesfric.exported)
+        self._cold_starts = pending_chain_starts(program, self.chains, seed, init)
+        self._init_z = None  # None: the cold starts; a warm start sets its own
         self._init_imm = jnp.ones(self._density.dim)
-        self._sampler, self.loaded = exported_jit(self._sample_batch, self._program_parts(), self._example_args())
+        self._sampler, self.loaded = exported_jit(self._sample_batch, self._program_parts(), self._example_args(),
+                                                  ahead=True)
+        self._tables = None  # the full fit's DataTree tables, compiled on the first fit
         self.compilations += int(self.loaded)  # a program read from disk counts as its one compilation
         if warm_start is not None:
             self._start_from(warm_start, int(warm_tune))
@@ -218,7 +255,7 @@ class NutsEngine:
         if not 120 <= tune <= self.tune:
             raise ValueError(f"a cold warm-up needs 120 to {self.tune} steps (got {tune})")
         view = copy.copy(self)
-        view._init_z = self._cold_z  # the prior-median starts, computed once in __init__
+        view._init_z = None  # the prior-median starts, computed once per engine
         view._init_imm = jnp.ones(self._density.dim)
         view._schedule = sampling_schedule(self.tune, self.draws, active=tune, warm=False)
         view.warm, view.active_tune = False, tune
@@ -236,7 +273,8 @@ class NutsEngine:
         """Sampler settings, as stored with results."""
         return dict(draws=self.draws, tune=self.active_tune, chains=self.chains,
                     target_accept=self.target_accept, max_tree_depth=self.max_tree_depth,
-                    fold_batch=self.fold_batch, init=self.init, sampler="blackjax NUTS, window adaptation",
+                    fold_batch=self.fold_batch, chain_batch=self.chain_batch, init=self.init,
+                    sampler="blackjax NUTS, window adaptation",
                     warm_start="from the full fit's draws and mass matrix" if self.warm else "no")
 
     # -- the compiled function ------------------------------------------------------------
@@ -247,11 +285,12 @@ class NutsEngine:
                     target_accept=self.target_accept, max_tree_depth=self.max_tree_depth)
 
     def _example_args(self) -> tuple:
-        keys = jax.ShapeDtypeStruct((self.fold_batch, self.chains) + jax.random.PRNGKey(0).shape, jnp.uint32)
+        keys = jax.ShapeDtypeStruct((self.fold_batch, self.chain_batch) + jax.random.PRNGKey(0).shape, jnp.uint32)
         masks = jax.ShapeDtypeStruct((self.fold_batch, self.program.n_obs), jnp.bool_)
         y = self.program.response
-        schedule = jnp.asarray(self._schedule)
-        return (keys, masks, jax.ShapeDtypeStruct(y.shape, y.dtype), self._init_z, self._init_imm,
+        schedule = np.asarray(self._schedule)
+        starts = jax.ShapeDtypeStruct((self.chain_batch, self._density.dim), self._init_imm.dtype)
+        return (keys, masks, jax.ShapeDtypeStruct(y.shape, y.dtype), starts, self._init_imm,
                 jax.ShapeDtypeStruct(schedule.shape, schedule.dtype))
 
     def _sample_batch(self, keys, masks, response, init_z, init_imm, schedule):
@@ -299,16 +338,29 @@ class NutsEngine:
         padded = np.concatenate([masks, np.repeat(masks[:1], n_pad, axis=0)])
         # fold k's chains draw from fold_in(seed, k): independent of K, batch and padding
         base = jax.random.PRNGKey(seed)
-        keys = jnp.stack([jax.random.split(jax.random.fold_in(base, k), self.chains)
-                          for k in range(padded.shape[0])])
-        parts = []
-        for lo in range(0, padded.shape[0], b):
-            # host arrays: a device-committed start would count as another signature of the
-            # exported program and compile it again
-            out = self._sampler(keys[lo:lo + b], padded[lo:lo + b], self.program.response,
-                                np.asarray(self._init_z), np.asarray(self._init_imm), np.asarray(self._schedule))
-            parts.append(jax.tree.map(np.asarray, out))
-        samples, stats, lpd = jax.tree.map(lambda *xs: np.concatenate(xs)[:n_folds], *parts)
+        keys = np.asarray(jnp.stack([jax.random.split(jax.random.fold_in(base, k), self.chains)
+                                     for k in range(padded.shape[0])]))
+        # host arrays: a device-committed start would count as another signature of the
+        # exported program and compile it again
+        starts, cb = np.asarray(self._starts()), self.chain_batch
+        fixed = (np.asarray(self._init_imm), np.asarray(self._schedule))
+
+        def one_call(work: tuple[int, int]) -> Any:  # folds lo:lo+b, chains c:c+cb
+            lo, c = work
+            out = self._sampler(keys[lo:lo + b, c:c + cb], padded[lo:lo + b], self.program.response,
+                                starts[c:c + cb], *fixed)
+            return jax.tree.map(np.asarray, out)
+
+        work = [(lo, c) for lo in range(0, padded.shape[0], b) for c in range(0, self.chains, cb)]
+        threads = min(self.threads, len(work))
+        if threads > 1:  # XLA runs each call on its own core; results keep their order
+            with ThreadPoolExecutor(threads, thread_name_prefix="bayesfric-chains") as pool:
+                parts = list(pool.map(one_call, work))
+        else:
+            parts = [one_call(w) for w in work]
+        splits = self.chains // cb
+        per_batch = [_join_chains(parts[i:i + splits]) for i in range(0, len(parts), splits)]
+        samples, stats, lpd = jax.tree.map(lambda *xs: np.concatenate(xs)[:n_folds], *per_batch)
         verdicts = [self._verdict({k: v[i] for k, v in samples.items()}, stats["diverging"][i],
                                   stats["energy"][i]) for i in range(n_folds)]
         return FoldFits(samples, lpd, verdicts, time.perf_counter() - start, stats)
@@ -320,19 +372,46 @@ class NutsEngine:
         ``seed`` defaults to the engine's seed.
         """
         seed = self.seed if seed is None else int(seed)
+        if self._tables is None:  # compiles in the background while the chains run
+            self._tables = draw_tables_jit(self.program)
+            sites = {k: jax.ShapeDtypeStruct(v.shape[3:], v.dtype) for k, v in self._sampler.out_shapes[0].items()}
+            self._tables.ahead(*draw_tables_args(sites, self.chains * self.draws, seed))
         fits = self.run(np.ones((1, self.program.n_obs), dtype=bool), seed=seed)
         samples = {k: v[0] for k, v in fits.samples.items()}
         stats = {k: v[0] for k, v in fits.stats.items()}
         settings = dict(draws=self.draws, tune=self.active_tune, chains=self.chains,
                         target_accept=self.target_accept, max_tree_depth=self.max_tree_depth, init=self.init,
                         algorithm="blackjax NUTS, Stan window adaptation")
-        return assemble(self.program, ds, samples, stats, sampler="nuts", settings=settings, seed=seed)
+        return assemble(self.program, ds, samples, stats, sampler="nuts", settings=settings, seed=seed,
+                        tables=self._tables)
+
+    def _starts(self) -> jax.Array:
+        """The chains' starting points ``(chains, dim)``: a warm start's, or the cold ones."""
+        return self._cold_starts() if self._init_z is None else self._init_z
 
     def _verdict(self, samples: dict, diverging: np.ndarray, energy: np.ndarray) -> Verdict:
         dims = {k: ["group"] for k in ("group_z", "group_offset") if k in samples}
         dt = arviz_base.from_dict({"posterior": samples,
                            "sample_stats": {"diverging": diverging, "energy": energy}}, dims=dims)
         return check(dt, gate=self.gate)
+
+
+def _chain_batch(chains: int, chain_batch: int | None) -> int:
+    if chain_batch is None:
+        return chains // 2 if chains % 2 == 0 else chains
+    if chain_batch < 1 or chains % chain_batch:
+        raise ValueError(f"chain_batch must divide chains ({chains}); got {chain_batch}")
+    return int(chain_batch)
+
+
+def _join_chains(parts: list[Any]) -> Any:
+    """One fold batch from its chain groups: draws joined along the chain axis; the pointwise
+    predictive density, a log-mean over each group's (equally many) draws, combined into the
+    log-mean over all."""
+    samples = jax.tree.map(lambda *xs: np.concatenate(xs, axis=1), *[p[0] for p in parts])
+    stats = jax.tree.map(lambda *xs: np.concatenate(xs, axis=1), *[p[1] for p in parts])
+    lpd = logsumexp(np.stack([p[2] for p in parts]), axis=0) - np.log(len(parts))
+    return samples, stats, lpd
 
 
 def _warm_start_from(program: Program, fit: xr.DataTree, chains: int, seed: int):

@@ -25,6 +25,7 @@ runs before the sampler; the engine's compiled sampler is unchanged (its starts 
 from __future__ import annotations
 
 import warnings
+from collections.abc import Callable
 from typing import Literal
 
 import blackjax
@@ -32,11 +33,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from bayesfric.density import median_starts
+from bayesfric.density import median_starts, pending_median_starts, start_seeds
 from bayesfric.exported import program_jit
 from bayesfric.model import Program
 
-__all__ = ["INITS", "PATHS", "chain_starts", "pathfinder_starts"]
+__all__ = ["INITS", "PATHS", "chain_starts", "pending_chain_starts", "pathfinder_starts"]
 
 Init = Literal["median", "pathfinder"]
 INITS: tuple[str, ...] = ("median", "pathfinder")
@@ -45,17 +46,22 @@ DRAWS_PER_PATH = 100  #: draws of each path's Gaussian approximation, pooled for
 MAXITER = 100  #: L-BFGS iterations per path
 
 
-def _seeds(seed: int, n: int) -> list[int]:
-    return [seed * 7919 + c for c in range(n)]
-
-
 def chain_starts(program: Program, chains: int, seed: int, init: Init = "median") -> jax.Array:
     """Flat unconstrained starting points ``(chains, dim)`` of the NUTS chains (see the module notes)."""
     if init not in INITS:
         raise ValueError(f"unknown init {init!r}; choose one of {', '.join(INITS)}")
     if init == "median":
-        return median_starts(program, _seeds(seed, chains))
+        return median_starts(program, start_seeds(seed, chains))
     return pathfinder_starts(program, chains, seed)
+
+
+def pending_chain_starts(program: Program, chains: int, seed: int, init: Init = "median") -> Callable[[], jax.Array]:
+    """:func:`chain_starts` as a function to call later: prior-median starts compile in the
+    background meanwhile (:func:`bayesfric.density.pending_median_starts`); Pathfinder runs now."""
+    if init == "median":
+        return pending_median_starts(program, start_seeds(seed, chains))
+    starts = chain_starts(program, chains, seed, init)
+    return lambda: starts
 
 
 def pathfinder_starts(program: Program, chains: int, seed: int, paths: int = PATHS) -> jax.Array:
@@ -64,7 +70,7 @@ def pathfinder_starts(program: Program, chains: int, seed: int, paths: int = PAT
     Falls back to the prior-median starts, with a warning, when no path gives a finite weight.
     """
     density = program.density(seed)
-    starts = median_starts(program, _seeds(seed, max(paths, chains)))
+    starts = median_starts(program, start_seeds(seed, max(paths, chains)))
 
     def all_paths(keys, starts):
         def one_path(key, x0):

@@ -183,7 +183,8 @@ def _compute_rest(job: LawJob, unit: Unit, fit: xr.DataTree) -> tuple[dict, dict
     if unit.stage == "checks":
         pit = compare.loo_pit_check(fit, seed=job.seed)
         sens = compare.prior_sensitivity(fit)
-        return {"implausible": compare.prior_predictive_check(program, seed=job.seed).implausible,
+        prior = compare.fit_prior_draws(fit, program.law.params)  # the fit's 500 prior draws
+        return {"implausible": compare.prior_predictive_check(program, seed=job.seed, prior=prior).implausible,
                 "ks_pvalue": pit.ks_pvalue, "within_band": bool(pit.within_band), "ci_prob": pit.ci_prob,
                 "psense": [f"{i} ({d})" for i, d in zip(sens.index, sens["diagnosis"], strict=True) if d != "-"]}, {}
     raise ValueError(f"unknown unit stage {unit.stage!r}")
