@@ -36,7 +36,8 @@ def sample_nuts(
 ) -> xr.DataTree:
     """Sample the program's posterior with NUTS and return the fit's DataTree.
 
-    Chains run vectorised in one compiled program and start at different prior-median points
+    Chains run vectorised in one compiled program (in groups, two by default, on separate threads:
+    :class:`~bayesfric.inference.engine.NutsEngine`) and start at different prior-median points
     (numpyro's ``init_to_median``), so every chain starts in the bulk of the prior; ``init =
     "pathfinder"`` starts them at multi-path Pathfinder draws instead (:mod:`bayesfric.inference.init`).
     """
