@@ -1,5 +1,7 @@
 """``python -m bayesfric`` runs the command-line interface."""
 
-from bayesfric.cli import command
+import sys
 
-command()
+from bayesfric.cli import main
+
+sys.exit(main())

@@ -9,7 +9,6 @@ table (:data:`bayesfric.study.config.SAMPLER`) and its ``--out`` path before sam
 from __future__ import annotations
 
 import argparse
-import gc
 import json
 import sys
 from typing import NoReturn
@@ -405,21 +404,5 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def command() -> NoReturn:
-    """The ``bayesfric`` executable (and ``python -m bayesfric``): :func:`main`, then exit.
-
-    Before the process exits, every object is moved out of the garbage collector's reach
-    (:func:`gc.freeze`): the interpreter's last collection would otherwise walk everything JAX,
-    numpyro and xarray built, only for the operating system to reclaim it a moment later
-    (0.8 s of a 6 s warm ``bayesfric fit``, measured with py-spy, Nov 2026). Objects are still
-    released by reference counting and files are closed as usual; only cyclic garbage is left
-    to the operating system. :func:`main` itself leaves the collector alone, so a program that
-    calls it keeps its own.
-    """
-    status = main()
-    gc.freeze()
-    sys.exit(status)
-
-
 if __name__ == "__main__":
-    command()
+    sys.exit(main())
