@@ -143,8 +143,9 @@ class NutsEngine:
         Starting points of chains that start cold (:mod:`bayesfric.inference.init`): prior
         medians (default), or draws of multi-path Pathfinder for posteriors with minor modes.
     threads : int, optional
-        Fold batches sampled at once, each from its own thread (the compiled sampler releases
-        the GIL, so XLA runs them on separate cores). Default: the CPUs this process may use.
+        Calls of the compiled sampler (fold batches × chain groups) run at once, each from its
+        own thread (the compiled sampler releases the GIL, so XLA runs them on separate cores).
+        Default: the CPUs this process may use.
         Draws do not depend on it (each fold's keys are fixed by the seed and its index).
     chain_batch : int, optional
         Chains vectorised in one call of the compiled sampler (a divisor of ``chains``); a
