@@ -35,7 +35,7 @@ def time_law(engine: NutsEngine) -> list[dict]:
     program = engine.program
     keys = np.asarray(jnp.stack([jax.random.split(jax.random.PRNGKey(1), engine.chains)]))
     args = (keys, np.ones((1, program.n_obs), bool), program.response, np.asarray(engine._init_z),
-            np.asarray(engine._init_imm), np.asarray(engine._schedule))
+            np.asarray(engine._init_imm), np.asarray(engine._schedule), np.asarray(engine.target_accept))
     rows = []
     for options in LEVELS:
         jitted = jax.jit(engine._sample_batch, compiler_options=options or None)

@@ -30,11 +30,28 @@ def data():
 def cache(monkeypatch, tmp_path):
     monkeypatch.setenv("BAYESFRIC_CACHE_DIR", str(tmp_path))
     monkeypatch.delenv("BAYESFRIC_NO_CACHE", raising=False)
+    exported.forget_compiled()  # each test starts as a new process would, with an empty cache
     return tmp_path / "exported"
 
 
-def _engine(ds):
-    return NutsEngine(build_program(get_law("coulomb_viscous"), ds), **SMALL)
+def _engine(ds, **settings):
+    """An engine as a new process would build it: nothing compiled in this one is reused."""
+    exported.forget_compiled()
+    return NutsEngine(build_program(get_law("coulomb_viscous"), ds), **(SMALL | settings))
+
+
+def test_within_a_process_an_equal_program_reuses_the_compiled_function(cache, data):
+    """A second engine on equal content (a law's units rebuild its program from the stored
+    fit) gets the function compiled for the first: no trace, no disk read, no compilation."""
+    first = _engine(data)
+    files = sorted(cache.glob(f"*{exported.SUFFIX}"))
+    second = NutsEngine(build_program(get_law("coulomb_viscous"), data.copy(deep=True)), **SMALL)
+    assert second.loaded and second._sampler is first._sampler
+    assert first.compilations == 1 and second.compilations == 1  # the second counts its reuse
+    assert sorted(cache.glob(f"*{exported.SUFFIX}")) == files
+    exported.forget_compiled()  # between laws (release_compiled_code): read back from disk
+    third = NutsEngine(build_program(get_law("coulomb_viscous"), data), **SMALL)
+    assert third.loaded and third._sampler is not first._sampler
 
 
 def test_an_engine_on_equal_content_reads_the_same_program_back(cache, data):
@@ -53,7 +70,7 @@ def test_other_data_or_settings_trace_a_program_of_their_own(cache, data):
     shifted = data.copy(deep=True)
     shifted["torque"] = shifted["torque"] + 0.1
     assert not _engine(shifted).loaded
-    assert not NutsEngine(build_program(get_law("coulomb_viscous"), data), **(SMALL | dict(draws=120))).loaded
+    assert not _engine(data, draws=120).loaded
 
 
 def test_an_unreadable_file_is_traced_again_and_replaced(cache, data):

@@ -152,6 +152,6 @@ def cross_validate(engine: RefitEngine, folds: Folds, *, seed: int = 0) -> CVRes
         heldout=heldout,
         verdicts=fits.verdicts,
         seconds=fits.seconds,
-        settings=engine.settings,
+        settings=engine.settings | {"fold_target_accept": [float(t) for t in fits.target_accept]},
     )
 

@@ -16,6 +16,7 @@ from typing import Any, Literal
 import jax
 import xarray as xr
 
+from bayesfric.exported import forget_compiled
 from bayesfric.fsutil import check_output_file
 from bayesfric.inference.diagnostics import GATE, Gate, Verdict, check, verdict_of
 from bayesfric.inference.ensemble import sample_emcee
@@ -43,6 +44,7 @@ def release_compiled_code() -> None:
     :mod:`bayesfric.exported` a small fit leaves ~75. Long loops still call this between items;
     it costs only the recompilation of code still in use.
     """
+    forget_compiled()
     jax.clear_caches()
     gc.collect()
 

@@ -116,11 +116,14 @@ def nuts_chain(key, z0, logdensity, schedule, init_imm, target_accept: float, de
                          info.acceptance_rate)
         return (state, adapt), out
 
+    def idle(carry):  # an inactive row: the chain untouched, zeros for the step's output
+        position = carry[0].position
+        return carry, ChainDraws(jnp.zeros_like(position), jnp.zeros((), bool), jnp.zeros((), position.dtype),
+                                 jnp.zeros((), int), jnp.zeros((), position.dtype))
+
     def step(carry, xs):
         k, row = xs
-        shapes = jax.eval_shape(lambda c: move(c, k, row)[1], carry)
-        return jax.lax.cond(row[2] == 1, lambda c: move(c, k, row),
-                            lambda c: (c, jax.tree.map(lambda s: jnp.zeros(s.shape, s.dtype), shapes)), carry)
+        return jax.lax.cond(row[2] == 1, lambda c: move(c, k, row), idle, carry)
 
     mm0 = mm_init(z0.shape[0])._replace(inverse_mass_matrix=init_imm)
     adapt0 = _Adaptation(jnp.asarray(1.0, dtype=z0.dtype), init_imm, da_init(1.0), mm0)

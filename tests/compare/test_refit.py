@@ -79,9 +79,9 @@ def test_failing_folds_are_flagged(engine, viscous_data):
 def test_vectorised_folds_match_sequential_folds(engine, viscous_data):
     """Same draws whether folds are vmapped or not. (With a vmapped axis of size 1 -- one chain
     per group -- XLA emits other code and the chains diverge after a few steps, measured: 1e-2
-    on lpd; hence 4 chains, two per group, on both sides.)"""
+    on lpd; hence 4 chains, two per vmapped group, on both sides.)"""
     folds = kfold_masks(viscous_data, k=3, seed=0)
-    settings = dict(SMALL, chains=4)
+    settings = dict(SMALL, chains=4, chain_batch=2)
     batched = RefitEngine(engine.program, fold_batch=2, **settings)  # 3 folds: one padded batch
     single = RefitEngine(engine.program, fold_batch=1, **settings)
     np.testing.assert_allclose(batched.run(folds.train).lpd, single.run(folds.train).lpd, rtol=1e-6)
@@ -171,7 +171,8 @@ def test_full_fit_and_every_fold_share_one_compilation(viscous_data):
 
 
 def test_the_inputs_are_constants_and_the_response_an_argument(viscous_data):
-    """Keys, masks, response, starts, mass matrix and schedule are arguments; the inputs are folded in.
+    """Keys, masks, response, starts, mass matrix, schedule and target acceptance are arguments;
+    the inputs are folded in.
 
     With the inputs as arguments, input-only work (the skf_2014 ball-load solve) ran at every
     leapfrog step; as constants XLA evaluates it once, at compile time.
@@ -181,10 +182,10 @@ def test_the_inputs_are_constants_and_the_response_an_argument(viscous_data):
     keys = np.zeros((1, engine.chain_batch, 2), dtype=np.uint32)  # one group of a fold's chains
     y = engine.program.response
     starts = engine._starts()[:engine.chain_batch]
-    lowered = engine._sampler.lower(keys, masks, y, starts, engine._init_imm, engine._schedule)
+    lowered = engine._sampler.lower(keys, masks, y, starts, engine._init_imm, engine._schedule, 0.9)
     shapes = [tuple(a.shape) for a in lowered.in_avals[0]]
     assert shapes == [keys.shape, masks.shape, y.shape, tuple(starts.shape),
-                      tuple(engine._init_imm.shape), engine._schedule.shape]
+                      tuple(engine._init_imm.shape), engine._schedule.shape, ()]
 
 
 def test_another_response_is_refitted_by_the_same_compiled_sampler(viscous_data):
@@ -209,14 +210,16 @@ def test_another_response_is_refitted_by_the_same_compiled_sampler(viscous_data)
         engine.with_response(program.response[:-1])
 
 
-def test_chain_groups_on_threads_give_the_draws_of_one_thread(viscous_data):
+@pytest.mark.parametrize("chain_batch", [None, 2])
+def test_chain_groups_on_threads_give_the_draws_of_one_thread(viscous_data, chain_batch):
     """Chains split into groups that run on separate threads: the draws do not depend on the
-    number of threads, and the joined lpd is the log-mean over all chains' draws."""
+    number of threads, and the joined lpd is the log-mean over all chains' draws. Default on
+    CPUs: one chain per call (no vmap); 2: two groups of two vmapped chains."""
     program = build_program(get_law("coulomb_viscous"), viscous_data)
     masks = kfold_masks(viscous_data, k=3, seed=0).train
-    one = RefitEngine(program, draws=200, tune=200, chains=4, threads=1, seed=1)
-    two = RefitEngine(program, draws=200, tune=200, chains=4, threads=2, seed=1)
-    assert one.chain_batch == two.chain_batch == 2  # default: two groups of two chains
+    one = RefitEngine(program, draws=200, tune=200, chains=4, threads=1, seed=1, chain_batch=chain_batch)
+    two = RefitEngine(program, draws=200, tune=200, chains=4, threads=2, seed=1, chain_batch=chain_batch)
+    assert one.chain_batch == two.chain_batch == (chain_batch or 1)
     a, b = one.run(masks, seed=5), two.run(masks, seed=5)
     assert a.samples["T_C"].shape == (3, 4, 200)
     for name in a.samples:
@@ -233,3 +236,22 @@ def test_chain_batch_must_divide_the_chains(viscous_data):
     program = build_program(get_law("coulomb_viscous"), viscous_data)
     with pytest.raises(ValueError, match="chain_batch must divide"):
         RefitEngine(program, chains=4, chain_batch=3)
+
+
+def test_a_diverging_fold_is_sampled_again_at_the_retry_target(viscous_data):
+    """A fold with divergent transitions is rerun at ``retry_target_accept`` by the same compiled
+    sampler, and the rerun is what the fold reports; ``None`` switches the retry off.
+
+    A tiny warm-up with an absurd target acceptance (0.3: long steps) makes the chains diverge."""
+    program = build_program(get_law("coulomb_viscous"), viscous_data)
+    folds = kfold_masks(viscous_data, k=2, seed=0).train
+    settings = dict(draws=200, tune=200, chains=4, seed=2, target_accept=0.3)
+    plain = RefitEngine(program, retry_target_accept=None, **settings).run(folds)
+    assert plain.stats["diverging"].sum(axis=(1, 2)).min() > 0  # the premise: both folds diverge
+    assert (plain.target_accept == 0.3).all()
+    engine = RefitEngine(program, retry_target_accept=0.99, **settings)
+    retried = engine.run(folds)
+    assert (retried.target_accept == 0.99).all() and engine.compilations == 1
+    assert retried.stats["diverging"].sum() < plain.stats["diverging"].sum()
+    for k, verdict in enumerate(retried.verdicts):  # each verdict is the rerun's own
+        assert verdict.divergences == int(retried.stats["diverging"][k].sum())
