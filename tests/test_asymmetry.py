@@ -64,7 +64,9 @@ def test_asymmetric_offset_variant_recovers_the_simulated_joint():
     ds = load_builtin("asym_joint")
     assert ds.attrs["provenance"] == "simulated"
     law = vary(get_law("armstrong_helouvry"), name="ah_asym_offset", asymmetric=["dT_s", "c_v"], offset=True)
-    dt = fit(law, ds, draws=500, tune=500, chains=4, seed=1)
+    # 1000 draws, as studies use: with 500, tail ESS came out at 383 against the gate's 400
+    # once each chain ran in its own call (the chains' floating-point path changed)
+    dt = fit(law, ds, draws=1000, tune=500, chains=4, seed=1)
     assert verdict_of(dt).passed, verdict_of(dt).problems
     post = dt["posterior"].to_dataset()
     for name, value in TRUTH.items():
