@@ -183,7 +183,11 @@ def plot_pairs(outcome: StudyOutcome, w: LawOutcome, path: Path) -> Path | None:
         return None
     draws = {k: _draws(w.fit, "posterior", k)[:, 0] for k in names}
     n = len(names)
-    fig = Figure(figsize=(1.9 * n + 0.6, 1.9 * n + 0.4), layout="constrained")
+    # fixed margins, not the constrained layout: it measured every label of the n × n grid
+    # again and again (0.4 of the ~1 s a 5 × 5 grid took); savefig's tight bounding box trims
+    fig = Figure(figsize=(1.9 * n + 0.6, 1.9 * n + 0.4))
+    fig.subplots_adjust(left=0.6 / (1.9 * n + 0.6) + 0.04, right=0.98, bottom=0.5 / (1.9 * n + 0.4) + 0.03,
+                        top=0.94, wspace=0.3, hspace=0.3)
     axes = fig.subplots(n, n, squeeze=False)
     for i, a in enumerate(names):
         for j, b in enumerate(names):
