@@ -16,7 +16,7 @@ import numpy as np
 from bayesfric.report import findings as fd
 from bayesfric.report import sizing as sizing_report
 from bayesfric.report.figures import provenance_label
-from bayesfric.report.tables import parameter_rows
+from bayesfric.report.tables import parameter_rows, retry_note
 from bayesfric.study import scores as sc
 from bayesfric.study.outcome import Checks
 
@@ -180,7 +180,8 @@ def _law_sections(outcome: StudyOutcome, figures: dict[str, FigureRef]) -> list[
         rows = [[r.name, r.unit, f"{r.mean:.4g}", f"{r.sd:.3g}", f"{r.q05:.4g} … {r.q95:.4g}", f"{r.r_hat:.3f}",
                  f"{r.ess_bulk:.0f}", r.meaning] for r in parameter_rows(w.fit, w.law)]
         table = Table("", ["parameter", "unit", "mean", "sd", "90 % interval", "R-hat", "ESS", "meaning"], rows)
-        out.append(LawSection(w.name, w.law.summary, w.law.source, str(w.verdict), w.law.notes or "", table,
+        out.append(LawSection(w.name, w.law.summary, w.law.source, str(w.verdict) + retry_note(w.fit),
+                              w.law.notes or "", table,
                               figures.get(w.name)))
     return out
 

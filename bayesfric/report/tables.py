@@ -115,9 +115,19 @@ def fit_report(dt: xr.DataTree, law: Law, markdown: bool = False) -> str:
         "",
         format_table(header, rows, markdown=markdown),
         "",
-        f"diagnostics: {verdict}",
+        f"diagnostics: {verdict}{retry_note(dt)}",
     ]
     return "\n".join(lines)
+
+
+def retry_note(dt: xr.DataTree) -> str:
+    """``" (sampled again: ...)"`` when the fit's first run diverged and it was sampled again at a
+    higher target acceptance (:class:`bayesfric.inference.engine.NutsEngine`), else ``""``."""
+    try:
+        retried = json.loads(dt.attrs.get("sampler_settings", "{}")).get("retried")
+    except (TypeError, ValueError):
+        return ""
+    return f" (sampled again: {retried})" if retried else ""
 
 
 def law_rows(law: Law) -> list[list[str]]:

@@ -255,3 +255,20 @@ def test_a_diverging_fold_is_sampled_again_at_the_retry_target(viscous_data):
     assert retried.stats["diverging"].sum() < plain.stats["diverging"].sum()
     for k, verdict in enumerate(retried.verdicts):  # each verdict is the rerun's own
         assert verdict.divergences == int(retried.stats["diverging"][k].sum())
+
+
+def test_a_retried_full_fit_says_so_in_its_settings_and_report(viscous_data):
+    """The full fit is a fold like any other: its retry is stored with it and shown in its report."""
+    import json
+
+    from bayesfric.report.tables import fit_report, retry_note
+
+    program = build_program(get_law("coulomb_viscous"), viscous_data)
+    engine = RefitEngine(program, draws=200, tune=200, chains=4, seed=2, target_accept=0.3)
+    dt = engine.fit(viscous_data)
+    settings = json.loads(dt.attrs["sampler_settings"])
+    assert settings["target_accept"] == 0.99 and "target_accept 0.3" in settings["retried"]
+    assert retry_note(dt).startswith(" (sampled again: divergent transitions at target_accept 0.3")
+    assert retry_note(dt) in fit_report(dt, program.law)
+    dt.attrs["sampler_settings"] = json.dumps(settings | {"retried": None})
+    assert retry_note(dt) == ""
