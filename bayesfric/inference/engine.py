@@ -130,8 +130,9 @@ class NutsEngine:
         more, same keys and starts, with this target acceptance (default 0.99: Stan's advice
         for divergences, a smaller step size), and the second run is kept and gated; ``None``
         switches the retry off. The target is an argument of the compiled sampler, so a retry
-        compiles nothing. Cost: one more sampling of that fold only, at a smaller step size
-        (measured in benchmarks/README.md); folds without divergences pay nothing. Before it,
+        compiles nothing. Cost: one more sampling of that fold only, at a smaller step size:
+        1.2-2.2× the sampling at 0.9 and 0.08-0.89× the whole warm-cache fit on robot_joint's six
+        laws (``benchmarks/bench_retry.py``); folds without divergences pay nothing. Before it,
         a single divergent transition in 4000 draws flipped which robot_joint fits and claims
         passed, with the chains' floating-point path.
     fold_batch : int
