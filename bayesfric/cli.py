@@ -121,16 +121,19 @@ def _parse_select(items: list[str] | None) -> dict[str, object]:
 
 def _fit_settings(args: argparse.Namespace) -> dict[str, object]:
     """Sampler options of ``fit``, validated against the study schema's ``[sampler]`` table."""
-    from bayesfric.study.config import SAMPLER, sampler_settings
+    from bayesfric.study.config import SAMPLER, retry_problem, sampler_settings
     from bayesfric.study.schema import SchemaError, parse
 
     options = {"name": args.sampler, "seed": args.seed, "draws": args.draws, "tune": args.tune,
-               "chains": args.chains, "walkers": args.walkers, "init": args.init}
+               "chains": args.chains, "walkers": args.walkers, "init": args.init,
+               "retry_target_accept": args.retry_target_accept}
     try:
         section = parse(SAMPLER, {k: v for k, v in options.items() if v is not None})
     except SchemaError as exc:
         option = {"name": "sampler"}.get(str(exc.where[0]), str(exc.where[0])) if exc.where else "sampler"
-        raise UserError(f"--{option}: {exc.problem}") from None
+        raise UserError(f"--{option.replace('_', '-')}: {exc.problem}") from None
+    if problem := retry_problem(section):
+        raise UserError(f"--retry-target-accept: {problem}")
     return sampler_settings(section)
 
 
@@ -339,6 +342,8 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--chains", type=int, default=None, help="NUTS chains, ≥ 1")
     q.add_argument("--init", default=None, help="NUTS chain starts: median (default) | pathfinder")
     q.add_argument("--walkers", type=int, default=None, help="emcee walkers, ≥ 2 × free parameters")
+    q.add_argument("--retry-target-accept", type=float, default=None,
+                   help="NUTS: sample again at this target acceptance after divergences (default 0.99; 0: off)")
     q.add_argument("--seed", type=int, default=0, help="seed, 0 … 2**32 - 1")
     q.add_argument("--noise", choices=["normal", "student_t", "proportional", "ar1"], default="normal")
     q.add_argument("--group", help="group coordinate for partial-pooled offsets (series, run ...)")

@@ -118,7 +118,8 @@ def test_evidence_pair_end_to_end(tmp_path, data_csv):
 
 @pytest.mark.parametrize(("sampler", "full", "quick"), [
     ("draws = 1000\ntune = 500\nchains = 2\n",
-     {"draws": 1000, "tune": 500, "chains": 2, "target_accept": 0.9, "init": "median"},
+     {"draws": 1000, "tune": 500, "chains": 2, "target_accept": 0.9, "retry_target_accept": 0.99,
+      "init": "median"},
      {"draws": 300, "tune": 300, "chains": 2}),
     ('name = "emcee"\ndraws = 5000\ntune = 2000\nwalkers = 16\nthin = 20\n',
      {"draws": 5000, "tune": 2000, "walkers": 16, "thin": 20}, {"draws": 1000, "tune": 1000, "thin": 10}),
@@ -134,3 +135,19 @@ def test_settings_per_sampler_and_quick_lowers_them_after_validation(tmp_path, d
     study = load_study(tmp_path / "s.toml")
     assert _run_settings(study, quick=False) == (full, 10)
     assert _run_settings(study, quick=True) == (full | quick, QUICK_KFOLD)
+
+
+@pytest.mark.parametrize(("line", "engine_retry"), [("", 0.99), ("retry_target_accept = 0.95\n", 0.95),
+                                                    ("retry_target_accept = 0\n", None)])
+def test_the_divergence_retry_is_a_sampler_key_that_reaches_the_engine(tmp_path, data_csv, line, engine_retry):
+    """``[sampler] retry_target_accept`` sets the compiled engine's retry target; 0 switches it off."""
+    from bayesfric.datasets import load_dataset, resolve
+    from bayesfric.study.runner import _run_settings
+    from bayesfric.study.units import _base_engine, make_job
+
+    text = study_text().replace("chains = 2\n", "chains = 2\n" + line)
+    (tmp_path / "s.toml").write_text(text)
+    study = load_study(tmp_path / "s.toml")
+    settings, _ = _run_settings(study, quick=False)
+    job = make_job(study.laws[0], study.noise, load_dataset(resolve(study.dataset)), "nuts", settings, 0)
+    assert _base_engine(job).retry_target_accept == engine_retry

@@ -129,11 +129,12 @@ class NutsEngine:
         A fold (the full fit included) whose draws have divergent transitions is sampled once
         more, same keys and starts, with this target acceptance (default 0.99: Stan's advice
         for divergences, a smaller step size), and the second run is kept and gated; ``None``
-        switches the retry off. The target is an argument of the compiled sampler, so a retry
-        compiles nothing. Cost: one more sampling of that fold only, at a smaller step size:
-        1.2-2.2× the sampling at 0.9 and 0.08-0.89× the whole warm-cache fit on robot_joint's six
-        laws (``benchmarks/bench_retry.py``); folds without divergences pay nothing. Before it,
-        a single divergent transition in 4000 draws flipped which robot_joint fits and claims
+        or 0 switches the retry off (study key ``[sampler] retry_target_accept``). The target
+        is an argument of the compiled sampler, so a retry compiles nothing. Cost: one more
+        sampling of that fold only, at a smaller step size: 1.2-2.2× the sampling at 0.9 and
+        0.08-0.89× the whole warm-cache fit on robot_joint's six laws
+        (``benchmarks/bench_retry.py``); folds without divergences pay nothing. Before it, a
+        single divergent transition in 4000 draws flipped which robot_joint fits and claims
         passed, with the chains' floating-point path.
     fold_batch : int
         Number of folds sampled together in one vectorised call (``vmap`` over
@@ -204,7 +205,7 @@ class NutsEngine:
         self.chain_batch = _chain_batch(int(chains), chain_batch)
         self.draws, self.chains = int(draws), int(chains)
         self.target_accept, self.max_tree_depth = float(target_accept), int(max_tree_depth)
-        self.retry_target_accept = None if retry_target_accept is None else float(retry_target_accept)
+        self.retry_target_accept = float(retry_target_accept) if retry_target_accept else None
         self.fold_batch = int(fold_batch)
         self.gate = gate
         self.seed = int(seed)

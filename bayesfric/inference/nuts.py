@@ -32,17 +32,21 @@ def sample_nuts(
     target_accept: float = 0.9,
     max_tree_depth: int = 10,
     init: Init = "median",
+    retry_target_accept: float = 0.99,
     progress: bool = False,
 ) -> xr.DataTree:
     """Sample the program's posterior with NUTS and return the fit's DataTree.
 
-    Chains run vectorised in one compiled program (in groups, two by default, on separate threads:
-    :class:`~bayesfric.inference.engine.NutsEngine`) and start at different prior-median points
-    (numpyro's ``init_to_median``), so every chain starts in the bulk of the prior; ``init =
-    "pathfinder"`` starts them at multi-path Pathfinder draws instead (:mod:`bayesfric.inference.init`).
+    Chains run in one compiled sampler (on CPUs one chain per call, the calls on a thread pool;
+    on accelerators all chains vectorised: :class:`~bayesfric.inference.engine.NutsEngine`) and
+    start at different prior-median points (numpyro's ``init_to_median``), so every chain starts
+    in the bulk of the prior; ``init = "pathfinder"`` starts them at multi-path Pathfinder draws
+    instead (:mod:`bayesfric.inference.init`). Draws with divergent transitions are sampled once
+    more at ``retry_target_accept`` (0 switches that off; the cost is stated on the engine).
     """
     engine = NutsEngine(program, draws=draws, tune=tune, chains=chains, seed=seed,
-                        target_accept=target_accept, max_tree_depth=max_tree_depth, init=init)
+                        target_accept=target_accept, max_tree_depth=max_tree_depth, init=init,
+                        retry_target_accept=retry_target_accept)
     start = time.perf_counter()
     if progress:
         print(f"sampling {program.law.name}: {chains} chains × ({tune} warm-up + {draws} draws), "

@@ -22,6 +22,7 @@ sampler settings, comparison methods and extrapolation folds::
     tune = 1000                        # ≥ 0
     chains = 4                         # nuts only, ≥ 1
     target_accept = 0.9                # nuts only, in (0, 1)
+    retry_target_accept = 0.99         # nuts only: sample draws with divergences again at this target; 0: off
     init = "median"                    # nuts only: median | pathfinder (chains start at Pathfinder draws)
     # walkers = 32                     # emcee only: ≥ 2 × free parameters (default max(32, 4 × them))
     # thin = 10                        # emcee only, ≥ 1
@@ -246,6 +247,9 @@ SAMPLER = Schema((
     Field("chains", "int", _backend("chains"), min=1, only=("name", NUTS), doc="NUTS chains"),
     Field("target_accept", "number", _backend("target_accept"), gt=0, lt=1, only=("name", NUTS),
           doc="NUTS target acceptance probability"),
+    Field("retry_target_accept", "number", _backend("retry_target_accept"), min=0, lt=1, only=("name", NUTS),
+          doc="draws with divergent transitions are sampled again at this target acceptance "
+              "(above target_accept); 0 switches the retry off"),
     Field("init", "str", _backend("init"), choices=INITS, only=("name", NUTS),
           doc="chain starts: prior medians, or multi-path Pathfinder draws (posteriors with minor modes)"),
     Field("walkers", "int", _backend("walkers"), min=2, only=("name", EMCEE),
@@ -426,6 +430,19 @@ def _claim(path: Path, i: int, entry: dict[str, Any]) -> Claim:
         raise StudyError(f"{path}: claims[{i}].{exc}") from None
 
 
+def retry_problem(sampler: dict[str, Any]) -> str | None:
+    """Why a parsed ``[sampler]`` section's retry target cannot be used (None if it can)."""
+    retry = sampler.get("retry_target_accept")
+    if retry and retry <= sampler["target_accept"]:
+        return f"must be above target_accept ({sampler['target_accept']}) or 0 (off), got {retry}"
+    return None
+
+
+def _check_retry(path: Path, sampler: dict[str, Any]) -> None:
+    if problem := retry_problem(sampler):
+        raise StudyError(f"{path}: [sampler] retry_target_accept: {problem}")
+
+
 def _check_evidence_draws(path: Path, sampler: dict[str, Any]) -> None:
     per_chain = sampler["draws"] // sampler.get("thin", 1)
     if per_chain < EVIDENCE_MIN_DRAWS:
@@ -475,6 +492,7 @@ def load_study(path: str | Path) -> Study:
             key = "label" if spec["laws"][i]["label"] else "name"
             raise StudyError(f"{path}: laws[{i}].{key}: {label!r} is listed twice: give each entry of the "
                              "same law its own label")
+    _check_retry(path, spec["sampler"])
     if compare["evidence"]:
         _check_evidence_draws(path, spec["sampler"])
     blocked = [BlockedSpec(b["axis"], b["direction"], b["threshold"], b["quantile"], b["label"], b["future"])

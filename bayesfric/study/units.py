@@ -130,8 +130,9 @@ def _base_engine(job: LawJob):
         release_compiled_code()  # the previous law's compiled samplers are not reused
     if job.key not in _ENGINES:
         s = job.settings
+        nuts_keys = ("target_accept", "retry_target_accept", "max_tree_depth", "init")
         settings = (dict(draws=s["draws"], tune=s["tune"], chains=s.get("chains", 4),
-                         **{k: s[k] for k in ("target_accept", "max_tree_depth", "init") if k in s})
+                         **{k: s[k] for k in nuts_keys if k in s})
                     if job.sampler == "nuts" else dict(draws=1000, tune=500, chains=4))
         _ENGINES[job.key] = compare.RefitEngine(_program(job), seed=job.seed, **settings)
     return _ENGINES[job.key]
