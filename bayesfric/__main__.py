@@ -1,7 +1,5 @@
 """``python -m bayesfric`` runs the command-line interface."""
 
-import sys
+from bayesfric.cli import run
 
-from bayesfric.cli import main
-
-sys.exit(main())
+run()

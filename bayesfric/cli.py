@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from typing import NoReturn
 
@@ -409,5 +410,25 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
+def run() -> NoReturn:
+    """The ``bayesfric`` console command: :func:`main`, then exit without the interpreter's teardown.
+
+    Everything a command writes is complete when :func:`main` returns (results are written
+    atomically, synchronously); what is left is tearing down the interpreter: collecting the
+    objects of JAX, XLA, xarray and matplotlib one by one, measured at 0.6-0.8 s of a 4.9 s
+    warm ``bayesfric fit``. So this waits for compilations still running in the background
+    (their results belong in the persistent cache), flushes the standard streams, and leaves
+    with :func:`os._exit`. Code that calls :func:`main` in-process (tests, notebooks) keeps the
+    normal exit.
+    """
+    code = main()
+    from bayesfric.exported import finish_compilations
+
+    finish_compilations()
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    run()

@@ -48,7 +48,8 @@ import numpy as np
 from bayesfric.fingerprint import canonical, code_fingerprint
 from bayesfric.runtime import cache_dir
 
-__all__ = ["exported_jit", "program_jit", "forget_compiled", "AheadCompiled", "EXPORTED_MAX_BYTES", "SUFFIX"]
+__all__ = ["exported_jit", "program_jit", "forget_compiled", "finish_compilations", "AheadCompiled",
+           "EXPORTED_MAX_BYTES", "SUFFIX"]
 
 #: Upper bound of the exported programs kept on disk (oldest read first to go).
 EXPORTED_MAX_BYTES = 512 * 1024**2
@@ -63,6 +64,15 @@ def forget_compiled() -> None:
     """Drop the compiled functions :func:`exported_jit` keeps for reuse in this process
     (:func:`bayesfric.inference.release_compiled_code` calls it between laws)."""
     _KEPT.clear()
+
+
+def finish_compilations() -> None:
+    """Wait for the background compilations started ahead (their results go to the persistent
+    cache) and stop the compilation thread; a later :func:`exported_jit` starts a new one."""
+    global _COMPILER
+    if _COMPILER is not None:
+        _COMPILER.shutdown(wait=True)
+        _COMPILER = None
 
 
 def _compiler() -> ThreadPoolExecutor:

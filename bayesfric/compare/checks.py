@@ -16,6 +16,7 @@ from __future__ import annotations
 import contextlib
 import io
 import logging
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import partial
@@ -298,13 +299,30 @@ def power_scaled_loo(dt: xr.DataTree, alpha: float):
 
 @dataclass(frozen=True)
 class RankingSensitivity:
-    """elpd_LOO of each fit at each prior power α (α = 1: the fitted prior), and the rankings."""
+    """elpd_LOO of each fit at each prior power α (α = 1: the fitted prior), and the rankings.
+
+    ``max_pareto_k`` is the largest Pareto k̂ of each fit's PSIS at each α: above
+    :data:`PARETO_K_RELIABLE` the reweighted elpd of that fit is unreliable (:meth:`unreliable`).
+    """
 
     elpd: dict[float, dict[str, float]]
     ranking: dict[float, list[str]]
     max_pareto_k: dict[float, dict[str, float]]
     changed: bool
     details: dict[str, Any] = field(default_factory=dict)
+
+    def unreliable(self) -> dict[str, list[float]]:
+        """Fit name -> the prior powers α at which its PSIS reweighting has k̂ above the threshold."""
+        found: dict[str, list[float]] = {}
+        for alpha, ks in self.max_pareto_k.items():
+            for name, k in ks.items():
+                if not k <= PARETO_K_RELIABLE:
+                    found.setdefault(name, []).append(alpha)
+        return found
+
+
+#: Pareto k̂ above which a PSIS estimate is unreliable (Vehtari et al. 2024; arviz-stats' warning).
+PARETO_K_RELIABLE = 0.7
 
 
 def ranking_sensitivity(
@@ -323,8 +341,10 @@ def ranking_sensitivity(
     ranking: dict[float, list[str]] = {}
     max_k: dict[float, dict[str, float]] = {}
     for alpha in (1.0, *alphas):
-        results = {name: (az.loo(dt, var_name=OBS_SITE, pointwise=True) if alpha == 1.0
-                          else power_scaled_loo(dt, alpha)) for name, dt in fits.items()}
+        with warnings.catch_warnings():  # high Pareto k is kept in max_pareto_k and reported from there
+            warnings.filterwarnings("ignore", message="Estimated shape parameter of Pareto", category=UserWarning)
+            results = {name: (az.loo(dt, var_name=OBS_SITE, pointwise=True) if alpha == 1.0
+                              else power_scaled_loo(dt, alpha)) for name, dt in fits.items()}
         elpd[alpha] = {name: float(r.elpd) for name, r in results.items()}
         max_k[alpha] = {name: float(np.max(r.pareto_k)) for name, r in results.items()}
         ranking[alpha] = sorted(elpd[alpha], key=lambda n: -elpd[alpha][n])

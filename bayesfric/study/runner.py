@@ -282,7 +282,17 @@ def _assign_weights(out: StudyOutcome) -> None:
             out.ranking_sensitivity = (
                 f"LOO ranking {order}; under prior powers α = 0.5 and 2 it "
                 + ("CHANGES: " + "; ".join(f"α={a}: {' > '.join(r)}" for a, r in sens.ranking.items() if a != 1.0)
-                   if sens.changed else "is unchanged") + " (PSIS reweighting, no refits).")
+                   if sens.changed else "is unchanged") + " (PSIS reweighting, no refits)"
+                + _high_k_note(sens) + ".")
+
+
+def _high_k_note(sens) -> str:
+    """Which laws' reweighting had Pareto k̂ above the reliability threshold, at which α."""
+    unreliable = sens.unreliable()
+    if not unreliable:
+        return ""
+    laws = ", ".join(f"{name} (α = {', '.join(f'{a:g}' for a in alphas)})" for name, alphas in unreliable.items())
+    return f"; approximate for {laws}: Pareto k̂ above {compare.checks.PARETO_K_RELIABLE}"
 
 
 def _run_settings(study: Study, quick: bool) -> tuple[dict, int]:

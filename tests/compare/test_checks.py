@@ -111,3 +111,17 @@ def test_ranking_of_clearly_different_laws_is_stable_under_prior_scaling(fits):
     assert not result.changed
     weaker = result.elpd[0.5]["coulomb_viscous"]
     assert weaker != result.elpd[1.0]["coulomb_viscous"]  # the reweighting did something
+
+
+def test_ranking_sensitivity_names_the_laws_whose_reweighting_has_high_pareto_k():
+    """k̂ above 0.7 (or NaN) at some α makes that law's reweighted elpd approximate, and the
+    study's sensitivity sentence says for which law and α."""
+    from bayesfric.compare.checks import RankingSensitivity
+    from bayesfric.study.runner import _high_k_note
+
+    ks = {1.0: {"a": 0.3, "b": 0.4}, 0.5: {"a": 0.71, "b": 0.2}, 2.0: {"a": 0.9, "b": float("nan")}}
+    sens = RankingSensitivity(elpd={}, ranking={}, max_pareto_k=ks, changed=False)
+    assert sens.unreliable() == {"a": [0.5, 2.0], "b": [2.0]}
+    assert _high_k_note(sens) == "; approximate for a (α = 0.5, 2), b (α = 2): Pareto k̂ above 0.7"
+    calm = RankingSensitivity(elpd={}, ranking={}, max_pareto_k={1.0: {"a": 0.1}}, changed=False)
+    assert calm.unreliable() == {} and _high_k_note(calm) == ""
