@@ -320,7 +320,11 @@ def _cmd_main(args: argparse.Namespace) -> None:
     from bayesfric.study import run_flagship
 
     _check_reports_root(args.out)
-    run_flagship(out_root=args.out, quick=args.quick, **_executor(args))
+    if args.jobs is not None and args.jobs < 1:
+        raise UserError(f"--jobs: must be a number of studies ≥ 1, got {args.jobs}")
+    if args.jobs is not None and args.jobs > 1 and (args.workers or args.scheduler):
+        raise UserError("--jobs and --workers/--scheduler: give one (studies side by side, or units on Dask)")
+    run_flagship(out_root=args.out, quick=args.quick, jobs=args.jobs, **_executor(args))
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -387,6 +391,8 @@ def build_parser() -> argparse.ArgumentParser:
     q = sub.add_parser("main", help="the main job: run every study in studies/ and write reports/")
     q.add_argument("--out", default="reports", help="reports root folder")
     q.add_argument("--quick", action="store_true", help="fewer draws and folds (smoke test)")
+    q.add_argument("--jobs", type=int, default=None, metavar="N",
+                   help="studies run at once, one process each (default: one per CPU core; 1: one after the other)")
     _run_options(q)
     q.set_defaults(func=_cmd_main)
     return p

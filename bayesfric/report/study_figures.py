@@ -112,6 +112,7 @@ def plot_penalty(outcome: StudyOutcome, path: Path) -> Path:
     y = np.arange(len(order))[::-1]
     step = 0.8 / max(1, len(outcome.blocked))
     for k, (scheme, colour) in enumerate(zip(outcome.blocked, _colours(), strict=False)):
+        label = scheme  # on the scheme's first point (laws without a penalty have none)
         for yi, name in zip(y, order, strict=True):
             row = sc.value(table, name, "penalty", scheme)
             if row is None:
@@ -119,12 +120,13 @@ def plot_penalty(outcome: StudyOutcome, path: Path) -> Path:
             yy = yi + 0.4 - step * (k + 0.5)
             ax.plot([0, row["estimate"]], [yy, yy], color=colour, lw=2)
             ok = bool(row["reliable"])
-            ax.plot(row["estimate"], yy, "o" if ok else "x", color=colour if ok else "crimson", ms=6,
-                    label=scheme if yi == y[0] else None)
+            ax.plot(row["estimate"], yy, "o" if ok else "x", color=colour if ok else "crimson", ms=6, label=label)
+            label = None
     ax.axvline(0, color="k", lw=0.8)
     ax.set_yticks(y, order, fontsize=8)
     ax.set_xlabel("extrapolation penalty [nats per held-out point] (lower is better)")
-    ax.legend(fontsize=7, loc="lower right")
+    if ax.get_legend_handles_labels()[1]:
+        ax.legend(fontsize=7, loc="lower right")
     banner(fig, outcome.data)
     return save(fig, path)
 

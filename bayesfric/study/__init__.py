@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import time
-from pathlib import Path
 from typing import Any
 
 from bayesfric.builtin import builtin_folder
@@ -22,31 +20,8 @@ def __getattr__(name: str) -> Any:
         from bayesfric.study.runner import run_study
 
         return run_study
+    if name == "run_flagship":
+        from bayesfric.study.mainjob import run_flagship
+
+        return run_flagship
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def run_flagship(out_root: str | Path = "reports", quick: bool = False, *, fresh: bool = False, workers: int = 0,
-                 scheduler: str | None = None) -> list[Path]:
-    """The main job: run every study in ``studies/`` (one per seed experiment) and write reports.
-
-    ``fresh``, ``workers`` and ``scheduler`` as in :func:`run_study` (one Dask cluster serves
-    every study). Prints one per-stage timing table over all studies and the total wall time.
-    """
-    from bayesfric.study.executor import open_client, timing_table
-    from bayesfric.study.runner import run_study
-
-    start = time.perf_counter()
-    folders = []
-    files = sorted(STUDIES_DIR.glob("*.toml"))
-    if not files:
-        raise StudyError(f"{STUDIES_DIR}: no study files")
-    timings: list = []
-    with open_client(workers, scheduler) as client:
-        for path in files:
-            folders.append(run_study(path, out_root=out_root, quick=quick, fresh=fresh, client=client,
-                                     timings=timings))
-    print("\n" + timing_table(timings, "main job: time per stage over all studies"))
-    print(f"\nmain job: {len(folders)} studies in {time.perf_counter() - start:.0f} s")
-    for folder in folders:
-        print(f"  {folder / 'summary.md'}")
-    return folders

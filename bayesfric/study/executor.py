@@ -59,11 +59,11 @@ class Timing:
 class Progress:
     """Units done / total with the law and stage, elapsed and remaining time (tqdm, or plain lines)."""
 
-    def __init__(self, total: int, name: str, stream=None):
+    def __init__(self, total: int, name: str, stream=None, live: bool | None = None):
         self.stream = stream or sys.stdout
         self.name, self.total, self.done = name, total, 0
         self.start = time.perf_counter()
-        self.live = bool(getattr(self.stream, "isatty", lambda: False)())
+        self.live = bool(getattr(self.stream, "isatty", lambda: False)()) if live is None else live
         self.bar = (tqdm(total=total, desc=name, unit="unit", file=self.stream, dynamic_ncols=True)
                     if self.live else None)
 
@@ -162,7 +162,7 @@ class _Dask:
 
 
 def run_units(plans: list[tuple[LawJob, Unit, list[Unit]]], store: RunStore, *, study: str,
-              failed_fits: str = "skip", client=None, stream=None
+              failed_fits: str = "skip", client=None, stream=None, live: bool | None = None
               ) -> tuple[dict[str, bytes], dict[str, list[Unit]], list[Timing]]:
     """Results of every unit of ``plans`` (law job, fit unit, units after the fit), reusing the store.
 
@@ -176,7 +176,7 @@ def run_units(plans: list[tuple[LawJob, Unit, list[Unit]]], store: RunStore, *, 
         One row per unit.
     """
     executor = _Serial() if client is None else _Dask(client)
-    progress = Progress(sum(1 + len(rest) for _, _, rest in plans), study, stream)
+    progress = Progress(sum(1 + len(rest) for _, _, rest in plans), study, stream, live)
     payloads: dict[str, bytes] = {}
     skipped: dict[str, list[Unit]] = {job.spec.name: [] for job, _, _ in plans}
     timings: list[Timing] = []

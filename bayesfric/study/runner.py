@@ -221,7 +221,7 @@ def _report_is_current(final: Path, study: str, key: str) -> bool:
 
 
 def _run_laws(study: Study, ds, work: Path, plans: list, schemes, *, out_root: Path,
-              fresh: bool, client, timings: list, quick: bool) -> list[LawOutcome]:
+              fresh: bool, client, timings: list, quick: bool, live_progress: bool | None = None) -> list[LawOutcome]:
     """Every law's units through the run store and the executor; their outcomes, in study order.
 
     Under ``--quick`` every stage runs even after a failed fit (``failed_fits = "run"``): quick
@@ -235,7 +235,8 @@ def _run_laws(study: Study, ds, work: Path, plans: list, schemes, *, out_root: P
     for tmp in store.clean():
         print(f"[{study.name}] removed a temporary file of an interrupted run: {tmp}", flush=True)
     failed_fits = "run" if quick else study.failed_fits
-    payloads, skipped, rows = run_units(plans, store, study=study.name, failed_fits=failed_fits, client=client)
+    payloads, skipped, rows = run_units(plans, store, study=study.name, failed_fits=failed_fits, client=client,
+                                        live=live_progress)
     timings += rows
     kinds = {label: kind for label, _, kind in schemes}
     outcomes = []
@@ -333,7 +334,8 @@ def _prepare(path: str | Path, out_root: str | Path, quick: bool):
 
 
 def run_study(path: str | Path, out_root: str | Path = "reports", quick: bool = False, *, fresh: bool = False,
-              workers: int = 0, scheduler: str | None = None, client=None, timings: list | None = None) -> Path:
+              workers: int = 0, scheduler: str | None = None, client=None, timings: list | None = None,
+              live_progress: bool | None = None) -> Path:
     """Run the study file at ``path`` and write ``<out_root>/<study name>/``.
 
     Parameters
@@ -353,6 +355,8 @@ def run_study(path: str | Path, out_root: str | Path = "reports", quick: bool = 
         ``client`` passes an open Dask client instead (the main job shares one).
     timings : list, optional
         Receives the run's :class:`~bayesfric.study.executor.Timing` rows (one per unit).
+    live_progress : bool, optional
+        A progress bar (True) or plain lines (False); default: a bar when stdout is a terminal.
 
     Returns
     -------
@@ -369,11 +373,11 @@ def run_study(path: str | Path, out_root: str | Path = "reports", quick: bool = 
     with contextlib.ExitStack() as stack:
         if client is None:  # connected before anything is written: a bad --scheduler writes nothing
             client = stack.enter_context(open_client(workers, scheduler))
-        return _write_study(prepared, Path(out_root), quick, fresh, client, timings, start)
+        return _write_study(prepared, Path(out_root), quick, fresh, client, timings, start, live_progress)
 
 
 def _write_study(prepared, out_root: Path, quick: bool, fresh: bool, client, timings: list | None,
-                 start: float) -> Path:
+                 start: float, live_progress: bool | None = None) -> Path:
     """Run the prepared study's units and write its report folder atomically (see :func:`run_study`)."""
     study, final, ds, settings, kfold, schemes, questions = prepared
     seed = study.sampler["seed"]
@@ -390,7 +394,7 @@ def _write_study(prepared, out_root: Path, quick: bool, fresh: bool, client, tim
     try:
         rows: list = []
         outcomes = _run_laws(study, ds, work, plans, schemes, out_root=out_root, fresh=fresh,
-                             client=client, timings=rows, quick=quick)
+                             client=client, timings=rows, quick=quick, live_progress=live_progress)
         write_timings(rows, work / "timings.csv")
         if timings is not None:
             timings += rows

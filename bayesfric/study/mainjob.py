@@ -1,0 +1,144 @@
+"""The main job: every study in a folder (the seed studies by default), several at once.
+
+Each study runs in its own process (``spawn``: a fresh interpreter, no JAX state forked), at
+most ``jobs`` at a time; the studies are independent (their own data, units, run store and
+report folder), so running them side by side changes no number: every unit has the same inputs
+and seeds as in a serial run. A law's fit, folds and evidence stay in one process, so a law is
+compiled (or read from the persistent cache) once, as in a serial run.
+
+Why processes: one study keeps about 1.4 of the 2 cores busy (its chains run on two threads,
+but tracing, report figures and sizing are single-threaded Python), so a second study in
+parallel uses the rest. Measured in ``benchmarks/bench_main.py`` (``--jobs 1`` against the
+default); each process holds its own compiled programs (about 1.7 GB peak per study process).
+
+The longest studies start first (largest total of the previous report's ``timings.csv``; the
+number of laws for a study not run before), so the last one to finish is a short one. Progress
+lines from the processes interleave, each prefixed by its study; the per-stage table at the end
+covers all of them.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import multiprocessing
+import os
+import time
+from concurrent.futures import FIRST_EXCEPTION, Future, ProcessPoolExecutor, wait
+from pathlib import Path
+
+from bayesfric.study.config import Study, StudyError, load_study
+
+__all__ = ["run_flagship", "default_jobs", "study_order"]
+
+
+def default_jobs(studies: int) -> int:
+    """Studies run at once by default: one per CPU core, at most ``studies``; 1 on an accelerator
+    (each process would claim most of its memory)."""
+    import jax
+
+    if jax.default_backend() != "cpu":
+        return 1
+    return max(1, min(studies, os.cpu_count() or 1))
+
+
+def _expected_seconds(study: Study, out_root: Path) -> tuple[float, int]:
+    """(seconds of the previous report's units, number of laws): the order key of a study."""
+    seconds = 0.0
+    with contextlib.suppress(OSError, ValueError, KeyError):  # no previous report, or another format
+        with (out_root / study.name / "timings.csv").open(newline="") as fh:
+            for row in csv.DictReader(fh):
+                value = float(row["seconds"]) if row["status"] == "computed" else float(row["stored_seconds"] or 0)
+                seconds += value if value == value else 0.0  # NaN stored_seconds (fits read back)
+    return seconds, len(study.laws)
+
+
+def study_order(files: list[Path], out_root: Path) -> list[Path]:
+    """``files`` longest first (see the module notes); ties keep their order.
+
+    Raises
+    ------
+    StudyError
+        A study file that does not load (every file is read here, before any study runs).
+    """
+    keys = {path: _expected_seconds(load_study(path), out_root) for path in files}
+    return sorted(files, key=lambda path: (-keys[path][0], -keys[path][1]))
+
+
+def _run_in_child(path: Path, out_root: Path, quick: bool, fresh: bool) -> tuple[Path, list]:
+    """One study in a spawned process: its report folder and timing rows."""
+    from bayesfric.study.runner import run_study
+
+    rows: list = []
+    folder = run_study(path, out_root=out_root, quick=quick, fresh=fresh, timings=rows, live_progress=False)
+    return folder, rows
+
+
+def _run_parallel(files: list[Path], jobs: int, out_root: Path, quick: bool, fresh: bool) -> tuple[dict, list]:
+    """Every study of ``files`` in up to ``jobs`` processes, started in that order; (folder by
+    study file, timing rows)."""
+    folders: dict[Path, Path] = {}
+    timings: list = []
+    pool = ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn"))
+    try:
+        futures: dict[Future, Path] = {pool.submit(_run_in_child, path, out_root, quick, fresh): path
+                                       for path in files}
+        done, pending = wait(futures, return_when=FIRST_EXCEPTION)
+        for future in done:  # the first error, if any, is raised here; studies still running finish
+            folders[futures[future]], rows = future.result()
+            timings += rows
+    except BaseException:
+        pool.shutdown(wait=True, cancel_futures=True)
+        raise
+    pool.shutdown(wait=False)  # every result is in: the processes exit on their own
+    return folders, timings
+
+
+def run_flagship(out_root: str | Path = "reports", quick: bool = False, *, fresh: bool = False, workers: int = 0,
+                 scheduler: str | None = None, jobs: int | None = None, studies: Path | None = None) -> list[Path]:
+    """The main job: run every study in ``studies/`` (one per seed experiment) and write reports.
+
+    Parameters
+    ----------
+    out_root, quick, fresh, workers, scheduler
+        As in :func:`bayesfric.study.run_study`; one Dask cluster serves every study, and with
+        ``workers`` or ``scheduler`` the studies run one after the other (Dask spreads the units).
+    jobs : int, optional
+        Studies run at once, each in its own process (see the module notes); default
+        :func:`default_jobs`. 1 runs them one after the other in this process.
+    studies : Path, optional
+        Folder of the study files (default: the seed studies, ``STUDIES_DIR``).
+
+    Returns
+    -------
+    list of Path
+        The report folders, in the order of the study files.
+
+    Prints one per-stage timing table over all studies and the total wall time.
+    """
+    from bayesfric.study import STUDIES_DIR
+    from bayesfric.study.executor import open_client, timing_table
+    from bayesfric.study.runner import run_study
+
+    start = time.perf_counter()
+    folder = STUDIES_DIR if studies is None else Path(studies)
+    files = sorted(folder.glob("*.toml"))
+    if not files:
+        raise StudyError(f"{folder}: no study files")
+    order = study_order(files, Path(out_root))  # every study file checked before anything runs
+    if jobs is None:
+        jobs = 1 if (workers or scheduler) else default_jobs(len(files))
+    timings: list = []
+    if jobs > 1 and not (workers or scheduler):
+        by_file, timings = _run_parallel(order, min(jobs, len(files)), Path(out_root), quick, fresh)
+        folders = [by_file[path] for path in files]
+    else:
+        with open_client(workers, scheduler) as client:
+            folders = [run_study(path, out_root=out_root, quick=quick, fresh=fresh, client=client, timings=timings)
+                       for path in files]
+    print("\n" + timing_table(timings, "main job: time per stage over all studies"))
+    print(f"\nmain job: {len(folders)} studies in {time.perf_counter() - start:.0f} s"
+          + (f" ({jobs} at a time, one process each)" if jobs > 1 and not (workers or scheduler) else ""))
+    for report in folders:
+        print(f"  {report / 'summary.md'}")
+    return folders

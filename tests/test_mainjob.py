@@ -1,0 +1,71 @@
+"""The main job: a folder of studies run side by side in processes gives what a serial run gives."""
+
+from __future__ import annotations
+
+import pytest
+
+from bayesfric.cli import main
+from bayesfric.study import StudyError
+from bayesfric.study.mainjob import run_flagship, study_order
+from tests.test_study import data_csv, study_text  # noqa: F401 -- the fixture is used by name
+
+ONE_LAW = '[[laws]]\nname = "coulomb_viscous"\n'
+
+
+@pytest.fixture
+def studies(tmp_path, data_csv):  # noqa: F811
+    """Two small studies of the same data in one folder (one law each, quick-sized sampling)."""
+    folder = tmp_path / "studies"  # only study files: the data stays next to it
+    folder.mkdir()
+    for name, law in (("alpha", ONE_LAW), ("beta", '[[laws]]\nname = "coulomb"\n')):
+        text = study_text(law).replace('name = "tiny"', f'name = "{name}"').replace('"bench.csv"', '"../bench.csv"')
+        (folder / f"{name}.toml").write_text(text.replace("draws = 1000\ntune = 500", "draws = 300\ntune = 300"))
+    return folder
+
+
+def test_studies_in_two_processes_give_the_serial_numbers(tmp_path, studies, capsys):
+    """Same units, inputs and seeds in a spawned process: ranking.csv and parameters.csv equal
+    the serial run's byte for byte; the closing table covers both studies' units."""
+    serial = run_flagship(tmp_path / "serial", studies=studies, jobs=1)
+    parallel = run_flagship(tmp_path / "parallel", studies=studies, jobs=2)
+    assert [f.name for f in serial] == [f.name for f in parallel] == ["alpha", "beta"]
+    for one, two in zip(serial, parallel, strict=True):
+        for name in ("ranking.csv", "parameters.csv"):
+            assert (one / name).read_bytes() == (two / name).read_bytes(), (one.name, name)
+    out = capsys.readouterr().out
+    assert "main job: 2 studies in" in out and "(2 at a time, one process each)" in out
+    fit_row = next(line for line in out.split("main job: time per stage")[-1].splitlines()
+                   if line.split()[:1] == ["fit"])
+    assert fit_row.split()[1] == "2"  # both studies' fits counted in the closing table
+
+
+def test_longest_study_starts_first(tmp_path, studies):
+    """Order by the previous report's unit seconds, then by the number of laws."""
+    files = sorted(studies.glob("*.toml"))
+    out = tmp_path / "reports"
+    assert [f.stem for f in study_order(files, out)] == ["alpha", "beta"]  # one law each: file order
+    (out / "beta").mkdir(parents=True)
+    (out / "beta" / "timings.csv").write_text("study,law,stage,label,status,seconds,stored_seconds\n"
+                                              "beta,coulomb,fit,fit,computed,9.0,nan\n"
+                                              "beta,coulomb,loo,loo,reused,0,2.5\n")
+    assert [f.stem for f in study_order(files, out)] == ["beta", "alpha"]
+
+
+@pytest.mark.parametrize("jobs", [1, 2])
+def test_a_bad_study_file_stops_the_main_job_before_anything_runs(tmp_path, studies, jobs):
+    """Every study file is read and checked first: one bad file, one line, nothing written."""
+    (studies / "gamma.toml").write_text(study_text('[[laws]]\nname = "no_such_law"\n').replace("bench", "../bench"))
+    with pytest.raises(StudyError, match="gamma.toml: laws\\[0\\].name: unknown law"):
+        run_flagship(tmp_path / "reports", studies=studies, jobs=jobs)
+    assert not (tmp_path / "reports").exists()
+
+
+@pytest.mark.parametrize(("argv", "message"), [
+    (["main", "--jobs", "0"], "--jobs: must be a number of studies ≥ 1, got 0"),
+    (["main", "--jobs", "2", "--workers", "2"], "--jobs and --workers/--scheduler: give one"),
+])
+def test_jobs_option_errors_are_one_line(tmp_path, capsys, argv, message):
+    assert main(argv + ["--out", str(tmp_path / "reports")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"bayesfric: error: {message}") and err.count("\n") == 1
+    assert not (tmp_path / "reports").exists()
