@@ -12,6 +12,7 @@ import argparse
 import json
 import os
 import sys
+from pathlib import Path
 from typing import NoReturn
 
 from bayesfric.datasets.loader import DataError
@@ -250,8 +251,6 @@ def _size_question(args: argparse.Namespace):
 
 
 def _size_study(args: argparse.Namespace, question):
-    from pathlib import Path
-
     from bayesfric import sizing
     from bayesfric.fsutil import is_marked
     from bayesfric.study import load_study
@@ -324,7 +323,9 @@ def _cmd_main(args: argparse.Namespace) -> None:
         raise UserError(f"--jobs: must be a number of studies ≥ 1, got {args.jobs}")
     if args.jobs is not None and args.jobs > 1 and (args.workers or args.scheduler):
         raise UserError("--jobs and --workers/--scheduler: give one (studies side by side, or units on Dask)")
-    run_flagship(out_root=args.out, quick=args.quick, jobs=args.jobs, **_executor(args))
+    if args.studies is not None and not Path(args.studies).is_dir():
+        raise UserError(f"--studies {args.studies}: not a folder")
+    run_flagship(out_root=args.out, quick=args.quick, jobs=args.jobs, studies=args.studies, **_executor(args))
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -391,6 +392,7 @@ def build_parser() -> argparse.ArgumentParser:
     q = sub.add_parser("main", help="the main job: run every study in studies/ and write reports/")
     q.add_argument("--out", default="reports", help="reports root folder")
     q.add_argument("--quick", action="store_true", help="fewer draws and folds (smoke test)")
+    q.add_argument("--studies", metavar="FOLDER", help="run the study files in FOLDER (default: the seed studies)")
     q.add_argument("--jobs", type=int, default=None, metavar="N",
                    help="studies run at once, one process each (default: one per CPU core; 1: one after the other)")
     _run_options(q)

@@ -69,3 +69,22 @@ def test_jobs_option_errors_are_one_line(tmp_path, capsys, argv, message):
     err = capsys.readouterr().err
     assert err.startswith(f"bayesfric: error: {message}") and err.count("\n") == 1
     assert not (tmp_path / "reports").exists()
+
+
+def test_the_main_command_returns_when_its_study_processes_are_done(tmp_path, studies):
+    """``bayesfric main`` leaves with ``os._exit``: its study processes must have exited by then,
+    or they would wait for work forever and keep its output pipes open (the run would never end)."""
+    import subprocess
+    import sys
+
+    done = subprocess.run([sys.executable, "-m", "bayesfric", "main", "--studies", str(studies), "--jobs", "2",
+                           "--out", str(tmp_path / "reports")], capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "main job: 2 studies in" in done.stdout
+    assert sorted(p.name for p in (tmp_path / "reports").iterdir() if not p.name.startswith(".")) == ["alpha", "beta"]
+
+
+def test_a_studies_folder_that_is_not_one_is_a_one_line_error(tmp_path, capsys):
+    assert main(["main", "--studies", str(tmp_path / "nope"), "--out", str(tmp_path / "reports")]) == 2
+    assert capsys.readouterr().err == f"bayesfric: error: --studies {tmp_path / 'nope'}: not a folder\n"
+    assert not (tmp_path / "reports").exists()

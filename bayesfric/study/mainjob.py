@@ -90,7 +90,9 @@ def _run_parallel(files: list[Path], jobs: int, out_root: Path, quick: bool, fre
     except BaseException:
         pool.shutdown(wait=True, cancel_futures=True)
         raise
-    pool.shutdown(wait=False)  # every result is in: the processes exit on their own
+    # Every result is in; wait for the processes to exit (their interpreter teardown, under a
+    # second): one left waiting for work would outlive this process and hold its output pipes.
+    pool.shutdown(wait=True)
     return folders, timings
 
 
