@@ -24,7 +24,7 @@ __all__ = ["code_fingerprint", "package_fingerprint", "law_fingerprint", "data_f
 
 _PACKAGE = Path(__file__).resolve().parent
 #: Parts of the package that only render or parse options: their edits do not change any number.
-_NOT_COMPUTING = ("report", "cli.py", "__main__.py", "study/executor.py", "study/store.py")
+_NOT_COMPUTING = ("report", "cli.py", "__main__.py", "study/executor.py", "study/store.py", "study/mainjob.py")
 
 
 @lru_cache(maxsize=1)

@@ -39,6 +39,29 @@ def test_studies_in_two_processes_give_the_serial_numbers(tmp_path, studies, cap
     assert fit_row.split()[1] == "2"  # both studies' fits counted in the closing table
 
 
+def test_an_unchanged_rerun_starts_no_process(tmp_path, studies, capsys, monkeypatch):
+    """Current reports are recognised before any process starts (a spawned process spends
+    seconds importing); a changed study is rerun, in this process when it is the only one."""
+    from bayesfric.study import mainjob
+
+    first = run_flagship(tmp_path / "reports", studies=studies, jobs=2)
+    capsys.readouterr()
+
+    def no_processes(*args, **kwargs):
+        raise AssertionError("an unchanged rerun started study processes")
+
+    monkeypatch.setattr(mainjob, "_run_parallel", no_processes)
+    assert run_flagship(tmp_path / "reports", studies=studies, jobs=2) == first
+    out = capsys.readouterr().out
+    assert out.count("unchanged: the report in") == 2
+    beta = studies / "beta.toml"
+    beta.write_text(beta.read_text().replace("seed = 0", "seed = 1") if "seed = 0" in beta.read_text()
+                    else beta.read_text().replace("[sampler]\n", "[sampler]\nseed = 1\n"))
+    run_flagship(tmp_path / "reports", studies=studies, jobs=2)
+    out = capsys.readouterr().out
+    assert "[alpha] unchanged" in out and "[beta] unchanged" not in out and "[beta] report written" in out
+
+
 def test_longest_study_starts_first(tmp_path, studies):
     """Order by the previous report's unit seconds, then by the number of laws."""
     files = sorted(studies.glob("*.toml"))
@@ -88,3 +111,17 @@ def test_a_studies_folder_that_is_not_one_is_a_one_line_error(tmp_path, capsys):
     assert main(["main", "--studies", str(tmp_path / "nope"), "--out", str(tmp_path / "reports")]) == 2
     assert capsys.readouterr().err == f"bayesfric: error: --studies {tmp_path / 'nope'}: not a folder\n"
     assert not (tmp_path / "reports").exists()
+
+
+@pytest.mark.parametrize(("cores", "gib", "studies", "jobs"), [
+    (2, 24, 5, 2),  # the development machine: one per core
+    (16, 24, 5, 5),  # at most one per study
+    (8, 8, 5, 3),  # (8 - 2 GiB reserved) / 2 GiB per study process
+    (8, 3, 5, 1),  # never below 1
+])
+def test_default_jobs_is_bounded_by_cores_memory_and_studies(monkeypatch, cores, gib, studies, jobs):
+    from bayesfric.study import mainjob
+
+    monkeypatch.setattr(mainjob.os, "cpu_count", lambda: cores)
+    monkeypatch.setattr(mainjob, "_memory_bytes", lambda: gib * 1024**3)
+    assert mainjob.default_jobs(studies) == jobs

@@ -8,8 +8,12 @@ compiled (or read from the persistent cache) once, as in a serial run.
 
 Why processes: one study keeps about 1.4 of the 2 cores busy (its chains run on two threads,
 but tracing, report figures and sizing are single-threaded Python), so a second study in
-parallel uses the rest. Measured in ``benchmarks/bench_main.py`` (``--jobs 1`` against the
-default); each process holds its own compiled programs (about 1.7 GB peak per study process).
+parallel uses the rest. Measured on the 2-core machine, ``benchmarks/bench_main.py`` with
+``--jobs 1`` and with the default (2) one after the other: 429 → 346 s with an empty
+compilation cache, 234 → 184 s with a warm one (0.81× and 0.79×). Each process holds its own
+compiled programs (1.3-1.7 GB peak per study process), hence the memory bound of
+:func:`default_jobs`. A rerun whose reports are all current starts no process: the reports are
+checked here first (:func:`bayesfric.study.runner.current_report`).
 
 The longest studies start first (largest total of the previous report's ``timings.csv``; the
 number of laws for a study not run before), so the last one to finish is a short one. Progress
@@ -32,14 +36,30 @@ from bayesfric.study.config import Study, StudyError, load_study
 __all__ = ["run_flagship", "default_jobs", "study_order"]
 
 
+#: Memory set aside per study process: the seed studies peaked at 1.3-1.7 GB resident each
+#: (``/usr/bin/time -v``), rounded up; and what is left to the rest of the machine.
+STUDY_PROCESS_BYTES = 2 * 1024**3
+RESERVED_BYTES = 2 * 1024**3
+
+
+def _memory_bytes() -> int | None:
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):  # not POSIX, or not reported
+        return None
+
+
 def default_jobs(studies: int) -> int:
-    """Studies run at once by default: one per CPU core, at most ``studies``; 1 on an accelerator
-    (each process would claim most of its memory)."""
+    """Studies run at once by default: one per CPU core, as many as the memory holds
+    (:data:`STUDY_PROCESS_BYTES` each, :data:`RESERVED_BYTES` left), at most ``studies``; 1 on an
+    accelerator (each process would claim most of its memory)."""
     import jax
 
     if jax.default_backend() != "cpu":
         return 1
-    return max(1, min(studies, os.cpu_count() or 1))
+    memory = _memory_bytes()
+    by_memory = studies if memory is None else (memory - RESERVED_BYTES) // STUDY_PROCESS_BYTES
+    return int(max(1, min(studies, os.cpu_count() or 1, by_memory)))
 
 
 def _expected_seconds(study: Study, out_root: Path) -> tuple[float, int]:
@@ -63,6 +83,14 @@ def study_order(files: list[Path], out_root: Path) -> list[Path]:
     """
     keys = {path: _expected_seconds(load_study(path), out_root) for path in files}
     return sorted(files, key=lambda path: (-keys[path][0], -keys[path][1]))
+
+
+def _current_reports(files: list[Path], out_root: Path, quick: bool) -> dict[Path, Path]:
+    """The studies whose report an unchanged rerun would leave as it is, and their folders:
+    checked here, so a rerun starts no process (each would spend seconds importing)."""
+    from bayesfric.study.runner import current_report
+
+    return {path: folder for path in files if (folder := current_report(path, out_root, quick)) is not None}
 
 
 def _run_in_child(path: Path, out_root: Path, quick: bool, fresh: bool) -> tuple[Path, list]:
@@ -132,8 +160,14 @@ def run_flagship(out_root: str | Path = "reports", quick: bool = False, *, fresh
         jobs = 1 if (workers or scheduler) else default_jobs(len(files))
     timings: list = []
     if jobs > 1 and not (workers or scheduler):
-        by_file, timings = _run_parallel(order, min(jobs, len(files)), Path(out_root), quick, fresh)
-        folders = [by_file[path] for path in files]
+        by_file = _current_reports(files, Path(out_root), quick) if not fresh else {}
+        to_run = [path for path in order if path not in by_file]
+        if len(to_run) > 1:
+            ran, timings = _run_parallel(to_run, min(jobs, len(to_run)), Path(out_root), quick, fresh)
+        else:  # one study left: no process to start
+            ran = {path: run_study(path, out_root=out_root, quick=quick, fresh=fresh, timings=timings)
+                   for path in to_run}
+        folders = [(by_file | ran)[path] for path in files]
     else:
         with open_client(workers, scheduler) as client:
             folders = [run_study(path, out_root=out_root, quick=quick, fresh=fresh, client=client, timings=timings)

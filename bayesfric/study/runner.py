@@ -43,7 +43,7 @@ from bayesfric.study.outcome import LawOutcome, StudyOutcome, Weight
 from bayesfric.study.scores import score_table
 from bayesfric.study.store import RunStore, load_fit_bytes, store_folder
 
-__all__ = ["run_study", "validate_against_data", "sizing_questions", "load_study_data", "INPUTS_FILE"]
+__all__ = ["run_study", "current_report", "validate_against_data", "sizing_questions", "load_study_data", "INPUTS_FILE"]
 
 #: Written into a report folder: the key of everything the report was rendered from. A rerun
 #: whose key matches (an unchanged study, every unit in the store) leaves the report as it is.
@@ -220,6 +220,24 @@ def _report_is_current(final: Path, study: str, key: str) -> bool:
         return False
 
 
+def _unchanged_note(name: str, final: Path) -> str:
+    return (f"[{name}] unchanged: the report in {final} was written from the same study file, data, "
+            "units and code; nothing recomputed or rewritten (--fresh recomputes)")
+
+
+def current_report(path: str | Path, out_root: str | Path = "reports", quick: bool = False) -> Path | None:
+    """The report folder of the study at ``path`` when an unchanged rerun would leave it as it is
+    (same study file, data, unit keys and code: what :func:`run_study` checks first), else None;
+    prints the study's "unchanged" line when it is. Checks the study and its data as
+    :func:`run_study` does (same errors), writes nothing."""
+    study, final, ds, settings, _, schemes, _ = _prepare(path, out_root, quick)
+    plans = _plan_laws(study, ds, schemes, settings, study.sampler["seed"])
+    if not _report_is_current(final, study.name, _inputs_key(study, plans, quick)):
+        return None
+    print(_unchanged_note(study.name, final), flush=True)
+    return final
+
+
 def _run_laws(study: Study, ds, work: Path, plans: list, schemes, *, out_root: Path,
               fresh: bool, client, timings: list, quick: bool, live_progress: bool | None = None) -> list[LawOutcome]:
     """Every law's units through the run store and the executor; their outcomes, in study order.
@@ -385,8 +403,7 @@ def _write_study(prepared, out_root: Path, quick: bool, fresh: bool, client, tim
     plans = _plan_laws(study, ds, schemes, settings, seed)
     inputs_key = _inputs_key(study, plans, quick)
     if not fresh and _report_is_current(final, study.name, inputs_key):
-        print(f"[{study.name}] unchanged: the report in {final} was written from the same study file, data, "
-              "units and code; nothing recomputed or rewritten (--fresh recomputes)", flush=True)
+        print(_unchanged_note(study.name, final), flush=True)
         return final
     for stale in fsutil.clean_stale_work(root, study.name):
         print(f"[{study.name}] removed the work folder of an interrupted run: {stale}", flush=True)
