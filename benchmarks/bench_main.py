@@ -27,6 +27,7 @@ import argparse
 import json
 import os
 import platform
+import re
 import subprocess
 import sys
 import tempfile
@@ -35,6 +36,8 @@ from pathlib import Path
 
 OUT = Path(__file__).resolve().parents[1] / "reports" / "benchmarks" / "bench_main.json"
 PHASES = ("cold", "warm", "rerun")
+#: A study's closing line: "[name] report written to FOLDER (N s)".
+STUDY_DONE = re.compile(r"^\[([^\]]+)\] report written to .* \((\d+) s\)$", re.MULTILINE)
 
 
 def run_phase(phase: str, cache: Path, out: Path, workers: int, jobs: int | None) -> dict:
@@ -51,8 +54,10 @@ def run_phase(phase: str, cache: Path, out: Path, workers: int, jobs: int | None
     done = subprocess.run(cmd, env=env, capture_output=True, text=True, check=False)
     seconds = time.perf_counter() - start
     tail = done.stdout[done.stdout.rfind("main job: time per stage"):] if "main job" in done.stdout else ""
+    studies = dict(STUDY_DONE.findall(done.stdout))
     return {"phase": phase, "seconds": round(seconds, 1), "returncode": done.returncode,
-            "table": tail.strip(), "stderr_tail": done.stderr[-2000:] if done.returncode else ""}
+            "table": tail.strip(), "study_seconds": {k: float(v) for k, v in studies.items()},
+            "stderr_tail": done.stderr[-2000:] if done.returncode else ""}
 
 
 def main() -> None:

@@ -79,3 +79,22 @@ def test_the_fit_command_imports_only_what_it_uses():
             "print(sorted(m for m in ('matplotlib', 'arviz', 'arviz_plots', 'diffrax', 'bayesfric.study.runner', "
             "'bayesfric.compare') if m in sys.modules))")
     assert _run(code) == "[]"
+
+
+def test_unit_registry_uses_pints_cache_and_survives_a_broken_one(monkeypatch, tmp_path):
+    """pint's parsed definitions are kept in ``<cache>/pint``; a truncated entry (a process
+    killed while pint wrote it) costs a fresh parse and the folder, never an error."""
+    from bayesfric.quantities import _unit_registry
+
+    monkeypatch.setenv("BAYESFRIC_CACHE_DIR", str(tmp_path))
+    monkeypatch.delenv("BAYESFRIC_NO_CACHE", raising=False)
+    assert _unit_registry().parse_units("N*m") is not None
+    entries = list((tmp_path / "pint").glob("*.pickle"))
+    assert entries  # written by the first registry
+    for entry in entries:
+        entry.write_bytes(entry.read_bytes()[:10])
+    registry = _unit_registry()
+    assert not (tmp_path / "pint").exists()  # the broken cache was dropped; the next start writes it again
+    assert registry.Quantity(1.0, "rpm").to("rad/s").magnitude == pytest.approx(0.10471975511965977)
+    monkeypatch.setenv("BAYESFRIC_NO_CACHE", "1")
+    assert _unit_registry().parse_units("N") is not None
