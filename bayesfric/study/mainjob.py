@@ -135,7 +135,10 @@ def run_flagship(out_root: str | Path = "reports", quick: bool = False, *, fresh
         ``workers`` or ``scheduler`` the studies run one after the other (Dask spreads the units).
     jobs : int, optional
         Studies run at once, each in its own process (see the module notes); default
-        :func:`default_jobs`. 1 runs them one after the other in this process.
+        :func:`default_jobs`. 1 runs them one after the other in this process. The processes
+        are spawned (they import the calling script again): a script that calls this with
+        ``jobs`` > 1 must do so under ``if __name__ == "__main__":``, as for any
+        :mod:`multiprocessing` code.
     studies : Path, optional
         Folder of the study files (default: the seed studies, ``STUDIES_DIR``).
 
