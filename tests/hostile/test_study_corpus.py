@@ -162,6 +162,13 @@ CASES = [
     C("study-file-missing", ("study", "nothere.toml", "--out", "reports"), "nothere.toml", "not found"),
     C("study-file-is-folder", ("study", "reports", "--out", "reports"), "reports", "not a file"),
     C("study-out-is-file", ("study", "s.toml", "--out", "notes.txt"), "--out notes.txt", "not a folder"),
+    # -- CLI: main options (checked before any study runs) ------------------------------------------
+    C("main-jobs-zero", ("main", "--jobs", "0", "--out", "reports"), "--jobs", "≥ 1, got 0"),
+    C("main-jobs-and-workers", ("main", "--jobs", "2", "--workers", "2", "--out", "reports"), "--jobs and --workers"),
+    C("main-studies-is-file", ("main", "--studies", "notes.txt", "--out", "reports"), "--studies notes.txt",
+      "not a folder"),
+    C("main-studies-missing", ("main", "--studies", "nothere", "--out", "reports"), "--studies nothere",
+      "not a folder"),
     # -- CLI: fit options -----------------------------------------------------------------------------
     C("fit-draws-zero", FIT + ("--draws", "0"), "--draws", "≥ 1"),
     C("fit-chains-zero", FIT + ("--chains", "0"), "--chains", "≥ 1"),
