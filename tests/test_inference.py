@@ -100,6 +100,24 @@ def test_release_compiled_code_frees_memory_mappings(simulator):
     assert mappings() - before < 0.2 * (grown - before)
 
 
+@pytest.mark.skipif(not Path("/proc/self/maps").exists(), reason="needs Linux /proc")
+def test_release_clears_jax_caches_only_above_the_mappings_budget(monkeypatch):
+    """Between a study's laws JAX's caches (small eager programs every law shares) are kept
+    while the process holds fewer mappings than the budget; the law's own programs always go."""
+    import bayesfric.inference as inference
+
+    cleared, forgotten = [], []
+    monkeypatch.setattr(inference.jax, "clear_caches", lambda: cleared.append(1))
+    monkeypatch.setattr(inference, "forget_compiled", lambda: forgotten.append(1))
+    assert 0 < inference.memory_mappings() < inference.MAPPINGS_BUDGET
+    inference.release_compiled_code(when_mapped_above=inference.MAPPINGS_BUDGET)
+    assert cleared == [] and forgotten == [1]
+    inference.release_compiled_code(when_mapped_above=1)  # every process has more than one
+    assert cleared == [1] and forgotten == [1, 1]
+    inference.release_compiled_code()  # the default: always
+    assert cleared == [1, 1]
+
+
 def test_pathfinder_starts_lie_in_the_posterior_bulk(small_ds):
     """Multi-path Pathfinder starts (bayesfric.inference.init) have a higher log density than the
     prior-median starts, and the fit records how its chains started."""

@@ -243,3 +243,33 @@ def test_progress_lines_without_a_terminal_and_the_stage_table(tmp_path):
     assert table[-1].split() == ["total", "1", "1", "1", "2.5"]
     text = write_timings(rows, tmp_path / "timings.csv").read_text().splitlines()
     assert text[0] == "study,law,stage,label,status,seconds,stored_seconds" and len(text) == 4
+
+
+def test_a_computed_fit_reads_back_identical_so_it_is_kept_unopened(monkeypatch):
+    """A study's units after a fit use the fit as computed (``remember_fit``) rather than opening
+    its stored bytes: sound only because the bytes read back identical, which this checks."""
+    import io
+
+    import xarray as xr
+
+    from bayesfric.datasets.synthetic import simulate
+    from bayesfric.inference import fit
+    from bayesfric.laws import get_law
+    from bayesfric.study.store import fit_to_bytes, load_fit_bytes, remember_fit
+
+    law = get_law("coulomb_viscous")
+    ds = simulate(law, {"velocity": np.linspace(-2, 2, 16)}, {"T_C": 1.0, "c_v": 0.5}, sigma=0.05, seed=0)
+    dt = fit(law, ds, draws=60, tune=60, chains=2)
+    payload = fit_to_bytes(dt)
+    opened = xr.open_datatree(io.BytesIO(payload), engine="h5netcdf").load()
+    assert sorted(opened.children) == sorted(dt.children) and opened.attrs == dt.attrs
+    for node in dt.subtree:
+        other = opened[node.path]
+        xr.testing.assert_identical(node.to_dataset(), other.to_dataset())
+        for name, var in node.variables.items():
+            assert isinstance(var.values, np.ndarray) and var.dtype == other[name].dtype, (node.path, name)
+    remember_fit(payload, dt)
+    monkeypatch.setattr(xr, "open_datatree", lambda *a, **k: pytest.fail("a remembered fit was opened"))
+    again = load_fit_bytes(payload)
+    xr.testing.assert_identical(again, dt)
+    assert again is not dt  # a copy of its own: a caller's changes do not reach the kept fit

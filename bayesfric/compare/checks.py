@@ -326,7 +326,8 @@ PARETO_K_RELIABLE = 0.7
 
 
 def ranking_sensitivity(
-    fits: Mapping[str, xr.DataTree], alphas: Sequence[float] = (0.5, 2.0)
+    fits: Mapping[str, xr.DataTree], alphas: Sequence[float] = (0.5, 2.0), *,
+    baseline: Mapping[str, Any] | None = None,
 ) -> RankingSensitivity:
     """Does the elpd_LOO ranking of ``fits`` change when every prior is power-scaled by α?
 
@@ -336,15 +337,20 @@ def ranking_sensitivity(
         Name -> fit, all on the same data.
     alphas : sequence of float
         Prior powers besides 1 (α < 1 weakens, α > 1 sharpens the priors).
+    baseline : mapping, optional
+        Name -> arviz-stats' plain PSIS-LOO of that fit (``LooResult.psis``), already computed:
+        the α = 1 results are taken from it instead of computed again (missing names are).
     """
+    baseline = baseline or {}
     elpd: dict[float, dict[str, float]] = {}
     ranking: dict[float, list[str]] = {}
     max_k: dict[float, dict[str, float]] = {}
     for alpha in (1.0, *alphas):
         with warnings.catch_warnings():  # high Pareto k is kept in max_pareto_k and reported from there
             warnings.filterwarnings("ignore", message="Estimated shape parameter of Pareto", category=UserWarning)
-            results = {name: (az.loo(dt, var_name=OBS_SITE, pointwise=True) if alpha == 1.0
-                              else power_scaled_loo(dt, alpha)) for name, dt in fits.items()}
+            results = {name: (power_scaled_loo(dt, alpha) if alpha != 1.0
+                              else baseline[name] if baseline.get(name) is not None
+                              else az.loo(dt, var_name=OBS_SITE, pointwise=True)) for name, dt in fits.items()}
         elpd[alpha] = {name: float(r.elpd) for name, r in results.items()}
         max_k[alpha] = {name: float(np.max(r.pareto_k)) for name, r in results.items()}
         ranking[alpha] = sorted(elpd[alpha], key=lambda n: -elpd[alpha][n])

@@ -16,6 +16,8 @@ result.
 from __future__ import annotations
 
 import dataclasses
+import warnings
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import arviz as az
@@ -57,6 +59,9 @@ class LooResult:
         Whether every high-k point was refitted exactly (False: their PSIS values were kept).
     elpd_data : arviz_stats.ELPDDataLOO
         arviz-stats' object with the refit values substituted (feeds ``arviz.compare``).
+    psis : arviz_stats.ELPDDataLOO or None
+        arviz-stats' plain PSIS-LOO of the fit, before any substitution (the α = 1 baseline of
+        :func:`bayesfric.compare.checks.ranking_sensitivity`).
     """
 
     law: str
@@ -72,6 +77,7 @@ class LooResult:
     fit_passed: bool
     elpd_data: object
     refitted: bool = True
+    psis: object = None
 
     @property
     def n_high_k(self) -> int:
@@ -93,7 +99,7 @@ def psis_loo(
     ds: xr.Dataset | None = None,
     *,
     program: Program | None = None,
-    engine: RefitEngine | None = None,
+    engine: RefitEngine | Callable[[], RefitEngine] | None = None,
     seed: int = 0,
 ) -> LooResult:
     """PSIS-LOO of ``fit`` with exact refits of the high Pareto-k points.
@@ -106,8 +112,10 @@ def psis_loo(
         The data of the fit; needed (or ``program`` / ``engine``) to refit high-k points.
     program : Program, optional
         The fit's program, if already built (e.g. with a known-sigma noise model).
-    engine : RefitEngine, optional
-        A compiled refit engine of the same program (reused across calls).
+    engine : RefitEngine or callable, optional
+        A compiled refit engine of the same program (reused across calls), or a function
+        returning one, called only when some point needs a refit (a study's warm-started
+        engine costs ~0.1 s to set up; most fits have no high-k point).
     seed : int
         Seed of the refits.
 
@@ -117,7 +125,7 @@ def psis_loo(
         If high-k points exist and no data were given to refit them, ``refitted`` is False,
         ``handling`` says so and the result is flagged unreliable.
     """
-    data = az.loo(fit, pointwise=True, var_name=OBS_SITE)
+    data = _psis(fit)
     pareto_k = np.asarray(data.pareto_k.values, dtype=float).ravel()
     elpd_i = np.asarray(data.elpd_i.values, dtype=float).ravel()
     threshold = float(data.good_k)
@@ -131,6 +139,8 @@ def psis_loo(
         refitted = False
     else:
         passed = "diagnostics" in fit.attrs and verdict_of(fit).passed
+        if callable(engine) and not isinstance(engine, RefitEngine):
+            engine = engine()
         engine = engine or RefitEngine(program or program_from_fit(fit, ds), warm_start=fit if passed else None)
         masks = np.ones((high.size, elpd_i.size), dtype=bool)
         masks[np.arange(high.size), high] = False
@@ -141,6 +151,14 @@ def psis_loo(
         if refit_failed:
             handling += f"; refits of {refit_failed} failed the gate"
     return _result(fit, data, elpd_i, threshold, high, handling, refit_failed, refitted)
+
+
+def _psis(fit: xr.DataTree):
+    """arviz-stats' PSIS-LOO of ``fit``; its warning on high Pareto k̂ is held back: those points
+    are refitted, or the result says they were not (``handling``, ``reliable``)."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="Estimated shape parameter of Pareto", category=UserWarning)
+        return az.loo(fit, pointwise=True, var_name=OBS_SITE)
 
 
 def _result(fit: xr.DataTree, data, elpd_i: np.ndarray, threshold: float, high: np.ndarray, handling: str,
@@ -162,7 +180,7 @@ def _result(fit: xr.DataTree, data, elpd_i: np.ndarray, threshold: float, high: 
         pareto_k=np.asarray(data.pareto_k.values, dtype=float).ravel(),
         k_threshold=threshold, high_k=high, handling=handling, refit_failed=refit_failed,
         fit_passed=verdict_of(fit).passed if "diagnostics" in fit.attrs else False,
-        elpd_data=updated, refitted=refitted,
+        elpd_data=updated, refitted=refitted, psis=data,
     )
 
 
@@ -173,7 +191,7 @@ def loo_from_values(fit: xr.DataTree, elpd_i: np.ndarray, handling: str, refit_f
     The Pareto-smoothed part is recomputed from the fit (deterministic, cheap); only the exact
     refits' values come from the store (:mod:`bayesfric.study.units`).
     """
-    data = az.loo(fit, pointwise=True, var_name=OBS_SITE)
+    data = _psis(fit)
     threshold = float(data.good_k)
     high = np.flatnonzero(np.asarray(data.pareto_k.values, dtype=float).ravel() > threshold)
     return _result(fit, data, np.asarray(elpd_i, dtype=float), threshold, high, handling, list(refit_failed),

@@ -26,27 +26,52 @@ from bayesfric.model import Noise, build_program
 from bayesfric.priors import Prior
 
 __all__ = [
-    "fit", "save_fit", "load_fit", "release_compiled_code", "SAMPLERS",
+    "fit", "save_fit", "load_fit", "release_compiled_code", "memory_mappings", "MAPPINGS_BUDGET", "SAMPLERS",
     "GATE", "Gate", "Verdict", "check", "verdict_of",
 ]
 
 SAMPLERS = {"nuts": sample_nuts, "emcee": sample_emcee}
 
 
-def release_compiled_code() -> None:
-    """Free every compiled JAX executable held by this process.
+def release_compiled_code(*, when_mapped_above: int = 0) -> None:
+    """Free the compiled JAX executables held by this process.
 
     Every fit compiles fresh closures of its model, and on the CPU backend each compiled
     executable stays mapped in memory. When each fit compiled a few hundred small programs, a
     fit left ~740 mappings behind and a long loop of fits (a study, a model-recovery grid, the
     test suite) passed the kernel's ``vm.max_map_count`` (65530 by default) after roughly 80
     fits, and XLA then aborted mid-compilation; with the few exported programs of
-    :mod:`bayesfric.exported` a small fit leaves ~75. Long loops still call this between items;
-    it costs only the recompilation of code still in use.
+    :mod:`bayesfric.exported` a small fit leaves ~75. Long loops still call this between items.
+
+    Parameters
+    ----------
+    when_mapped_above : int
+        The programs kept by :mod:`bayesfric.exported` (a law's samplers and tables) are always
+        dropped. JAX's own caches (the small programs of eager operations, shared by every law)
+        are cleared, with a garbage collection, only when the process holds more than this many
+        memory mappings (0: always). Clearing them costs the next law ~60 of those programs
+        read back from the compilation cache or recompiled, about 4 s for a six-law study;
+        a study therefore passes a budget (:data:`MAPPINGS_BUDGET`).
     """
     forget_compiled()
+    if when_mapped_above and 0 <= memory_mappings() <= when_mapped_above:
+        return
     jax.clear_caches()
     gc.collect()
+
+
+#: Memory mappings a study process may hold before :func:`release_compiled_code` clears JAX's
+#: caches between laws: a quarter of the kernel's default ``vm.max_map_count`` (65530).
+MAPPINGS_BUDGET = 16_000
+
+
+def memory_mappings() -> int:
+    """Number of memory mappings of this process (``/proc/self/maps``); -1 where unknown."""
+    try:
+        with open("/proc/self/maps", "rb") as maps:
+            return sum(1 for _ in maps)
+    except OSError:
+        return -1
 
 
 def fit(

@@ -295,7 +295,8 @@ def _assign_weights(out: StudyOutcome) -> None:
     if out.study.loo and len(fits) > 1:
         reliable = {w.name: w.fit for w in out.laws if w.reliable or out.study.include_failed}
         if len(reliable) > 1:
-            sens = compare.ranking_sensitivity(reliable)
+            psis = {w.name: w.loo.psis for w in out.laws if w.name in reliable and w.loo is not None}
+            sens = compare.ranking_sensitivity(reliable, baseline=psis)
             order = " > ".join(sens.ranking[1.0])
             out.ranking_changed = bool(sens.changed)
             out.ranking_sensitivity = (

@@ -31,12 +31,12 @@ import xarray as xr
 from bayesfric import compare
 from bayesfric.compare.loo import loo_from_values
 from bayesfric.fingerprint import data_fingerprint, law_fingerprint, unit_key
-from bayesfric.inference import SAMPLERS, release_compiled_code
+from bayesfric.inference import MAPPINGS_BUDGET, SAMPLERS, release_compiled_code
 from bayesfric.inference.diagnostics import Verdict
 from bayesfric.laws.variants import law_of_fit
 from bayesfric.model import Noise, build_program
 from bayesfric.study.outcome import Checks, LawOutcome
-from bayesfric.study.store import fit_to_bytes, load_fit_bytes, pack_record, unpack_record
+from bayesfric.study.store import fit_to_bytes, load_fit_bytes, pack_record, remember_fit, unpack_record
 
 __all__ = ["LawJob", "Unit", "make_job", "plan_law", "compute", "assemble", "COSTLY"]
 
@@ -127,7 +127,7 @@ def _base_engine(job: LawJob):
     """
     if any(k != job.key for k in _ENGINES):
         _ENGINES.clear()
-        release_compiled_code()  # the previous law's compiled samplers are not reused
+        release_compiled_code(when_mapped_above=MAPPINGS_BUDGET)  # the previous law's samplers are not reused
     if job.key not in _ENGINES:
         s = job.settings
         nuts_keys = ("target_accept", "retry_target_accept", "max_tree_depth", "init")
@@ -162,7 +162,7 @@ def _compute_rest(job: LawJob, unit: Unit, fit: xr.DataTree) -> tuple[dict, dict
     passed = compare.verdict_of(fit).passed
     if unit.stage == "loo":
         # refits that drop one point start from the full fit's draws when it passed the gate
-        loo = compare.psis_loo(fit, engine=_engine(job, fit, warm=passed), seed=job.seed)
+        loo = compare.psis_loo(fit, engine=lambda: _engine(job, fit, warm=passed), seed=job.seed)
         return ({"handling": loo.handling, "refit_failed": loo.refit_failed, "refitted": loo.refitted},
                 {"elpd_i": loo.elpd_i})
     if unit.stage == "cv":
@@ -203,7 +203,9 @@ def compute(job: LawJob, unit: Unit, fit_payload: bytes | None = None) -> tuple[
             dt = _base_engine(job).fit(job.ds)
         else:
             dt = SAMPLERS[job.sampler](_program(job), job.ds, seed=job.seed, **job.settings)
-        return fit_to_bytes(dt), time.perf_counter() - start
+        payload = fit_to_bytes(dt)
+        remember_fit(payload, dt)  # the law's next units use it as it is, not opened from the bytes
+        return payload, time.perf_counter() - start
     record, arrays = _compute_rest(job, unit, load_fit_bytes(fit_payload))
     seconds = time.perf_counter() - start
     return pack_record({"key": unit.key, "stage": unit.stage, "compute_s": seconds} | record, arrays), seconds

@@ -1,5 +1,7 @@
 """Prior predictive plausibility, LOO-PIT, power-scaling prior sensitivity and ranking stability."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -101,6 +103,18 @@ def test_power_scaling_by_one_is_plain_loo(fits):
 
     dt = fits["coulomb_viscous"]
     assert power_scaled_loo(dt, 1.0).elpd == pytest.approx(az.loo(dt).elpd, abs=0.05)
+
+
+@pytest.mark.slow
+def test_ranking_sensitivity_reuses_the_plain_loo_it_is_given(fits):
+    """A study hands over each fit's PSIS-LOO (``LooResult.psis``): the α = 1 results are taken
+    from it, and every number is the one computed from scratch."""
+    from bayesfric.compare.loo import psis_loo
+
+    baseline = {name: psis_loo(dt).psis for name, dt in fits.items()}
+    assert ranking_sensitivity(fits, baseline=baseline) == ranking_sensitivity(fits)
+    marked = {name: dataclasses.replace(b, elpd=b.elpd + 100.0) for name, b in baseline.items()}
+    assert ranking_sensitivity(fits, baseline=marked).elpd[1.0] == {n: b.elpd for n, b in marked.items()}
 
 
 @pytest.mark.slow

@@ -66,6 +66,26 @@ def test_loo_without_data_is_finite_and_flags_unrefitted_points(outlier_fit):
     assert result.p_loo == pytest.approx(float((lppd - result.elpd_i).sum()))
 
 
+def test_an_engine_factory_is_called_only_when_a_point_needs_a_refit(outlier_fit, outlier_data):
+    """A study passes a function that builds its warm-started engine: without high-k points the
+    engine is never built; with one, it is built once (and a failing factory shows it ran)."""
+    calls = []
+
+    def factory():
+        calls.append(1)
+        raise RuntimeError("engine requested")
+
+    clean = outlier_fit.copy()
+    clean["log_likelihood"] = clean["log_likelihood"].isel(obs=slice(0, 29))  # drop the outlier
+    result = psis_loo(clean, engine=factory)
+    if result.high_k.size:  # the 29 clean points must not need a refit, or this test proves nothing
+        pytest.fail(f"clean points with high k: {result.high_k}")
+    assert calls == [] and result.handling == "none above threshold"
+    with pytest.raises(RuntimeError, match="engine requested"):
+        psis_loo(outlier_fit, engine=factory)
+    assert calls == [1]
+
+
 def test_a_known_sigma_is_recorded_so_the_program_can_be_rebuilt(outlier_fit, outlier_data):
     import json
 
