@@ -127,7 +127,7 @@ def _fit_settings(args: argparse.Namespace) -> dict[str, object]:
     from bayesfric.study.schema import SchemaError, parse
 
     options = {"name": args.sampler, "seed": args.seed, "draws": args.draws, "tune": args.tune,
-               "chains": args.chains, "walkers": args.walkers, "init": args.init,
+               "chains": args.chains, "walkers": args.walkers, "init": args.init, "metric": args.metric,
                "retry_target_accept": args.retry_target_accept}
     try:
         section = parse(SAMPLER, {k: v for k, v in options.items() if v is not None})
@@ -347,6 +347,8 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--tune", type=int, default=None, help="warm-up draws / burn-in steps, ≥ 0")
     q.add_argument("--chains", type=int, default=None, help="NUTS chains, ≥ 1")
     q.add_argument("--init", default=None, help="NUTS chain starts: median (default) | pathfinder")
+    q.add_argument("--metric", default=None,
+                   help="NUTS mass matrix: diag (default) | dense (strongly correlated coefficients)")
     q.add_argument("--walkers", type=int, default=None, help="emcee walkers, ≥ 2 × free parameters")
     q.add_argument("--retry-target-accept", type=float, default=None,
                    help="NUTS: sample again at this target acceptance after divergences (default 0.99; 0: off)")

@@ -136,3 +136,55 @@ def test_pathfinder_starts_lie_in_the_posterior_bulk(small_ds):
         chain_starts(program, 3, seed=2, init="uniform")
     dt = fit(get_law("coulomb_viscous"), small_ds, draws=100, tune=150, chains=2, init="pathfinder")
     assert json.loads(dt.attrs["sampler_settings"])["init"] == "pathfinder"
+
+
+def test_a_dense_metric_learns_a_correlated_posterior_and_crosses_it_in_fewer_steps():
+    """One NUTS chain (``nuts_chain``) on a 3-d Gaussian with correlations 0.999: the dense
+    warm-up's draws match the covariance, and each draw takes far fewer leapfrog steps than
+    with the diagonal metric (which cannot undo the correlation: condition number ~3000).
+    Measured: 5.1 against 37 steps per draw."""
+    import jax
+
+    from bayesfric.inference.adaptation import nuts_chain, sampling_schedule
+    from bayesfric.runtime import configure
+
+    configure()  # x64, as every fit runs
+    cov = np.full((3, 3), 0.999) + 0.001 * np.eye(3)
+    precision = np.linalg.inv(cov)
+    schedule = sampling_schedule(500, 1500)
+
+    def run(imm):
+        out = jax.jit(lambda z0, m: nuts_chain(jax.random.PRNGKey(3), z0, lambda x: -0.5 * x @ precision @ x,
+                                               schedule, m, 0.8, 10))(np.full(3, 0.5), imm)
+        return np.asarray(out.position)[500:], float(np.mean(np.asarray(out.n_steps)[500:]))
+
+    dense, dense_steps = run(np.eye(3))
+    diag, diag_steps = run(np.ones(3))
+    # 1500 correlated draws: the sample covariance within 20 % (effective sizes of several hundred)
+    np.testing.assert_allclose(np.cov(dense, rowvar=False), cov, rtol=0.2, atol=0.03)
+    assert dense_steps < 0.25 * diag_steps, (dense_steps, diag_steps)
+
+
+def test_the_engine_takes_a_dense_metric_through_fit_and_warm_started_folds(simulator):
+    """``NutsEngine(metric="dense")``: the fit records it, a warm start begins from the fit's
+    covariance, its folds sample; an unknown metric is refused."""
+    from bayesfric.compare.refit import RefitEngine
+    from bayesfric.model import build_program
+
+    law = get_law("coulomb_viscous")
+    ds = simulator(law, {"velocity": np.linspace(-2, 2, 20)}, {"T_C": 1.0, "c_v": 0.5}, sigma=0.05, seed=1)
+    with pytest.raises(ValueError, match="metric must be one of"):
+        RefitEngine(build_program(law, ds), metric="full")
+    engine = RefitEngine(build_program(law, ds), draws=300, tune=300, chains=2, metric="dense")
+    dt = engine.fit(ds)
+    assert json.loads(dt.attrs["sampler_settings"])["metric"] == "dense"
+    assert engine.settings["metric"] == "dense"
+    post = dt["posterior"]
+    assert float(post["T_C"].mean()) == pytest.approx(1.0, abs=0.1)
+    assert float(post["c_v"].mean()) == pytest.approx(0.5, abs=0.1)
+    warm = engine.warm_started(dt, 150)
+    masks = np.ones((2, 20), dtype=bool)
+    masks[0, 0] = masks[1, 19] = False
+    folds = warm.run(masks, seed=1)
+    assert np.isfinite(folds.lpd).all() and folds.samples["T_C"].shape[:2] == (2, 2)
+    assert engine.compilations == 1  # the fit and the warm-started folds share one compiled sampler

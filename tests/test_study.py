@@ -119,7 +119,7 @@ def test_evidence_pair_end_to_end(tmp_path, data_csv):
 @pytest.mark.parametrize(("sampler", "full", "quick"), [
     ("draws = 1000\ntune = 500\nchains = 2\n",
      {"draws": 1000, "tune": 500, "chains": 2, "target_accept": 0.9, "retry_target_accept": 0.99,
-      "init": "median"},
+      "metric": "diag", "init": "median"},
      {"draws": 300, "tune": 300, "chains": 2}),
     ('name = "emcee"\ndraws = 5000\ntune = 2000\nwalkers = 16\nthin = 20\n',
      {"draws": 5000, "tune": 2000, "walkers": 16, "thin": 20}, {"draws": 1000, "tune": 1000, "thin": 10}),
@@ -151,3 +151,39 @@ def test_the_divergence_retry_is_a_sampler_key_that_reaches_the_engine(tmp_path,
     settings, _ = _run_settings(study, quick=False)
     job = make_job(study.laws[0], study.noise, load_dataset(resolve(study.dataset)), "nuts", settings, 0)
     assert _base_engine(job).retry_target_accept == engine_retry
+
+
+@pytest.mark.parametrize(("line", "metric"), [("", "diag"), ('metric = "dense"\n', "dense")])
+def test_the_mass_matrix_is_a_sampler_key_that_reaches_the_engine(tmp_path, data_csv, line, metric):
+    """``[sampler] metric`` sets the compiled engine's metric (and so its unit keys)."""
+    from bayesfric.datasets import load_dataset, resolve
+    from bayesfric.study.runner import _run_settings
+    from bayesfric.study.units import _base_engine, make_job
+
+    (tmp_path / "s.toml").write_text(study_text().replace("chains = 2\n", "chains = 2\n" + line))
+    study = load_study(tmp_path / "s.toml")
+    settings, _ = _run_settings(study, quick=False)
+    job = make_job(study.laws[0], study.noise, load_dataset(resolve(study.dataset)), "nuts", settings, 0)
+    engine = _base_engine(job)
+    assert engine.metric == metric and engine.settings["metric"] == metric
+
+
+def test_a_law_entry_sets_its_own_mass_matrix(tmp_path, data_csv):
+    """``[[laws]] metric`` overrides ``[sampler] metric`` for that law only, and keys its units."""
+    from bayesfric.study.runner import _fold_schemes, _plan_laws, _run_settings, load_study_data
+
+    text = study_text()
+    (tmp_path / "s.toml").write_text(text)
+    plain = load_study(tmp_path / "s.toml")
+    first = text.index("[[laws]]")
+    end = text.index("\n", text.index("name =", first)) + 1
+    (tmp_path / "s.toml").write_text(text[:end] + 'metric = "dense"\n' + text[end:])
+    study = load_study(tmp_path / "s.toml")
+    assert study.laws[0].metric == "dense" and all(w.metric is None for w in study.laws[1:])
+    ds = load_study_data(study)
+    settings, kfold = _run_settings(study, quick=False)
+    schemes = _fold_schemes(study, ds, 0, kfold)
+    jobs = [p[0] for p in _plan_laws(study, ds, schemes, settings, 0)]
+    before = [p[0] for p in _plan_laws(plain, ds, schemes, settings, 0)]
+    assert jobs[0].settings["metric"] == "dense" and jobs[1].settings["metric"] == "diag"
+    assert jobs[0].key != before[0].key and [j.key for j in jobs[1:]] == [j.key for j in before[1:]]

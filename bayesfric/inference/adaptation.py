@@ -84,12 +84,14 @@ class _Adaptation(NamedTuple):
 def nuts_chain(key, z0, logdensity, schedule, init_imm, target_accept: float, depth: int) -> ChainDraws:
     """Warm up and sample one chain along ``schedule`` (rows of :func:`sampling_schedule`).
 
-    ``init_imm`` is the initial diagonal inverse mass matrix (ones, or a previous posterior's
-    unconstrained variances). Returns every step's output; the caller keeps the sampling rows
-    (inactive rows return zeros).
+    ``init_imm`` is the initial inverse mass matrix: a vector for a diagonal metric (ones, or a
+    previous posterior's unconstrained variances), a square matrix for a dense one (identity,
+    or a previous posterior's covariance). The slow windows estimate the same kind (blackjax's
+    Welford estimator, regularised towards the identity as Stan does). Returns every step's
+    output; the caller keeps the sampling rows (inactive rows return zeros).
     """
     da_init, da_update, da_final = dual_averaging_adaptation(target_accept)
-    mm_init, mm_update, mm_final = mass_matrix_adaptation(True)
+    mm_init, mm_update, mm_final = mass_matrix_adaptation(init_imm.ndim == 1)
     kernel = blackjax.nuts.build_kernel()
 
     def adapt_step(adapt: _Adaptation, row, position, acceptance_rate) -> _Adaptation:

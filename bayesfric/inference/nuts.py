@@ -31,6 +31,7 @@ def sample_nuts(
     seed: int = 0,
     target_accept: float = 0.9,
     max_tree_depth: int = 10,
+    metric: str = "diag",
     init: Init = "median",
     retry_target_accept: float = 0.99,
     progress: bool = False,
@@ -43,9 +44,11 @@ def sample_nuts(
     in the bulk of the prior; ``init = "pathfinder"`` starts them at multi-path Pathfinder draws
     instead (:mod:`bayesfric.inference.init`). Draws with divergent transitions are sampled once
     more at ``retry_target_accept`` (0 switches that off; the cost is stated on the engine).
+    ``metric = "dense"`` estimates a dense mass matrix in the warm-up instead of a diagonal one
+    (for strongly correlated coefficients; see the engine).
     """
     engine = NutsEngine(program, draws=draws, tune=tune, chains=chains, seed=seed,
-                        target_accept=target_accept, max_tree_depth=max_tree_depth, init=init,
+                        target_accept=target_accept, max_tree_depth=max_tree_depth, metric=metric, init=init,
                         retry_target_accept=retry_target_accept)
     start = time.perf_counter()
     if progress:

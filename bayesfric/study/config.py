@@ -23,6 +23,7 @@ sampler settings, comparison methods and extrapolation folds::
     chains = 4                         # nuts only, ≥ 1
     target_accept = 0.9                # nuts only, in (0, 1)
     retry_target_accept = 0.99         # nuts only: sample draws with divergences again at this target; 0: off
+    metric = "diag"                    # nuts only: diag | dense (mass matrix; dense for correlated coefficients)
     init = "median"                    # nuts only: median | pathfinder (chains start at Pathfinder draws)
     # walkers = 32                     # emcee only: ≥ 2 × free parameters (default max(32, 4 × them))
     # thin = 10                        # emcee only, ≥ 1
@@ -113,6 +114,7 @@ from numpyro import handlers
 from bayesfric.errors import UserError
 from bayesfric.fsutil import name_problem
 from bayesfric.inference import SAMPLERS
+from bayesfric.inference.engine import METRICS
 from bayesfric.inference.init import INITS
 from bayesfric.laws import Law, get_law
 from bayesfric.laws.variants import VariantError, vary
@@ -151,6 +153,11 @@ class LawSpec:
     fixed: dict[str, float] = field(default_factory=dict)
     add: tuple[str, ...] = ()
     asymmetric: tuple[str, ...] = ()
+    metric: str | None = None  # this law's NUTS mass matrix, over [sampler] metric
+
+    def settings(self, study_settings: dict[str, Any]) -> dict[str, Any]:
+        """The sampler settings this law runs with: the study's, with the entry's own metric."""
+        return study_settings if self.metric is None else study_settings | {"metric": self.metric}
 
     def build(self) -> Law:
         """The entry's law: the registered law with its options applied, named by the label."""
@@ -250,6 +257,8 @@ SAMPLER = Schema((
     Field("retry_target_accept", "number", _backend("retry_target_accept"), min=0, lt=1, only=("name", NUTS),
           doc="draws with divergent transitions are sampled again at this target acceptance "
               "(above target_accept); 0 switches the retry off"),
+    Field("metric", "str", _backend("metric"), choices=METRICS, only=("name", NUTS),
+          doc="mass matrix of the warm-up: diagonal, or dense for strongly correlated coefficients"),
     Field("init", "str", _backend("init"), choices=INITS, only=("name", NUTS),
           doc="chain starts: prior medians, or multi-path Pathfinder draws (posteriors with minor modes)"),
     Field("walkers", "int", _backend("walkers"), min=2, only=("name", EMCEE),
@@ -272,6 +281,8 @@ LAW = Schema((
     Field("offset", "bool", False, doc='add a constant offset term (same as add = ["offset"])'),
     Field("asymmetric", "value", [], rule=_names,
           doc="parameters with one value per direction: <p>_pos (velocity ≥ 0), <p>_neg (velocity < 0)"),
+    Field("metric", "str", None, choices=METRICS,
+          doc="NUTS mass matrix of this law, over [sampler] metric (dense for strongly correlated coefficients)"),
 ))
 BLOCKED = Schema((
     Field("axis", "str", REQUIRED, doc="input coordinate to block along"),
@@ -410,7 +421,8 @@ def _law_spec(path: Path, i: int, entry: dict[str, Any], noise: Noise) -> LawSpe
             raise StudyError(f"{where}.priors.{pname}: {exc}") from None
     add = _listed(entry["add"]) + (("offset",) if entry["offset"] and "offset" not in _listed(entry["add"]) else ())
     return LawSpec(entry["label"] or entry["name"], priors, dict(entry["constants"]), law=entry["name"],
-                   fixed=dict(entry["fixed"]), add=add, asymmetric=_listed(entry["asymmetric"]))
+                   fixed=dict(entry["fixed"]), add=add, asymmetric=_listed(entry["asymmetric"]),
+                   metric=entry["metric"])
 
 
 def _sizing_question(path: Path, i: int, entry: dict[str, Any]) -> SizingQuestion:
@@ -493,6 +505,10 @@ def load_study(path: str | Path) -> Study:
             raise StudyError(f"{path}: laws[{i}].{key}: {label!r} is listed twice: give each entry of the "
                              "same law its own label")
     _check_retry(path, spec["sampler"])
+    for i, entry in enumerate(spec["laws"]):
+        if entry["metric"] is not None and spec["sampler"]["name"] not in NUTS:
+            raise StudyError(f"{path}: laws[{i}].metric: applies only to sampler {NUTS[0]} "
+                             f"(here {spec['sampler']['name']!r})")
     if compare["evidence"]:
         _check_evidence_draws(path, spec["sampler"])
     blocked = [BlockedSpec(b["axis"], b["direction"], b["threshold"], b["quantile"], b["label"], b["future"])

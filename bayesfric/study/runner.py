@@ -197,7 +197,7 @@ def _plan_laws(study: Study, ds, schemes, settings: dict, seed: int) -> list:
     sampler = study.sampler.get("name", "nuts")
     plans = []
     for spec in study.laws:
-        job = units.make_job(spec, study.noise, ds, sampler, settings, seed)
+        job = units.make_job(spec, study.noise, ds, sampler, spec.settings(settings), seed)
         plans.append((job, *units.plan_law(job, study, schemes)))
     return plans
 

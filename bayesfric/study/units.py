@@ -130,7 +130,7 @@ def _base_engine(job: LawJob):
         release_compiled_code(when_mapped_above=MAPPINGS_BUDGET)  # the previous law's samplers are not reused
     if job.key not in _ENGINES:
         s = job.settings
-        nuts_keys = ("target_accept", "retry_target_accept", "max_tree_depth", "init")
+        nuts_keys = ("target_accept", "retry_target_accept", "max_tree_depth", "metric", "init")
         settings = (dict(draws=s["draws"], tune=s["tune"], chains=s.get("chains", 4),
                          **{k: s[k] for k in nuts_keys if k in s})
                     if job.sampler == "nuts" else dict(draws=1000, tune=500, chains=4))
