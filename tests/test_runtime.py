@@ -77,8 +77,18 @@ def test_the_fit_command_imports_only_what_it_uses():
     code = ("import sys; import bayesfric.cli, bayesfric.inference, bayesfric.datasets, bayesfric.laws; "
             "from bayesfric.study.config import SAMPLER; from bayesfric.report.tables import fit_report; "
             "print(sorted(m for m in ('matplotlib', 'arviz', 'arviz_plots', 'diffrax', 'bayesfric.study.runner', "
-            "'bayesfric.compare') if m in sys.modules))")
+            "'bayesfric.compare', 'emcee') if m in sys.modules))")
     assert _run(code) == "[]"
+
+
+def test_importing_the_laws_starts_no_jax_backend():
+    """Importing runs no JAX program. A law registered with a dropped part is fixed at import, and
+    its support check used to run on a JAX array: it started the backend and compiled two programs.
+    With an unknown platform, starting a backend raises (blackjax, imported by the inference
+    package, evaluates ``jnp.log(2.0)`` at import itself, so it is left out)."""
+    code = ("import bayesfric, bayesfric.cli, bayesfric.laws, bayesfric.model, bayesfric.datasets, "
+            "bayesfric.priors; print('imported')")
+    assert _run(code, JAX_PLATFORMS="no_such_platform") == "imported"
 
 
 def test_unit_registry_uses_pints_cache_and_survives_a_broken_one(monkeypatch, tmp_path):

@@ -3,7 +3,6 @@ numpyro program, in the unconstrained space numpyro uses for NUTS."""
 
 from __future__ import annotations
 
-import emcee
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -46,6 +45,8 @@ def sample_emcee(
     from the prior, walkers stranded in secondary modes keep R-hat high for thousands of steps.
     Defaults: ``walkers = max(32, 4 * ndim)``.
     """
+    import emcee  # here, not at the top: `bayesfric fit` with NUTS never needs it (30 ms of its import)
+
     density = program.density(seed)
     ndim = density.dim
     n_walkers = walkers or max(32, 4 * ndim)

@@ -226,7 +226,10 @@ def _asymmetric(law: Law, names: Sequence[str]) -> Law:
 def _support_problem(p: Param, value: float) -> str | None:
     """Why ``value`` lies outside the support of ``p``'s prior (None if inside)."""
     prior = Prior(p.prior.dist, **p.prior.args)  # support does not depend on the data scale
-    ok = bool(np.all(np.asarray(prior.to_numpyro().support.check(jnp.asarray(value)))))
+    # a NumPy value: numpyro's constraints then check it with NumPy. A JAX array would run (and
+    # compile) JAX programs, and laws registered with a dropped part are fixed at import time,
+    # so importing bayesfric.laws started the JAX backend and compiled two programs (45 ms).
+    ok = bool(np.all(prior.to_numpyro().support.check(np.asarray(value, dtype=float))))
     return None if ok else f"outside the support of its prior {p.prior}"
 
 
