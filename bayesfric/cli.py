@@ -155,7 +155,6 @@ def _cmd_fit(args: argparse.Namespace) -> None:
     from bayesfric.laws import get_law
     from bayesfric.laws.variants import for_data
     from bayesfric.model import Noise, build_program
-    from bayesfric.report.tables import fit_report
     from bayesfric.study.config import walkers_problem
 
     settings = _fit_settings(args)
@@ -180,6 +179,8 @@ def _cmd_fit(args: argparse.Namespace) -> None:
         raise UserError(f"--walkers: {problem}")
     dt = fit(law, ds, sampler=args.sampler, priors=priors, noise=noise, seed=args.seed, progress=not args.quiet,
              **settings)
+    from bayesfric.report.tables import fit_report  # after the fit: it imports arviz-stats (see diagnostics)
+
     print(fit_report(dt, law))
     if args.out:
         print(f"fit written to {save_fit(dt, args.out)}")

@@ -1,15 +1,30 @@
-"""The diagnostics gate: one place for the thresholds a posterior must pass to be ranked."""
+"""The diagnostics gate: one place for the thresholds a posterior must pass to be ranked.
+
+The statistics are arviz-stats' (rank-normalised split R-hat, bulk and tail ESS, E-BFMI). It is
+imported on first use, not with this module: it brings scipy.stats along (0.4-0.5 s of the 2 s
+a ``bayesfric fit`` spends importing), and a fit needs it only once its chains are sampled. The
+NUTS engine calls :func:`import_statistics` right after it hands its programs to the background
+compilation threads, so the import runs while they compile, or read the programs back from the
+cache (:mod:`bayesfric.exported`), instead of before.
+"""
 
 from __future__ import annotations
 
 import json
 from dataclasses import asdict, dataclass, field
+from types import ModuleType
 
-import arviz_stats
 import numpy as np
 import xarray as xr
 
-__all__ = ["GATE", "Gate", "Verdict", "check", "verdict_of"]
+__all__ = ["GATE", "Gate", "Verdict", "check", "verdict_of", "import_statistics"]
+
+
+def import_statistics() -> ModuleType:
+    """arviz-stats, the gate's statistics library (imported on first call; see the module notes)."""
+    import arviz_stats
+
+    return arviz_stats
 
 
 @dataclass(frozen=True)
@@ -76,6 +91,7 @@ def _max_over(ds: xr.Dataset) -> float:
 
 def check(dt: xr.DataTree, var_names: list[str] | None = None, gate: Gate = GATE) -> Verdict:
     """Apply the gate to a fit's posterior (all sampled and derived variables by default)."""
+    arviz_stats = import_statistics()
     post = dt["posterior"].to_dataset()
     names = var_names or [v for v in post.data_vars if v != "group_offset"]
     sub = post[names]

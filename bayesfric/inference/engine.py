@@ -59,7 +59,7 @@ from bayesfric.exported import exported_jit
 from bayesfric.fingerprint import program_parts
 from bayesfric.inference.adaptation import nuts_chain, sampling_schedule
 from bayesfric.inference.datatree import assemble, draw_tables_args, draw_tables_jit
-from bayesfric.inference.diagnostics import GATE, Gate, Verdict, check
+from bayesfric.inference.diagnostics import GATE, Gate, Verdict, check, import_statistics
 from bayesfric.inference.init import Init, pending_chain_starts
 from bayesfric.model import Program
 
@@ -440,6 +440,7 @@ class NutsEngine:
             self._tables = draw_tables_jit(self.program)
             sites = {k: jax.ShapeDtypeStruct(v.shape[3:], v.dtype) for k, v in self._sampler.out_shapes[0].items()}
             self._tables.ahead(*draw_tables_args(sites, self.chains * self.draws, seed))
+        import_statistics()  # the gate's library imports while the programs above compile or load
         fits = self.run(np.ones((1, self.program.n_obs), dtype=bool), seed=seed)
         samples = {k: v[0] for k, v in fits.samples.items()}
         stats = {k: v[0] for k, v in fits.stats.items()}

@@ -57,14 +57,13 @@ import zlib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
-import arviz_stats
 import jax
 import jax.numpy as jnp
 import numpy as np
 import xarray as xr
 
 from bayesfric.datasets.synthetic import make_dataset
-from bayesfric.inference.diagnostics import verdict_of
+from bayesfric.inference.diagnostics import import_statistics, verdict_of
 from bayesfric.laws.variants import law_of_fit
 from bayesfric.sizing.points import SizingError, SizingQuestion
 
@@ -341,7 +340,7 @@ def _exceedance(y_abs: np.ndarray, capacity: float | None) -> tuple[np.ndarray, 
     for j in range(n):
         if 0 < p[j] < 1:
             enough = hit.shape[0] > 1 or hit.shape[1] > 3
-            e = float(arviz_stats.ess(hit[:, :, j], method="mean")) if enough else float(s)
+            e = float(import_statistics().ess(hit[:, :, j], method="mean")) if enough else float(s)
             ess[j] = e if math.isfinite(e) and e > 0 else float(s)
         else:
             bound[j] = 3.0 / s
