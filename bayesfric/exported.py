@@ -53,18 +53,20 @@ import numpy as np
 from bayesfric.fingerprint import canonical, code_fingerprint
 from bayesfric.runtime import cache_dir
 
-__all__ = ["exported_jit", "program_jit", "forget_compiled", "finish_compilations", "AheadCompiled",
-           "EXPORTED_MAX_BYTES", "SUFFIX", "COMPILE_THREADS"]
+__all__ = ["exported_jit", "program_jit", "forget_compiled", "finish_compilations", "set_compile_threads",
+           "AheadCompiled", "EXPORTED_MAX_BYTES", "SUFFIX", "COMPILE_THREADS"]
 
 #: Upper bound of the exported programs kept on disk (oldest read first to go).
 EXPORTED_MAX_BYTES = 512 * 1024**2
 SUFFIX = ".jaxexport"
 
 
-#: Background compilation threads: two, so the starting points and the sampler (the programs a
-#: fit waits for) load side by side; more would only compete with the chains for the cores.
+#: Background compilation threads by default: two, so the starting points and the sampler (the
+#: programs a fit waits for) load side by side; more would only compete with the chains for the
+#: cores. A process that shares the cores with others takes fewer (:func:`set_compile_threads`).
 COMPILE_THREADS = 2
 _COMPILER: ThreadPoolExecutor | None = None  # the background compilation threads, made on first use
+_THREADS = COMPILE_THREADS  # how many _COMPILER gets
 _KEPT: dict[str, Callable] = {}  # compiled functions of this process by key (see exported_jit)
 
 
@@ -83,10 +85,27 @@ def finish_compilations() -> None:
         _COMPILER = None
 
 
+def set_compile_threads(threads: int) -> None:
+    """Use ``threads`` (≥ 1) background compilation threads in this process from now on.
+
+    The main job gives each study process its share of the cores: two study processes on two
+    cores, each with two compilation threads, slowed the one-thread parts of a study (the
+    importance estimator's L-BFGS loop of small compiled calls) while the other process loaded
+    or compiled: unwinder's thermal_poly_surface evidence pair took 1.01× its fit in a cold main
+    job against 0.43× with one thread per process, and the job itself 292 against 286 s
+    (2026-11-24, one pair). Compilations already started finish first.
+    """
+    global _THREADS
+    if threads < 1:
+        raise ValueError(f"compilation threads must be at least 1 (got {threads})")
+    finish_compilations()
+    _THREADS = int(threads)
+
+
 def _compiler() -> ThreadPoolExecutor:
     global _COMPILER
     if _COMPILER is None:
-        _COMPILER = ThreadPoolExecutor(max_workers=COMPILE_THREADS, thread_name_prefix="bayesfric-compile")
+        _COMPILER = ThreadPoolExecutor(max_workers=_THREADS, thread_name_prefix="bayesfric-compile")
     return _COMPILER
 
 

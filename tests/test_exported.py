@@ -146,3 +146,26 @@ def test_a_second_process_traces_almost_nothing(tmp_path):
     first, second = run(), run()
     assert second["T_C"] == first["T_C"]  # the same program, the same draws
     assert second["trace_seconds"] < 0.25 * first["trace_seconds"], (first["trace_seconds"], second["trace_seconds"])
+
+
+def test_compile_threads_run_side_by_side_up_to_the_setting():
+    """Two background compilations overlap with two threads and queue with one (a barrier both
+    must reach); the main job's study processes share the cores (one thread each on two cores)."""
+    import threading
+
+    def both_at_once(threads: int) -> bool:
+        exported.set_compile_threads(threads)
+        barrier = threading.Barrier(2, timeout=2.0)
+        futures = [exported._compiler().submit(barrier.wait) for _ in range(2)]
+        try:
+            return all(f.exception() is None for f in futures)
+        finally:
+            exported.finish_compilations()
+
+    try:
+        assert both_at_once(2)
+        assert not both_at_once(1)
+        with pytest.raises(ValueError, match="at least 1"):
+            exported.set_compile_threads(0)
+    finally:
+        exported.set_compile_threads(exported.COMPILE_THREADS)

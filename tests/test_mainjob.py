@@ -125,3 +125,11 @@ def test_default_jobs_is_bounded_by_cores_memory_and_studies(monkeypatch, cores,
     monkeypatch.setattr(mainjob.os, "cpu_count", lambda: cores)
     monkeypatch.setattr(mainjob, "_memory_bytes", lambda: gib * 1024**3)
     assert mainjob.default_jobs(studies) == jobs
+
+
+@pytest.mark.parametrize(("jobs", "cpus", "threads"),
+                         [(2, 2, 1), (1, 2, 2), (4, 2, 1), (2, 16, 2), (3, 7, 2), (5, 1, 1)])
+def test_study_processes_share_the_cores_for_compiling(jobs, cpus, threads):
+    from bayesfric.study.mainjob import compile_threads_per_study
+
+    assert compile_threads_per_study(jobs, cpus) == threads

@@ -34,7 +34,7 @@ from pathlib import Path
 
 from bayesfric.study.config import Study, StudyError, load_study
 
-__all__ = ["run_flagship", "default_jobs", "study_order"]
+__all__ = ["run_flagship", "default_jobs", "study_order", "compile_threads_per_study"]
 
 
 #: Memory set aside per study process: the seed studies peaked at 1.3-1.7 GB resident each
@@ -96,10 +96,22 @@ def _current_reports(files: list[Path], out_root: Path, quick: bool) -> dict[Pat
     return {path: folder for path in files if (folder := current_report(path, out_root, quick)) is not None}
 
 
-def _run_in_child(path: Path, out_root: Path, quick: bool, fresh: bool) -> tuple[Path, list]:
+def compile_threads_per_study(jobs: int, cpus: int | None = None) -> int:
+    """Background compilation threads of each of ``jobs`` study processes side by side: their
+    share of the ``cpus`` cores (default: this machine's), at least one, at most the default
+    (:data:`bayesfric.exported.COMPILE_THREADS`; see :func:`bayesfric.exported.set_compile_threads`)."""
+    from bayesfric.exported import COMPILE_THREADS
+
+    cpus = (os.cpu_count() or 1) if cpus is None else cpus
+    return max(1, min(COMPILE_THREADS, cpus // max(1, jobs)))
+
+
+def _run_in_child(path: Path, out_root: Path, quick: bool, fresh: bool, compile_threads: int) -> tuple[Path, list]:
     """One study in a spawned process: its report folder and timing rows."""
+    from bayesfric.exported import set_compile_threads
     from bayesfric.study.runner import run_study
 
+    set_compile_threads(compile_threads)
     rows: list = []
     folder = run_study(path, out_root=out_root, quick=quick, fresh=fresh, timings=rows, live_progress=False)
     return folder, rows
@@ -112,7 +124,8 @@ def _run_parallel(files: list[Path], jobs: int, out_root: Path, quick: bool, fre
     timings: list = []
     pool = ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn"))
     try:
-        futures: dict[Future, Path] = {pool.submit(_run_in_child, path, out_root, quick, fresh): path
+        threads = compile_threads_per_study(jobs)
+        futures: dict[Future, Path] = {pool.submit(_run_in_child, path, out_root, quick, fresh, threads): path
                                        for path in files}
         done, pending = wait(futures, return_when=FIRST_EXCEPTION)
         for future in done:  # the first error, if any, is raised here; studies still running finish
