@@ -51,6 +51,8 @@ import numpyro.distributions as dist
 from jax import lax
 from numpyro.distributions import constraints
 
+from bayesfric.numerics import positive_power
+
 __all__ = ["AR1Residuals", "ar1_conditionals", "ar1_log_prob"]
 
 _LOG_2PI = math.log(2 * math.pi)
@@ -88,7 +90,7 @@ def ar1_conditionals(resid, sigma, rho, start, observed=None):
     k = jnp.where(has_prev, idx - prev, 1).astype(resid.dtype)
     # ρ^k for negative ρ and integer k: |ρ|^k times the sign's parity
     parity = jnp.where(jnp.mod(k, 2) == 1, jnp.sign(rho), 1.0)
-    rho_k = parity * jnp.abs(rho) ** k
+    rho_k = parity * positive_power(jnp.abs(rho), k)
     marginal = sigma**2 / (1.0 - rho**2)
     mean = jnp.where(has_prev, rho_k * resid[jnp.maximum(prev, 0)], 0.0)
     var = jnp.where(has_prev, marginal * (1.0 - rho_k**2), marginal)

@@ -57,6 +57,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from bayesfric.numerics import positive_power
+
 __all__ = [
     "BearingGeometry",
     "PITCH_BEARING",
@@ -117,12 +119,6 @@ PITCH_BEARING = BearingGeometry(
 )
 
 
-def _pos_pow(x, p: float):
-    """``max(x, 0)**p`` with finite gradients everywhere (0 and gradient 0 for x <= 0)."""
-    positive = x > 0
-    return jnp.where(positive, jnp.where(positive, x, 1.0) ** p, 0.0)
-
-
 def _directions(geometry: BearingGeometry):
     """Per contact (pair A and B of every ball): derivative of δ w.r.t. (a, θR, r)."""
     psi = 2.0 * np.pi * np.arange(geometry.n_balls) / geometry.n_balls
@@ -139,7 +135,7 @@ def _initial_guess(f, geometry: BearingGeometry):
     mean_cos25 = 0.4577  # mean of |cos ψ|^2.5 (module docstring)
 
     def root(q):
-        return jnp.sign(q) * _pos_pow(jnp.abs(q), 2.0 / 3.0)
+        return jnp.sign(q) * positive_power(jnp.abs(q), 2.0 / 3.0)
 
     a0 = root(f[..., 0] / (z * s)) / s
     t0 = root(f[..., 1] / (z * s * mean_cos25)) / s
@@ -158,14 +154,14 @@ def _solve_unit(f, geometry: BearingGeometry):
     g = _directions(geometry)
 
     def energy(x):
-        value = jnp.sum(0.4 * _pos_pow(g @ x, 2.5)) - f @ x
+        value = jnp.sum(0.4 * positive_power(g @ x, 2.5)) - f @ x
         return jnp.where(jnp.isfinite(value), value, jnp.inf)
 
     def step(_, state):
         x, damping = state
         delta = g @ x  # (Z, 2)
-        grad = jnp.einsum("zk,zkj->j", _pos_pow(delta, 1.5), g) - f
-        hess = jnp.einsum("zk,zki,zkj->ij", 1.5 * _pos_pow(delta, 0.5), g, g)
+        grad = jnp.einsum("zk,zkj->j", positive_power(delta, 1.5), g) - f
+        hess = jnp.einsum("zk,zki,zkj->ij", 1.5 * positive_power(delta, 0.5), g, g)
         level = jnp.trace(hess) / 3.0 + _HESSIAN_FLOOR
         trial = x - jnp.linalg.solve(hess + damping * level * jnp.eye(3), grad)
         better = energy(trial) < energy(x)
@@ -175,7 +171,7 @@ def _solve_unit(f, geometry: BearingGeometry):
 
     start = (_initial_guess(f, geometry), jnp.asarray(1e-3))
     x, _ = jax.lax.fori_loop(0, NEWTON_STEPS, step, start)
-    return _pos_pow(g @ x, 1.5)
+    return positive_power(g @ x, 1.5)
 
 
 def contact_loads(
@@ -296,7 +292,7 @@ def sum_contact_powers(
 
 
 def _sum_powers(m, fa, fr, geometry, power):
-    return jnp.sum(_pos_pow(contact_loads(m, fa, fr, geometry), power), axis=(-3, -2, -1))
+    return jnp.sum(positive_power(contact_loads(m, fa, fr, geometry), power), axis=(-3, -2, -1))
 
 
 _jit_sum_powers = jax.jit(_sum_powers, static_argnums=(3, 4))

@@ -28,6 +28,7 @@ import jax.numpy as jnp
 
 from bayesfric.laws.ball_loads import PITCH_BEARING, BearingGeometry, sum_contact_powers
 from bayesfric.laws.base import Constant, Param, law
+from bayesfric.numerics import positive_power, power_ratio
 from bayesfric.priors import Prior
 
 #: Why these laws run on rotary (torque) data only (bayesfric.laws.variants).
@@ -65,12 +66,6 @@ def _geometry(D_M, n_balls, D_RE, alpha, rows) -> BearingGeometry:
 def _contact_sum(bending_moment, F_a, F_r, geometry, power):
     """Σ Q^power over all contacts for the moment array and the constant forces (in N^power)."""
     return sum_contact_powers(bending_moment, F_a, F_r, geometry, power)
-
-
-def _pow(a, p):
-    """``a**p`` for a >= 0 with finite gradients at a = 0."""
-    positive = a > 0
-    return jnp.where(positive, jnp.where(positive, a, 1.0) ** p, 0.0)
 
 
 # --- Palmgren (seed 000 §2.3) -------------------------------------------------------------------
@@ -121,7 +116,7 @@ def palmgren(velocity, bending_moment, f0, f1, D_M, n_balls, D_RE, alpha, rows, 
     geometry = _geometry(D_M, n_balls, D_RE, alpha, rows)
     speed = jnp.abs(velocity)
     nu_n = nu * speed * RPM_PER_RAD_S
-    t0 = jnp.where(nu_n < 2000.0, 16.0 * f0 * D_M**3, 0.1 * f0 * _pow(nu_n, 2.0 / 3.0) * D_M**3)
+    t0 = jnp.where(nu_n < 2000.0, 16.0 * f0 * D_M**3, 0.1 * f0 * positive_power(nu_n, 2.0 / 3.0) * D_M**3)
     p1 = _contact_sum(bending_moment, F_a, F_r, geometry, 1.0)
     return jnp.sign(velocity) * (t0 + f1 * p1 * D_M)
 
@@ -279,21 +274,21 @@ def skf_2014(velocity, bending_moment, R1, S1, mu_bl, K_S1, D_M, n_balls, D_RE, 
     dm, d, D = 1e3 * D_M, 1e3 * d_bore, 1e3 * D_outer
     axial = jnp.sin(alpha) * _contact_sum(bending_moment, F_a, F_r, geometry, 1.0)
     radial = jnp.abs(F_r)
-    phi_ish = 1.0 / (1.0 + 1.84e-9 * _pow(n * dm, 1.28) * nu**0.64)
+    phi_ish = 1.0 / (1.0 + 1.84e-9 * positive_power(n * dm, 1.28) * nu**0.64)
     phi_rs = jnp.exp(-K_rs * nu * n * (d + D) * math.sqrt(K_Z / (2.0 * (D - d))))
-    g_rr = R1 * dm**1.97 * _pow(radial + R3 * dm**4 * n**2 + R2 * axial, 0.54)
-    m_rr = phi_ish * phi_rs * g_rr * _pow(nu * n, 0.6)
+    g_rr = R1 * dm**1.97 * positive_power(radial + R3 * dm**4 * n**2 + R2 * axial, 0.54)
+    m_rr = phi_ish * phi_rs * g_rr * positive_power(nu * n, 0.6)
     g_sl = S1 * dm**0.26 * (
-        _pow(radial + S3 * dm**4 * n**2, 4.0 / 3.0) + S2 * _pow(axial, 4.0 / 3.0)
+        positive_power(radial + S3 * dm**4 * n**2, 4.0 / 3.0) + S2 * positive_power(axial, 4.0 / 3.0)
     )
-    phi_bl = jnp.exp(-2.6e-8 * _pow(n * nu, 1.4) * dm)
+    phi_bl = jnp.exp(-2.6e-8 * positive_power(n * nu, 1.4) * dm)
     m_sl = (phi_bl * mu_bl + (1.0 - phi_bl) * mu_EHL) * g_sl
-    m_seal = K_S1 * d_s**beta + K_S2
+    m_seal = K_S1 * positive_power(d_s, beta) + K_S2
     k_ball = rows * K_Z * (d + D) / (D - d) * 1e-12
     churn = n * dm**2 * f_t / nu
     has_bath = (churn > 0) & (R_S > 0)
     m_drag = 0.4 * V_M * k_ball * dm**5 * n**2 + jnp.where(
-        has_bath, 1.093e-7 * n**2 * dm**3 * jnp.where(has_bath, churn, 1.0) ** -1.379 * R_S, 0.0
+        has_bath, 1.093e-7 * n**2 * dm**3 * positive_power(jnp.where(has_bath, churn, 1.0), -1.379) * R_S, 0.0
     )
     return jnp.sign(velocity) * 1e-3 * (m_rr + m_sl + m_seal + m_drag)
 
@@ -378,7 +373,7 @@ def wang_reduced(velocity, bending_moment, kappa, T_roll, tau_lim, omega_lim, D_
     sum_q047 = _contact_sum(bending_moment, F_a, F_r, geometry, ROLL_LOAD_EXPONENT)
     width_per_load = (3.0 * r_x / (4.0 * E_star)) ** (1.0 / 3.0)  # b = width_per_load · Q^(1/3)
     m_def = 3.0 / 16.0 * kappa * (D_M / D_RE) * width_per_load * sum_q43
-    m_roll = (T_roll * _pow(speed / omega_ref, ROLL_SPEED_EXPONENT)
+    m_roll = (T_roll * power_ratio(speed, omega_ref, ROLL_SPEED_EXPONENT)
               * sum_q047 / (n_contacts * Q_ref**ROLL_LOAD_EXPONENT))
     m_slide = (tau_lim * jnp.tanh(speed / omega_lim) * math.pi * r_x / (2.0 * E_star)
                * (D_M / D_RE) * jnp.sin(alpha) * sum_q)

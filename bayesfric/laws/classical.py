@@ -20,6 +20,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 
 from bayesfric.laws.base import Constant, Derived, Param, law
+from bayesfric.numerics import power_ratio
 from bayesfric.priors import Prior
 
 SEED = "seed 004 (Stäubli RX90 joint friction)"
@@ -65,14 +66,8 @@ OMEGA_REF = Constant(1.0, "rad/s", "reference speed of the power-law viscous ter
 T_s_derived = Derived(lambda T_C, dT_s: T_C + dT_s, "N*m", "static friction torque T_s")
 
 
-def _pow(a, p):
-    """``a**p`` for a >= 0 with finite gradients at a = 0 (value 0 there for p > 0)."""
-    positive = a > 0
-    return jnp.where(positive, jnp.where(positive, a, 1.0) ** p, 0.0)
-
-
 def _stribeck_decay(speed, v_s, delta):
-    return jnp.exp(-_pow(speed / v_s, delta))
+    return jnp.exp(-power_ratio(speed, v_s, delta))
 
 
 @law(
@@ -144,7 +139,7 @@ def helical_gear(velocity, T_a0, v_s, delta, c_v, omega_ref):
     """Helical gear pair: T = sign(q̇)[T_a0 e^(−(|q̇|/q̇_s)^δ) + c_v (|q̇|/ω_ref)^(1−δ)], one δ."""
     speed = jnp.abs(velocity)
     asperity = T_a0 * _stribeck_decay(speed, v_s, delta)
-    viscous = c_v * _pow(speed / omega_ref, 1.0 - delta)
+    viscous = c_v * power_ratio(speed, omega_ref, 1.0 - delta)
     return jnp.sign(velocity) * (asperity + viscous)
 
 
@@ -199,5 +194,5 @@ def joint_tribological(velocity, T_a0, v_s, delta_a, c_v, delta_v, omega_ref):
     """Joint law: T = sign(q̇)[T_a0 e^(−(|q̇|/q̇_s)^δa) + c_v (|q̇|/ω_ref)^(1−δv)] (no Coulomb term)."""
     speed = jnp.abs(velocity)
     asperity = T_a0 * _stribeck_decay(speed, v_s, delta_a)
-    viscous = c_v * _pow(speed / omega_ref, 1.0 - delta_v)
+    viscous = c_v * power_ratio(speed, omega_ref, 1.0 - delta_v)
     return jnp.sign(velocity) * (asperity + viscous)

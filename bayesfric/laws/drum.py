@@ -30,7 +30,6 @@ import jax
 import jax.numpy as jnp
 
 from bayesfric.laws import classical
-from bayesfric.laws.ball_loads import _pos_pow
 from bayesfric.laws.base import (
     REGISTRY,
     TRAJECTORY_START,
@@ -40,6 +39,7 @@ from bayesfric.laws.base import (
     Param,
     law,
 )
+from bayesfric.numerics import positive_power
 from bayesfric.priors import DataScale, Prior
 
 #: Why these laws run on rotary (torque) data only (bayesfric.laws.variants).
@@ -124,9 +124,9 @@ def seed_ball_normal_forces(radial_force, angle, n_balls: int):
                                                jnp.asarray(angle, float))
     phi = angle[..., None] + 2.0 * jnp.pi * jnp.arange(n_balls) / n_balls
     cos = jnp.cos(phi)
-    weight = _pos_pow(cos, 0.5)
+    weight = positive_power(cos, 0.5)
     f_tilde = radial_force / jnp.sum(weight, axis=-1)
-    return f_tilde[..., None] * _pos_pow(cos, 1.5)
+    return f_tilde[..., None] * positive_power(cos, 1.5)
 
 
 @law(

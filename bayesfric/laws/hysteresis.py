@@ -61,6 +61,7 @@ import jax.numpy as jnp
 from jax import lax
 
 from bayesfric.laws.base import TRAJECTORY_START, Constant, Derived, OptionalInput, Param, law
+from bayesfric.numerics import positive_power, power_ratio
 from bayesfric.priors import Prior
 
 __all__ = ["DAHL_LAWS", "dahl_torque", "lugre", "dahl_relax", "lugre_bristle", "START_STATE",
@@ -157,7 +158,7 @@ def dahl_relax(u, distance, i):
     eps = i - 1.0
     positive = u > 0
     u_safe = jnp.where(positive, u, 1.0)
-    y = distance * u_safe**eps
+    y = distance * positive_power(u_safe, eps)
     t = eps * y
     valid = 1.0 + t > 0
     t_safe = jnp.where(valid, t, 0.0)
@@ -189,9 +190,9 @@ def dahl_torque(angle, preload, trajectory_start, F_c0, gamma, x_c0, kappa, i, P
     """
     angle = jnp.asarray(angle, dtype=float)
     start = jnp.asarray(trajectory_start, dtype=bool)
-    ratio = jnp.asarray(preload, dtype=float) / P_ref
-    F_c = F_c0 * ratio**gamma
-    x_c = x_c0 * ratio**kappa
+    preload = jnp.asarray(preload, dtype=float)
+    F_c = F_c0 * power_ratio(preload, P_ref, gamma)
+    x_c = x_c0 * power_ratio(preload, P_ref, kappa)
     step = jnp.where(start, 0.0, jnp.diff(angle, prepend=angle[:1]))
     direction = jnp.sign(step)
     distance = jnp.abs(step) / x_c

@@ -24,6 +24,7 @@ import math
 import jax.numpy as jnp
 
 from bayesfric.laws.base import Constant, Param, law
+from bayesfric.numerics import power_ratio
 from bayesfric.priors import Prior
 
 #: Why these laws run on rotary (torque) data only (bayesfric.laws.variants).
@@ -234,8 +235,7 @@ def thermal_vogel_power(velocity, temperature, c0, c, a, b, B, C, omega_ref, T_r
     t_ref_kelvin = T_ref + KELVIN_OFFSET
     log_ratio = B / (temperature - C) - B / (t_ref_kelvin - C)
     speed = jnp.abs(velocity)
-    positive = speed > 0
-    speed_term = jnp.where(positive, jnp.where(positive, speed / omega_ref, 1.0) ** a, 0.0)
+    speed_term = power_ratio(speed, omega_ref, a)
     return jnp.sign(velocity) * (c0 + c * speed_term * jnp.exp(b * log_ratio))
 
 
