@@ -10,6 +10,7 @@ import xarray as xr
 
 from bayesfric.datasets.synthetic import simulate
 from bayesfric.inference import GATE, check, fit, load_fit, save_fit, verdict_of
+from bayesfric.inference.diagnostics import check_folds
 from bayesfric.laws import get_law
 from bayesfric.model import Noise
 
@@ -58,6 +59,26 @@ def test_gate_flags_unmixed_chains(small_ds):
     assert not verdict.passed
     assert any("R-hat" in p for p in verdict.problems)
     assert verdict.rhat_max > GATE.rhat_max
+
+
+def test_gate_per_fold_in_one_pass_equals_the_gate_per_fold():
+    """check_folds (one arviz-stats pass over a fold dimension) gives each fold check()'s verdict."""
+    rng = np.random.default_rng(0)
+    shape = (3, 4, 500)  # fold, chain, draw
+    post = xr.Dataset({"a": (("fold", "chain", "draw"), rng.normal(size=shape)),
+                       "b": (("fold", "chain", "draw", "b_dim_0"), rng.normal(size=shape + (2,)))})
+    post["a"][1] = post["a"][1] + xr.DataArray([0.0, 0.0, 0.0, 2.0], dims="chain")  # fold 1: a chain apart
+    energy = rng.normal(size=shape).cumsum(axis=-1) * 0.05 + rng.normal(size=shape)
+    diverging = np.zeros(shape, dtype=bool)
+    diverging[2, 0, :3] = True  # fold 2: three divergent transitions
+    stats = xr.Dataset({"diverging": (("fold", "chain", "draw"), diverging),
+                        "energy": (("fold", "chain", "draw"), energy)})
+    together = check_folds(post, stats)
+    alone = [check(xr.DataTree.from_dict({"posterior": post.isel(fold=k), "sample_stats": stats.isel(fold=k)}))
+             for k in range(3)]
+    assert together == alone
+    assert [v.passed for v in together] == [True, False, False]
+    assert any("R-hat" in p for p in together[1].problems) and together[2].divergences == 3
 
 
 def test_gate_thresholds_in_one_place():

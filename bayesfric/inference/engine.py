@@ -48,7 +48,6 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 from typing import Any
 
-import arviz_base
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -59,7 +58,7 @@ from bayesfric.exported import exported_jit
 from bayesfric.fingerprint import program_parts
 from bayesfric.inference.adaptation import nuts_chain, sampling_schedule
 from bayesfric.inference.datatree import assemble, draw_tables_args, draw_tables_jit
-from bayesfric.inference.diagnostics import GATE, Gate, Verdict, check, import_statistics
+from bayesfric.inference.diagnostics import GATE, Gate, Verdict, check_folds, import_statistics
 from bayesfric.inference.init import Init, pending_chain_starts
 from bayesfric.model import Program
 
@@ -425,9 +424,17 @@ class NutsEngine:
         return jax.tree.map(lambda *xs: np.concatenate(xs)[:n_folds], *per_batch)
 
     def _verdicts(self, samples: dict, stats: dict) -> list[Verdict]:
-        n_folds = stats["diverging"].shape[0]
-        return [self._verdict({k: v[i] for k, v in samples.items()}, stats["diverging"][i], stats["energy"][i])
-                for i in range(n_folds)]
+        """The gate of every fold, in one pass of arviz-stats over a ``fold`` dimension."""
+        lead = ("fold", "chain", "draw")
+
+        def dims(name: str, value: np.ndarray) -> tuple[str, ...]:
+            rest = ["group"] if name in ("group_z", "group_offset") else [
+                f"{name}_dim_{i}" for i in range(value.ndim - 3)]
+            return lead + tuple(rest)
+
+        posterior = xr.Dataset({k: (dims(k, v), np.asarray(v)) for k, v in samples.items()})
+        sample_stats = xr.Dataset({k: (lead, np.asarray(stats[k])) for k in ("diverging", "energy")})
+        return check_folds(posterior, sample_stats, gate=self.gate)
 
     def fit(self, ds: xr.Dataset, seed: int | None = None) -> xr.DataTree:
         """The full fit: the all-true mask of this engine, assembled into the fit's DataTree.
@@ -458,12 +465,6 @@ class NutsEngine:
     def _starts(self) -> jax.Array:
         """The chains' starting points ``(chains, dim)``: a warm start's, or the cold ones."""
         return self._cold_starts() if self._init_z is None else self._init_z
-
-    def _verdict(self, samples: dict, diverging: np.ndarray, energy: np.ndarray) -> Verdict:
-        dims = {k: ["group"] for k in ("group_z", "group_offset") if k in samples}
-        dt = arviz_base.from_dict({"posterior": samples,
-                           "sample_stats": {"diverging": diverging, "energy": energy}}, dims=dims)
-        return check(dt, gate=self.gate)
 
 
 def _vmap_or_squeeze(fn: Any) -> Any:
