@@ -2,17 +2,18 @@
 
 On CPUs, XLA evaluates a float64 ``a ** p`` with a real exponent through a scalar ``pow`` per
 element, and its gradient needs another ``pow`` and a ``log``; ``exp(p · log a)`` is one
-vectorised ``exp`` and ``log``. Value and gradient of ``(c + x_i) ** x_j`` over 111 points
-cost 2.9 µs per power against 0.6 µs, and where the base is data divided by a parameter,
-``exp(p · (log x − log s))`` lets XLA fold ``log x`` into a constant (data are constants of
-the compiled sampler): 0.25 µs (``benchmarks/bench_gradient.py``). A fit spends nearly all
-its sampling time in this gradient: on robot_joint, joint_tribological's took 5.4 µs per
-evaluation with ``**`` and 2.0 µs with these functions.
+vectorised ``exp`` and ``log``. Value and gradient of ``(c + x) ** p`` over the 111 robot_joint
+speeds cost 2.8 µs against 0.66 µs as ``exp(p · log(c + x))``, and where the base is data
+divided by a parameter, ``exp(p · (log x − log s))`` lets XLA fold ``log x`` into a constant
+(data are constants of the compiled sampler): ``(|v| / s) ** p`` 2.8 µs against 0.28 µs. A fit
+spends nearly all its sampling time in the log density's gradient: robot_joint's
+joint_tribological took 5.5 µs per evaluation with ``**`` and 1.6 µs with these functions
+(``benchmarks/bench_gradient.py``, 2026-11-24, medians of 3).
 
 An exponent known when the program is traced (a Python number: a declared constant, a fixed
 parameter, a literal such as 1.5) that is a multiple of 1/2 is computed exactly from ``sqrt``
-and multiplications instead (``a ** 1.5`` as ``sqrt(a) ** 3``): 0.19 µs against 0.81 µs through
-exp/log and 1.3 µs as ``pow``; an exponent of 0 or 1 then costs nothing, as ``pow`` with that
+and multiplications instead (``a ** 1.5`` as ``sqrt(a) ** 3``): 0.20 µs against 0.82 µs through
+exp/log and 1.4 µs as ``pow``; an exponent of 0 or 1 then costs nothing, as ``pow`` with that
 constant does after XLA's simplification.
 
 Accuracy: the relative error of ``exp(p · log a)`` is about ``|p · log a|`` units in the last

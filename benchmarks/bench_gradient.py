@@ -12,7 +12,8 @@ compiled ``fori_loop`` (as the sampler chains them), in two parts:
 1. **The power term alone**, on the robot_joint speeds (111 points, float64): ``(c + x)**p``,
    ``exp(p · log(c + x))`` (:func:`bayesfric.numerics.positive_power`), and ``(|q̇| / s)**p``
    against ``exp(p · (log|q̇| − log s))`` (:func:`bayesfric.numerics.power_ratio`, whose
-   ``log|q̇|`` XLA folds into a constant).
+   ``log|q̇|`` XLA folds into a constant); and with the exponent a constant 1.5: ``**``,
+   exp/log, and ``positive_power`` (``sqrt(a) ** 3``).
 2. **Every law of the seed studies**, each on its study's data, noise model and priors, at the
    first chain's prior-median start, in two child processes: one with ``bayesfric.numerics`` as
    shipped, one with its two functions replaced by the ``a ** p`` formulation they replaced
@@ -115,6 +116,10 @@ def _power_terms(evals: int) -> dict[str, float]:
         "positive_power(c + x, p)": lambda x: jnp.sum(positive_power(speed + jnp.exp(x[0]), x[1])),
         "(|v| / s)**p": lambda x: jnp.sum((speed / jnp.exp(x[0])) ** x[1]),
         "power_ratio(|v|, s, p)": lambda x: jnp.sum(power_ratio(speed, jnp.exp(x[0]), x[1])),
+        # an exponent fixed at trace time, a multiple of 1/2: sqrt and multiplications
+        "(c + x)**1.5": lambda x: jnp.sum((speed + jnp.exp(x[0])) ** 1.5),
+        "exp(1.5 log(c + x))": lambda x: jnp.sum(jnp.exp(1.5 * jnp.log(speed + jnp.exp(x[0])))),
+        "positive_power(c + x, 1.5)": lambda x: jnp.sum(positive_power(speed + jnp.exp(x[0]), 1.5)),
     }
     return {name: _per_eval_us(jax.value_and_grad(fn), x0, evals) for name, fn in terms.items()}
 

@@ -127,3 +127,22 @@ def test_bridge_rejects_a_fit_without_the_programs_sites(simulator):
     other = build_program(law, ds, priors=priors)  # sampled sigma: a site the fit does not have
     with pytest.raises(ValueError, match="sigma"):
         bridge_log_evidence(other, dt)
+
+
+def test_mode_search_stops_once_two_starts_agree_and_keeps_the_better_mode():
+    """The L-BFGS starts run in turn until two reach the best optimum found so far."""
+    from bayesfric.compare.importance import _mode
+
+    def neg_and_grad(x):  # two wells: -log joint 1.0 at x = -2, 0.0 at x = +2
+        x = np.asarray(x)
+        left, right = 1.0 + (x + 2) ** 2, (x - 2) ** 2
+        f = np.minimum(left, right)
+        g = np.where(left < right, 2 * (x + 2), 2 * (x - 2))
+        return f.sum(), g
+
+    mode, f, _, used = _mode(neg_and_grad, np.array([[-2.5], [-1.5], [2.5], [1.5], [3.0]]))
+    # the first two agree on the worse well: the search stops there (documented limitation)
+    assert used == 2 and mode[0] == pytest.approx(-2, abs=1e-4) and f == pytest.approx(1.0, abs=1e-6)
+    mode, f, _, used = _mode(neg_and_grad, np.array([[-2.5], [2.5], [-1.5], [1.5], [3.0]]))
+    # -2.5 and -1.5 agree, but only on a worse optimum than +2.5's: the fourth start confirms +2
+    assert used == 4 and mode[0] == pytest.approx(2, abs=1e-4) and f == pytest.approx(0.0, abs=1e-6)
