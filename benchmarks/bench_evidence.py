@@ -4,10 +4,11 @@ Usage: .venv/bin/python benchmarks/bench_evidence.py [--studies robot_joint dahl
        [--smc]
 
 For every law of each named study (the study's data, selection, priors and noise): one full NUTS
-fit with the study's sampler settings, then bridge sampling on its draws, then importance
-sampling from the Laplace-t proposal (independent of the draws), optionally tempered SMC (the
-opt-in reference). Prints wall times, the ratio of each estimator to the fit, the estimates with
-their errors and whether the pair agrees. Writes ``reports/benchmarks/bench_evidence.json``.
+fit with the study's sampler settings and the law's own mass matrix, then bridge sampling on its
+draws, then importance sampling from the Laplace-t proposal (independent of the draws),
+optionally tempered SMC (the opt-in reference). Prints wall times, the ratio of each estimator
+to the fit, the estimates with their errors and whether the pair agrees.
+Writes ``reports/benchmarks/bench_evidence.json``.
 Target (engine issue): bridge + importance ≤ 1.0 × the fit on every shipped law.
 """
 
@@ -23,6 +24,7 @@ from bayesfric.datasets import load_dataset, resolve, select
 from bayesfric.inference import SAMPLERS, release_compiled_code
 from bayesfric.model import build_program
 from bayesfric.study import STUDIES_DIR, load_study
+from bayesfric.study.config import sampler_settings
 
 
 def _timed(fn, *args, **kwargs):
@@ -34,14 +36,14 @@ def _timed(fn, *args, **kwargs):
 def bench_study(name: str, laws: list[str] | None, smc: bool) -> list[dict]:
     study = load_study(STUDIES_DIR / f"{name}.toml")
     ds = select(load_dataset(resolve(study.dataset)), study.select)
-    settings = {k: study.sampler[k] for k in ("draws", "tune", "chains") if k in study.sampler}
+    settings = sampler_settings(study.sampler)
     rows = []
     for spec in study.laws:
         if laws and spec.name not in laws:
             continue
         program = build_program(spec.build(), ds, priors=spec.priors, noise=study.noise,
                                 constants=spec.constants)
-        dt, t_fit = _timed(SAMPLERS["nuts"], program, ds, seed=0, **settings)
+        dt, t_fit = _timed(SAMPLERS["nuts"], program, ds, seed=0, **spec.settings(settings))
         bridge, t_bridge = _timed(compare.bridge_log_evidence, program, dt, seed=0)
         importance, t_is = _timed(compare.laplace_is_log_evidence, program, seed=0)
         row = {"study": name, "law": spec.name, "fit_s": t_fit, "bridge_s": t_bridge, "is_s": t_is,
