@@ -53,6 +53,9 @@ K_HAT_LIMIT = 0.7
 #: Two L-BFGS optima within this many nats of -log joint are the same mode (:func:`_mode`).
 AGREE_NAT = 0.01
 
+#: What the L-BFGS objective returns where the density or its gradient is not finite.
+_NOT_FINITE = 1e300
+
 
 def _mode(value_and_grad, starts: np.ndarray, agree_nat: float = AGREE_NAT) -> tuple[np.ndarray, float, int, int]:
     """Best L-BFGS optimum of ``-log joint`` over the starting points (finite ones only).
@@ -72,14 +75,14 @@ def _mode(value_and_grad, starts: np.ndarray, agree_nat: float = AGREE_NAT) -> t
         f, g = value_and_grad(jnp.asarray(x))
         f, g = float(f), np.asarray(g, dtype=float)
         if not np.isfinite(f) or not np.all(np.isfinite(g)):
-            return 1e300, np.zeros_like(g)
+            return _NOT_FINITE, np.zeros_like(g)
         return f, g
 
     for x0 in starts:
         res = minimize(fun, np.asarray(x0, dtype=float), jac=True, method="L-BFGS-B",
                        options={"maxiter": 2000, "gtol": 1e-8})
         n_eval += int(res.nfev)
-        if not np.isfinite(res.fun) or res.fun >= 1e300:
+        if not np.isfinite(res.fun) or res.fun >= _NOT_FINITE:
             continue
         optima.append(float(res.fun))
         if res.fun < best_f:
