@@ -28,6 +28,8 @@ class Checks:
     loo_pit_ok: bool = True  # False: the LOO-PIT ECDF leaves its simultaneous band (miscalibrated)
     ci_prob: float = 0.94  # coverage of that band
     psense: tuple[str, ...] = ()  # parameters power-scaling flags as prior- or likelihood-sensitive
+    pit: np.ndarray | None = field(default=None, compare=False, repr=False)  # the LOO-PIT values
+    pit_shape: Any = None  # bayesfric.compare.PitShape: which way the PIT departs from uniform
 
     @property
     def prior_sensitivity(self) -> str:
@@ -60,6 +62,7 @@ class LawOutcome:
     loo: Any = None  # bayesfric.compare.LooResult
     cv: Mapping[str, Any] = field(default_factory=dict)  # scheme label -> bayesfric.compare.CVResult
     penalty: Mapping[str, float] = field(default_factory=dict)  # blocked label -> nats per held-out point
+    penalty_se: Mapping[str, float] = field(default_factory=dict)  # blocked label -> its standard error
     evidence: Mapping[str, Any] = field(default_factory=dict)  # estimator -> bayesfric.compare.Evidence
     agreement: Any = None  # bayesfric.compare.EstimatorAgreement of bridge and importance
     checks: Checks | None = None
@@ -110,8 +113,9 @@ class LawOutcome:
         if not self.evidence_agree:
             out.append(_disagreement(self.agreement))
         if self.checks is not None and not self.checks.loo_pit_ok:
-            out.append(f"LOO-PIT outside the {self.checks.ci_prob:.0%} band (KS p = {self.checks.loo_pit_pvalue:.3f}): "
-                       "miscalibrated")
+            shape = self.checks.pit_shape
+            out.append(f"LOO-PIT outside the {self.checks.ci_prob:.0%} band (KS p = {self.checks.loo_pit_pvalue:.2g}): "
+                       "miscalibrated" + (f", {shape.label}" if shape is not None else ""))
         return out
 
 

@@ -33,7 +33,7 @@ if TYPE_CHECKING:
     from bayesfric.study.outcome import StudyOutcome
 
 __all__ = ["METRICS", "COLUMNS", "Criterion", "score_table", "best", "passed_over", "ranking_order", "criteria",
-           "value"]
+           "value", "fold_failure"]
 
 #: metric -> (display name, higher is better, unit)
 METRICS = {
@@ -78,17 +78,32 @@ def _loo_rows(w, gate) -> list[tuple]:
     return [(w.name, "elpd_loo", "", loo.elpd, loo.se, ok, why)]
 
 
+def fold_failure(cv) -> str:
+    """Why a cross-validation result may not be ranked: which folds failed the gate and the first
+    problem of each (``"fold 2 failed the diagnostics gate (R-hat 1.05 > 1.01)"``); ``""`` when
+    every fold passed."""
+    failed = cv.failed_folds
+    if not failed:
+        return ""
+    problems = [f"fold {i + 1}" + (f": {cv.verdicts[i].problems[0]}" if cv.verdicts[i].problems else "")
+                for i in failed]
+    return (f"{'fold' if len(failed) == 1 else 'folds'} {', '.join(str(i + 1) for i in failed)} of "
+            f"{len(cv.verdicts)} failed the diagnostics gate ({'; '.join(problems)})")
+
+
 def _cv_rows(w, gate, blocked: list[str]) -> list[tuple]:
     rows = []
     for label, cv in w.cv.items():
         ok, why = gate
         if ok and not cv.reliable:
-            ok, why = False, f"folds {cv.failed_folds} failed the diagnostics gate"
+            ok, why = False, fold_failure(cv)
         rows.append((w.name, "elpd_cv", label, cv.elpd, cv.se, ok, why))
         if label in blocked and label in w.penalty:
-            # No standard error: the penalty is a difference of two estimates on the same points,
-            # whose errors are strongly correlated (approximate: reported as NaN, not guessed).
-            rows.append((w.name, "penalty", label, w.penalty[label], math.nan, ok, why))
+            # The penalty is a mean of paired pointwise differences (LOO minus blocked, the same
+            # held-out points): its standard error is that of the differences' mean
+            # (bayesfric.compare.Penalty), NaN when it was not computed.
+            se = w.penalty_se.get(label, math.nan)
+            rows.append((w.name, "penalty", label, w.penalty[label], se, ok, why))
     return rows
 
 
@@ -142,10 +157,12 @@ def value(table: pd.DataFrame, law: str, metric: str, scheme: str = "") -> pd.Se
     return None if rows.empty else rows.iloc[0]
 
 
-def best(table: pd.DataFrame, metric: str, scheme: str = "") -> str | None:
-    """The best reliable law under ``metric`` and ``scheme`` (lowest penalty, highest otherwise)."""
+def best(table: pd.DataFrame, metric: str, scheme: str = "", counted: bool = False) -> str | None:
+    """The best reliable law under ``metric`` and ``scheme`` (lowest penalty, highest otherwise);
+    ``counted``: the best of every scored law, reliable or not (who would win if the laws that
+    may not be ranked were counted)."""
     rows = _select(table, metric, scheme)
-    rows = rows[rows["reliable"]]
+    rows = rows if counted else rows[rows["reliable"]]
     if rows.empty:
         return None
     higher = METRICS[metric][1]
@@ -164,7 +181,12 @@ def passed_over(table: pd.DataFrame, metric: str, scheme: str = "") -> list[str]
 
 
 def ranking_order(table: pd.DataFrame, laws: list[str], criterion: Criterion | None) -> list[str]:
-    """``laws`` ordered by ``criterion``: reliable rows best first, then unreliable, then unscored."""
+    """``laws`` ordered by ``criterion``, best first, then the laws it did not score.
+
+    A law whose row may not be ranked (a fold failed the gate, ...) keeps the place its score
+    gives it: a failure never moves a law silently; the report marks it there with the reason
+    (:mod:`bayesfric.report.ranking`) and numbers only the ranked laws.
+    """
     if criterion is None:
         return list(laws)
     rows = _select(table, criterion.metric, criterion.scheme).set_index("law")
@@ -172,8 +194,8 @@ def ranking_order(table: pd.DataFrame, laws: list[str], criterion: Criterion | N
 
     def key(name: str) -> tuple:
         if name not in rows.index:
-            return (2, 0.0)
-        return (0 if rows.loc[name, "reliable"] else 1, sign * float(rows.loc[name, "estimate"]))
+            return (1, 0.0)
+        return (0, sign * float(rows.loc[name, "estimate"]))
 
     return sorted(laws, key=key)
 

@@ -187,7 +187,8 @@ def _compute_rest(job: LawJob, unit: Unit, fit: xr.DataTree) -> tuple[dict, dict
         prior = compare.fit_prior_draws(fit, program.law.params)  # the fit's 500 prior draws
         return {"implausible": compare.prior_predictive_check(program, seed=job.seed, prior=prior).implausible,
                 "ks_pvalue": pit.ks_pvalue, "within_band": bool(pit.within_band), "ci_prob": pit.ci_prob,
-                "psense": [f"{i} ({d})" for i, d in zip(sens.index, sens["diagnosis"], strict=True) if d != "-"]}, {}
+                "psense": [f"{i} ({d})" for i, d in zip(sens.index, sens["diagnosis"], strict=True) if d != "-"]}, \
+            {"pit": pit.pit}  # the LOO-PIT values: the report names their shape and draws them
     raise ValueError(f"unknown unit stage {unit.stage!r}")
 
 
@@ -237,15 +238,17 @@ def assemble(fit: xr.DataTree, fit_file, units: list[Unit], payloads: dict[str, 
         record, arrays = unpack_record(by_stage["loo"])
         loo = loo_from_values(fit, arrays["elpd_i"], record["handling"], record["refit_failed"], record["refitted"])
     cv = {u.label: _cv(payloads[u.key]) for u in units if u.stage == "cv" and u.key in payloads}
-    penalty = {label: compare.extrapolation_penalty(loo, result).per_point for label, result in cv.items()
-               if kinds[label] == "blocked" and loo is not None}
+    penalties = {label: compare.extrapolation_penalty(loo, result) for label, result in cv.items()
+                 if kinds[label] == "blocked" and loo is not None}
     evidence = {name: _evidence(by_stage[name]) for name in ("bridge", "importance", "SMC") if name in by_stage}
     # Two estimators that share only the density (bench_evidence.py); never averaged.
     agreement = (compare.compare_estimators(evidence["bridge"], evidence["importance"])
                  if {"bridge", "importance"} <= set(evidence) else None)
-    checks = _checks(unpack_record(by_stage["checks"])[0]) if "checks" in by_stage else None
+    checks = _checks(*unpack_record(by_stage["checks"])) if "checks" in by_stage else None
     return LawOutcome(law=law_of_fit(fit.attrs), fit=fit, fit_file=fit_file, verdict=compare.verdict_of(fit),
-                      loo=loo, cv=cv, penalty=penalty, evidence=evidence, agreement=agreement, checks=checks,
+                      loo=loo, cv=cv, penalty={k: p.per_point for k, p in penalties.items()},
+                      penalty_se={k: p.se for k, p in penalties.items()}, evidence=evidence, agreement=agreement,
+                      checks=checks,
                       skipped=tuple(u.label for u in skipped), failed_fits=failed_fits)
 
 
@@ -257,6 +260,8 @@ def _cv(payload: bytes) -> compare.CVResult:
                             settings=record["settings"])
 
 
-def _checks(record: dict) -> Checks:
+def _checks(record: dict, arrays: dict) -> Checks:
+    pit = arrays.get("pit")
     return Checks(prior_implausible=record["implausible"], loo_pit_pvalue=record["ks_pvalue"],
-                  loo_pit_ok=bool(record["within_band"]), ci_prob=record["ci_prob"], psense=tuple(record["psense"]))
+                  loo_pit_ok=bool(record["within_band"]), ci_prob=record["ci_prob"], psense=tuple(record["psense"]),
+                  pit=pit, pit_shape=compare.pit_shape(pit) if pit is not None else None)

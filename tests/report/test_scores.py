@@ -56,9 +56,11 @@ def test_winner_skips_unreliable_fold_and_names_it(study, tmp_path):
     assert sc.best(table, "elpd_loo") == "coulomb_viscous" and sc.passed_over(table, "elpd_loo") == []
     assert sc.best(table, "elpd_cv", LABEL) == "coulomb_viscous"
     assert sc.passed_over(table, "elpd_cv", LABEL) == ["coulomb"]
-    assert "failed the diagnostics gate" in sc.value(table, "coulomb", "elpd_cv", LABEL)["reason"]
-    assert sc.ranking_order(table, ["coulomb", "coulomb_viscous"], sc.Criterion("elpd_cv", LABEL, "x")) == [
-        "coulomb_viscous", "coulomb"]  # the unreliable higher score sinks below
+    assert sc.value(table, "coulomb", "elpd_cv", LABEL)["reason"] == (
+        "fold 1 of 1 failed the diagnostics gate (fold 1: R-hat 1.2 > 1.01)")  # which fold and why
+    assert sc.ranking_order(table, ["coulomb_viscous", "coulomb"], sc.Criterion("elpd_cv", LABEL, "x")) == [
+        "coulomb", "coulomb_viscous"]  # the unreliable higher score keeps its place (issue 29)
+    assert sc.best(table, "elpd_cv", LABEL, counted=True) == "coulomb"  # the winner if it were counted
 
 
 def test_evidence_disagreement_keeps_a_law_out_of_the_evidence_ranking(study, tmp_path):
@@ -90,3 +92,13 @@ def test_penalty_best_is_the_lowest(study, tmp_path):
     a.penalty[LABEL], b.penalty[LABEL] = 2.0, 0.1
     table = sc.score_table(StudyOutcome(study=study, data=None, schemes=[LABEL], blocked=[LABEL], laws=[a, b]))
     assert sc.best(table, "penalty", LABEL) == "coulomb_viscous"
+
+
+def test_penalty_carries_its_standard_error(study, tmp_path):
+    """The penalty's se is the paired differences' (LOO − blocked on the same points), not NaN."""
+    from dataclasses import replace
+
+    a = law(tmp_path, "coulomb", -1.0, -5.0)
+    a = replace(a, penalty_se={LABEL: 0.12})
+    table = sc.score_table(StudyOutcome(study=study, data=None, schemes=[LABEL], blocked=[LABEL], laws=[a]))
+    assert sc.value(table, "coulomb", "penalty", LABEL)["se"] == 0.12
