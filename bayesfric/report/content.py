@@ -148,14 +148,16 @@ def _claims(outcome: StudyOutcome) -> Table | None:
             interval = "90 % interval" if c.kind != "score" else "± 1 se"
             says = f"{show(r.value)} ({interval} {show(r.lo)} … {show(r.hi)})" if math.isfinite(r.lo) else show(r.value)
         verdict = r.verdict + (f": {r.why}" if r.why else "")
-        rows.append([c.text, c.source, claimed, says, verdict])
+        rows.append([c.text, c.source, c.basis_label, claimed, says, verdict])
         if r.verdict != "reproduced":
             warn.append(i)
     caption = ("Each claim is declared in the study file ([[claims]]) and computed from the posterior: ratios are "
-               "mean-function predictions (posterior median, 90 % interval); the claimed range is the study "
-               "author's reading of the paper. Verdict: reproduced when the posterior median (or the winner) is "
-               "in the claimed range.")
-    return Table(caption, ["claim", "source", "claimed", "posterior says", "verdict"], rows, warn)
+               "mean-function predictions of the fitted law (posterior median, 90 % interval); the claimed range is "
+               "the study author's reading of the paper. Verdict: reproduced when the posterior median (or the "
+               "winner) is in the claimed range. Basis: a \"pipeline check, not evidence\" is a statement the "
+               "reconstructed data were built to satisfy — its verdict checks the reconstruction and the pipeline, "
+               "not the paper; \"evidence\" was not used to build the data.")
+    return Table(caption, ["claim", "source", "basis", "claimed", "posterior says", "verdict"], rows, warn)
 
 
 def _extrapolation(outcome: StudyOutcome, table, order) -> Table | None:
@@ -221,9 +223,20 @@ def _data_lines(outcome: StudyOutcome) -> list[str]:
 
 
 def _claim_warnings(outcome: StudyOutcome) -> list[fd.Finding]:
-    bad = [r.claim.text for r in outcome.claims if r.verdict == "not reproduced"]
-    return [fd.plain(f"{len(bad)} claim(s) of the source paper NOT reproduced by the posterior (see the claims "
-                     "section).", warning=True)] if bad else []
+    """The claims' verdicts in the summary: evidence and pipeline checks counted apart."""
+    out = []
+    for pipeline, what in ((False, "claim(s) of the source paper"),
+                           (True, "pipeline check(s) (statements the reconstructed data were built to satisfy)")):
+        bad = [r for r in outcome.claims if r.verdict == "not reproduced" and r.claim.pipeline_check == pipeline]
+        if bad:
+            out.append(fd.plain(f"{len(bad)} {what} NOT reproduced by the posterior (see the claims section).",
+                                warning=True))
+    checks = sum(r.claim.pipeline_check for r in outcome.claims)
+    if checks:
+        out.append(fd.plain(f"{checks} of the {len(outcome.claims)} claims are pipeline checks, not evidence: their "
+                            "numbers were used to build the reconstructed data, so reproducing them checks the "
+                            "reconstruction and the pipeline, not the paper."))
+    return out
 
 
 def build(outcome: StudyOutcome, figures: list[FigureRef], sizing_figures: dict[int, str]) -> Report:

@@ -133,7 +133,9 @@ def _write_csv(path: Path, records: list[dict]) -> None:
 
 
 def _claim_records(out: StudyOutcome) -> list[dict]:
-    return [{"claim": r.claim.text, "source": r.claim.source, "kind": r.claim.kind, "law": r.claim.law,
+    return [{"claim": r.claim.text, "source": r.claim.source, "basis": r.claim.basis or "evidence",
+             "evidence": not r.claim.pipeline_check, "kind": r.claim.kind, "law": r.claim.law,
+             "reference": r.claim.reference,
              "expect_low": r.claim.expect[0], "expect_high": r.claim.expect[1], "value": r.value, "low": r.lo,
              "high": r.hi, "winner": r.winner, "verdict": r.verdict, "why": r.why} for r in out.claims]
 

@@ -16,9 +16,25 @@ A study's ``[[claims]]`` entries state what the paper says in a small declarativ
     ``expect`` its claimed range in SI units.
 ``score``
     A row of the law × metric table (:mod:`bayesfric.study.scores`): ``law``, ``metric``,
-    ``scheme``; ``expect`` the claimed range of its estimate.
+    ``scheme``; ``expect`` the claimed range of its estimate. With ``reference``, the claim is
+    about the difference ``law − reference`` of that score (e.g. "i = 2 fits are less accurate
+    than i = 1": ``expect = [-inf, 0]``); for ``elpd_loo`` and ``elpd_cv`` its standard error is
+    the paired one, ``sqrt(n · var(elpd_i(law) − elpd_i(reference)))`` over the points both score.
 ``best``
     ``law`` is the best reliable law under ``metric`` / ``scheme``.
+
+``law`` (and ``reference``) name a candidate of the study by its entry's label, so a claim may
+be about a variant (``fixed``, ``offset``, ``add``, ``asymmetric``). Predictions go through the
+fit's own program: the law, variant and constants that were fitted, rebuilt from the fit's
+provenance (:func:`bayesfric.compare.refit.program_from_fit`), never a law looked up again by
+its base name.
+
+``basis`` says what a verdict can mean. ``"pipeline check"``: the claim's number was used to
+build the data set (a RECONSTRUCTED data set calibrated to the paper's statements, see its
+README), so "reproduced" checks the reconstruction and the pipeline, not the paper; the
+reports mark it "pipeline check, not evidence". ``"evidence"``: the number was not used to
+build the data. On reconstructed data every claim must say which (:func:`basis_problem`, checked
+when the study runs, against the data set's provenance); elsewhere it defaults to evidence.
 
 Each claim gets a :class:`ClaimResult`: the posterior median and 90 % equal-tailed interval (or
 the estimate ± standard error), and a verdict: ``reproduced`` when the posterior median (or
@@ -40,18 +56,22 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from bayesfric.laws import get_law
+from bayesfric.laws import Law, get_law
 from bayesfric.sizing.points import SizingError, parse_value
 from bayesfric.study import scores as sc
 
 if TYPE_CHECKING:
     import pandas as pd
+    import xarray as xr
 
     from bayesfric.study.outcome import StudyOutcome
 
-__all__ = ["KINDS", "Claim", "ClaimResult", "make_claim", "check_claim", "evaluate_claims", "VERDICTS"]
+__all__ = ["KINDS", "BASES", "Claim", "ClaimResult", "make_claim", "check_claim", "basis_problem", "evaluate_claims",
+           "mean_draws", "VERDICTS"]
 
 KINDS = ("ratio", "parameter", "score", "best")
+#: ``basis`` values: whether the claim's number was used to build the data (a pipeline check) or not.
+BASES = ("evidence", "pipeline check")
 VERDICTS = ("reproduced", "not reproduced", "not testable")
 #: Equal-tailed posterior interval shown with each claim.
 INTERVAL = (0.05, 0.95)
@@ -67,7 +87,7 @@ class ClaimError(ValueError):
 
 @dataclass(frozen=True)
 class Claim:
-    """A parsed ``[[claims]]`` entry (points in SI units)."""
+    """A parsed ``[[claims]]`` entry (points in SI units; ``basis`` None: not declared)."""
 
     text: str
     source: str
@@ -83,6 +103,17 @@ class Claim:
     parameter: str = ""
     metric: str = ""
     scheme: str = ""
+    basis: str | None = None
+
+    @property
+    def pipeline_check(self) -> bool:
+        """The claim's number was used to build the data: a verdict checks the pipeline, not the paper."""
+        return self.basis == "pipeline check"
+
+    @property
+    def basis_label(self) -> str:
+        """How the reports mark the claim."""
+        return "pipeline check, not evidence" if self.pipeline_check else "evidence"
 
 
 @dataclass(frozen=True)
@@ -110,33 +141,63 @@ def _points(table: Mapping[str, Any], key: str) -> dict[str, float]:
     return out
 
 
-def make_claim(entry: Mapping[str, Any]) -> Claim:
+def _law(name: str, key: str, laws: Mapping[str, Law] | None) -> Law:
+    """The study's entry labelled ``name`` (a variant, perhaps), else the registered law."""
+    if laws is not None and name in laws:
+        return laws[name]
+    try:
+        return get_law(name)
+    except KeyError as exc:
+        known = f" (candidates of the study: {', '.join(laws)})" if laws is not None else ""
+        raise ClaimError(key, f"{exc.args[0]}{known}") from None
+
+
+_NEEDS = {"ratio": ("law", "at"), "parameter": ("law", "parameter"), "score": ("law", "metric"),
+          "best": ("law", "metric")}
+_ALLOWED = {"ratio": {"at", "minus", "fixed", "reference", "reference_at", "reference_minus"},
+            "parameter": {"parameter"}, "score": {"metric", "scheme", "reference"}, "best": {"metric", "scheme"}}
+_KIND_KEYS = ("at", "minus", "fixed", "reference", "reference_at", "reference_minus", "parameter", "metric", "scheme")
+
+
+def _check_keys(entry: Mapping[str, Any]) -> None:
+    """Keys required for the entry's kind, keys of another kind, the claimed range, the basis."""
+    kind = entry["kind"]
+    for key in _NEEDS[kind]:
+        if not entry.get(key):
+            raise ClaimError(key, f"is required for kind {kind!r}")
+    allowed = _ALLOWED[kind]
+    for key in _KIND_KEYS:
+        if entry.get(key) and key not in allowed:
+            raise ClaimError(key, f"does not apply to kind {kind!r} (keys of {kind!r}: {', '.join(sorted(allowed))})")
+    expect = entry.get("expect")
+    if kind != "best" and (expect is None or len(expect) != 2 or not expect[0] <= expect[1]):
+        raise ClaimError("expect", f"kind {kind!r} needs the claimed range as [low, high] with low ≤ high, "
+                                   f"got {expect!r}")
+    if entry.get("basis") is not None and entry["basis"] not in BASES:
+        raise ClaimError("basis", f"must be one of {', '.join(repr(b) for b in BASES)}, got {entry['basis']!r}")
+
+
+def make_claim(entry: Mapping[str, Any], laws: Mapping[str, Law] | None = None) -> Claim:
     """A :class:`Claim` from a schema-parsed entry; data-independent checks of its keys.
+
+    Parameters
+    ----------
+    entry : mapping
+        The parsed ``[[claims]]`` entry.
+    laws : mapping, optional
+        The study's candidates by label (variants built); without it, ``law`` and ``reference``
+        are registered laws.
 
     Raises
     ------
     ClaimError
         A key missing for the kind or given for another kind, an unknown law or parameter, a
-        reversed ``expect`` range, a point that cannot be read.
+        reversed ``expect`` range, a point that cannot be read, an unknown basis.
     """
-    kind = entry["kind"]
-    needs = {"ratio": ("law", "at"), "parameter": ("law", "parameter"), "score": ("law", "metric"),
-             "best": ("law", "metric")}[kind]
-    for key in needs:
-        if not entry.get(key):
-            raise ClaimError(key, f"is required for kind {kind!r}")
-    allowed = {"ratio": {"at", "minus", "fixed", "reference", "reference_at", "reference_minus"},
-               "parameter": {"parameter"}, "score": {"metric", "scheme"}, "best": {"metric", "scheme"}}[kind]
-    for key in ("at", "minus", "fixed", "reference", "reference_at", "reference_minus", "parameter", "metric",
-                "scheme"):
-        if entry.get(key) and key not in allowed:
-            raise ClaimError(key, f"does not apply to kind {kind!r} (keys of {kind!r}: {', '.join(sorted(allowed))})")
-    expect = entry.get("expect")
-    if kind != "best":
-        if expect is None or len(expect) != 2 or not expect[0] <= expect[1]:
-            raise ClaimError("expect", f"kind {kind!r} needs the claimed range as [low, high] with low ≤ high, "
-                                       f"got {expect!r}")
-    law = get_law(entry["law"])
+    _check_keys(entry)
+    kind, expect = entry["kind"], entry.get("expect")
+    law = _law(entry["law"], "law", laws)
+    reference = _law(entry["reference"], "reference", laws).name if entry.get("reference") else ""
     if kind == "parameter" and entry["parameter"] not in law.params:
         raise ClaimError("parameter", f"law {law.name!r} has no parameter {entry['parameter']!r} "
                                       f"(parameters: {', '.join(law.params)})")
@@ -151,16 +212,17 @@ def make_claim(entry: Mapping[str, Any]) -> Claim:
         text=entry["text"], source=entry["source"], kind=kind, law=law.name,
         expect=(float(expect[0]), float(expect[1])) if expect is not None else (math.nan, math.nan),
         at=at, minus=minus, fixed={k: float(v) for k, v in (entry.get("fixed") or {}).items()},
-        reference=entry.get("reference") or "",
+        reference=reference,
         reference_at=_points(entry.get("reference_at") or {}, "reference_at") or at,
         reference_minus=_points(entry.get("reference_minus") or {}, "reference_minus") or minus,
         parameter=entry.get("parameter") or "", metric=entry.get("metric") or "", scheme=entry.get("scheme") or "",
+        basis=entry.get("basis"),
     )
 
 
-def check_claim(claim: Claim, laws: list[str], schemes: list[str], estimators: list[str]) -> None:
-    """Checks of a claim against the study: its laws are candidates, its points give every input
-    the laws read, its scheme exists.
+def check_claim(claim: Claim, laws: Mapping[str, Law], schemes: list[str], estimators: list[str]) -> None:
+    """Checks of a claim against the study: its laws are candidates (``laws``: label -> law as
+    built for the study), its points give every input the laws read, its scheme exists.
 
     Raises
     ------
@@ -171,14 +233,14 @@ def check_claim(claim: Claim, laws: list[str], schemes: list[str], estimators: l
             raise ClaimError(key, f"{name!r} is not a candidate law of the study ({', '.join(laws)})")
     if claim.kind == "ratio":
         for key, name in (("law", claim.law), ("reference", claim.reference)):
-            if name and get_law(name).trajectory:
+            if name and laws[name].trajectory:
                 raise ClaimError(key, f"law {name!r} is a trajectory (stateful) law: it has no value at a point")
         for key, name, points in (("at", claim.law, claim.at), ("minus", claim.law, claim.minus),
                                   ("reference_at", claim.reference or claim.law, claim.reference_at),
                                   ("reference_minus", claim.reference or claim.law, claim.reference_minus)):
             if key.endswith("minus") and not points:
                 continue
-            missing = [q for q in get_law(name).operating_inputs if q not in points]
+            missing = [q for q in laws[name].operating_inputs if q not in points]
             if missing:
                 raise ClaimError(key, f"law {name!r} reads {', '.join(missing)}; give it in {key}")
     if claim.metric:
@@ -189,24 +251,52 @@ def check_claim(claim: Claim, laws: list[str], schemes: list[str], estimators: l
                                        f"({', '.join(repr(k) for k in known) or 'none'})")
 
 
-def _mean_draws(fit, points: Mapping[str, float], fixed: Mapping[str, float]) -> np.ndarray:
-    """Mean-function draws of a fit's law at one point; ``fixed`` parameters/constants replace
-    the posterior's (a fully fixed law gives the same value for every draw)."""
-    law = get_law(fit.attrs["law"])
+def basis_problem(claim: Claim, provenance: str) -> str | None:
+    """Why a claim cannot stand on data of this ``provenance`` (None if it can): on RECONSTRUCTED
+    data, calibrated to the paper's own statements, every claim must say whether its number was
+    used to build the data."""
+    if provenance == "reconstructed" and claim.basis is None:
+        return ("the data set is RECONSTRUCTED from the paper: say whether this claim's number was used to build "
+                "it (basis = \"pipeline check\": a verdict checks the pipeline, not the paper) or not "
+                "(basis = \"evidence\"); its README lists the facts used")
+    return None
+
+
+# -- predictions through the fit's own program ----------------------------------------------------
+def mean_draws(fit: xr.DataTree, points: Mapping[str, float], fixed: Mapping[str, float] | None = None) -> np.ndarray:
+    """Mean-function draws, shaped (chain · draw,), of a fit at one operating point.
+
+    The fit's program is rebuilt from its provenance on a one-point data set
+    (:func:`bayesfric.compare.refit.program_from_fit`): the variant that was fitted (recipe,
+    ``fixed`` values, added terms) with the constants it was fitted with. ``fixed`` parameters or
+    constants replace the posterior's (a fully fixed law gives one value for every draw); a
+    partial-pooled group offset is not applied (the population mean).
+    """
+    from bayesfric.compare.refit import program_from_fit
+    from bayesfric.datasets.synthetic import make_dataset
+    from bayesfric.laws.variants import law_of_fit
+
+    fixed = dict(fixed or {})
+    law = law_of_fit(fit.attrs)
+    group = json.loads(fit.attrs["noise"]).get("group")
+    query = make_dataset({k: np.asarray([points[k]], dtype=float) for k in law.operating_inputs}, np.zeros(1),
+                         response_quantity=law.response, groups={group: np.array(["new unit"])} if group else None,
+                         name="claim point")
+    program = program_from_fit(fit, query)
     post = fit["posterior"].to_dataset()
     s = post.sizes["chain"] * post.sizes["draw"]
     params = {k: jnp.full((s,), fixed[k]) if k in fixed else
               jnp.asarray(np.asarray(post[k].values, dtype=float).reshape(s, *post[k].shape[2:]))
-              for k in law.params}
-    constants = json.loads(fit.attrs.get("constants", "{}")) | {k: v for k, v in fixed.items() if k in law.constants}
-    inputs = {k: jnp.asarray([points[k]]) for k in law.operating_inputs}
-    mu = jax.vmap(lambda p: law.mean(inputs, p, constants or None))(params)
+              for k in program.law.params}
+    constants = program.constants | {k: v for k, v in fixed.items() if k in program.law.constants}
+    inputs = {k: jnp.asarray(v) for k, v in program.inputs.items()}
+    mu = jax.vmap(lambda p: program.law.mean(inputs, p, constants or None))(params)
     return np.asarray(mu, dtype=float).reshape(s, -1)[:, 0]
 
 
 def _term(fit, at, minus, fixed) -> np.ndarray:
-    value = _mean_draws(fit, at, fixed)
-    return value - _mean_draws(fit, minus, fixed) if minus else value
+    value = mean_draws(fit, at, fixed)
+    return value - mean_draws(fit, minus, fixed) if minus else value
 
 
 def _interval(draws: np.ndarray) -> tuple[float, float, float]:
@@ -216,6 +306,33 @@ def _interval(draws: np.ndarray) -> tuple[float, float, float]:
 
 def _verdict(claim: Claim, value: float) -> str:
     return "reproduced" if claim.expect[0] <= value <= claim.expect[1] else "not reproduced"
+
+
+def _pointwise(outcome: StudyOutcome, name: str, metric: str, scheme: str) -> np.ndarray | None:
+    """Pointwise elpd of a law under ``elpd_loo`` / ``elpd_cv`` (NaN where not scored), else None."""
+    w = {w.name: w for w in outcome.laws}[name]
+    result = w.loo if metric == "elpd_loo" else w.cv.get(scheme) if metric == "elpd_cv" else None
+    return None if result is None else np.asarray(result.elpd_i, dtype=float)
+
+
+def _score(claim: Claim, outcome: StudyOutcome, table: pd.DataFrame) -> ClaimResult:
+    """A score, or with ``reference`` the difference of two scores (paired se for elpd)."""
+    rows = [(name, sc.value(table, name, claim.metric, claim.scheme)) for name in (claim.law, claim.reference) if name]
+    for name, row in rows:
+        if row is None:
+            return ClaimResult(claim, "not testable", why=f"{claim.metric} {claim.scheme} was not computed for {name}")
+        if not row["reliable"]:
+            return ClaimResult(claim, "not testable", value=float(row["estimate"]), why=f"{name}: {row['reason']}")
+    est, se = float(rows[0][1]["estimate"]), float(rows[0][1]["se"])
+    if claim.reference:
+        est -= float(rows[1][1]["estimate"])
+        a, b = (_pointwise(outcome, n, claim.metric, claim.scheme) for n in (claim.law, claim.reference))
+        if a is not None and b is not None and (both := np.isfinite(a) & np.isfinite(b)).sum() > 1:
+            d = a[both] - b[both]
+            se = float(np.sqrt(d.size * np.var(d)))
+        else:
+            se = math.hypot(se, float(rows[1][1]["se"]))
+    return ClaimResult(claim, _verdict(claim, est), est, est - se, est + se)
 
 
 def _evaluate(claim: Claim, outcome: StudyOutcome, table: pd.DataFrame) -> ClaimResult:
@@ -238,14 +355,7 @@ def _evaluate(claim: Claim, outcome: StudyOutcome, table: pd.DataFrame) -> Claim
         mid, lo, hi = _interval(draws)
         return ClaimResult(claim, _verdict(claim, mid), mid, lo, hi)
     if claim.kind == "score":
-        row = sc.value(table, claim.law, claim.metric, claim.scheme)
-        if row is None:
-            return ClaimResult(claim, "not testable", why=f"{claim.metric} {claim.scheme} was not computed for "
-                                                          f"{claim.law}")
-        if not row["reliable"]:
-            return ClaimResult(claim, "not testable", value=float(row["estimate"]), why=str(row["reason"]))
-        est, se = float(row["estimate"]), float(row["se"])
-        return ClaimResult(claim, _verdict(claim, est), est, est - se, est + se)
+        return _score(claim, outcome, table)
     winner = sc.best(table, claim.metric, claim.scheme)
     if winner is None:
         return ClaimResult(claim, "not testable", why="no law could be ranked under this criterion")

@@ -73,6 +73,8 @@ sampler settings, comparison methods and extrapolation folds::
     metric = "elpd_cv"                 # a metric of bayesfric.study.scores.METRICS
     scheme = "train ≤ 0.5 rad/s, score above"
     # expect = [low, high]             # ratio, parameter, score: the claimed range
+    basis = "pipeline check"           # or "evidence": was the claim's number used to build the data?
+                                       # (required on reconstructed data; reports mark pipeline checks)
 
 Sizing (``bayesfric size``, :mod:`bayesfric.sizing`): each ``at`` value is a string with its
 unit, ``"8 MN*m"``, ``"1.04 rpm"``, ``"5 degC"``, or a range ``"<low>..<high> <unit>"`` (smaller
@@ -121,6 +123,7 @@ from bayesfric.laws.variants import VariantError, vary
 from bayesfric.model import Noise, Program
 from bayesfric.priors import Prior, PriorError
 from bayesfric.sizing.points import SizingError, SizingQuestion, make_question
+from bayesfric.study.claims import BASES as CLAIM_BASES
 from bayesfric.study.claims import KINDS as CLAIM_KINDS
 from bayesfric.study.claims import Claim, ClaimError, make_claim
 from bayesfric.study.schema import REQUIRED, Field, Schema, SchemaError, parse
@@ -323,17 +326,20 @@ CLAIM = Schema((
     Field("text", "str", REQUIRED, doc="the claim, as the paper states it"),
     Field("source", "str", REQUIRED, doc="where the paper states it (seed, section, figure)"),
     Field("kind", "str", REQUIRED, choices=CLAIM_KINDS, doc="ratio | parameter | score | best"),
-    Field("law", "str", REQUIRED, rule=_known_law, doc="the law the claim is about (best: the claimed winner)"),
+    Field("law", "str", REQUIRED, doc="the candidate (its label) the claim is about (best: the claimed winner)"),
     Field("expect", "value", None, rule=_claimed_range, doc="claimed range [low, high] (not for best)"),
     Field("at", "table", {}, items="value", doc='ratio: numerator point, input -> "<value> <unit>"'),
     Field("minus", "table", {}, items="value", doc="ratio: subtract the law at this point (a chord)"),
     Field("fixed", "table", {}, items="number", doc="ratio: numerator parameters/constants fixed (SI)"),
-    Field("reference", "str", None, rule=_known_law, doc="ratio: denominator law (default: law)"),
+    Field("reference", "str", None, doc="ratio: denominator law (default: law); score: subtract its score"),
     Field("reference_at", "table", {}, items="value", doc="ratio: denominator point (default: at)"),
     Field("reference_minus", "table", {}, items="value", doc="ratio: denominator chord start (default: minus)"),
     Field("parameter", "str", None, doc="parameter: the law's parameter"),
     Field("metric", "str", None, doc="score, best: a metric of bayesfric.study.scores.METRICS"),
     Field("scheme", "text", "", doc="score, best: CV scheme label or evidence estimator ('' for LOO)"),
+    Field("basis", "str", None, choices=CLAIM_BASES,
+          doc='"pipeline check": the number was used to build the data (reconstructed data); "evidence": it was '
+              'not. Required on reconstructed data'),
 ))
 FILE = Schema((
     Field("study", "table", {}, schema=STUDY),
@@ -434,10 +440,11 @@ def _sizing_question(path: Path, i: int, entry: dict[str, Any]) -> SizingQuestio
         raise StudyError(f"{path}: sizing[{i}].{exc}") from None
 
 
-def _claim(path: Path, i: int, entry: dict[str, Any]) -> Claim:
-    """Data-independent checks of a parsed ``[[claims]]`` entry (:func:`bayesfric.study.claims.make_claim`)."""
+def _claim(path: Path, i: int, entry: dict[str, Any], laws: dict[str, Law]) -> Claim:
+    """Data-independent checks of a parsed ``[[claims]]`` entry against the study's candidates
+    (``laws``: label -> law; :func:`bayesfric.study.claims.make_claim`)."""
     try:
-        return make_claim(entry)
+        return make_claim(entry, laws)
     except ClaimError as exc:
         raise StudyError(f"{path}: claims[{i}].{exc}") from None
 
@@ -514,7 +521,8 @@ def load_study(path: str | Path) -> Study:
     blocked = [BlockedSpec(b["axis"], b["direction"], b["threshold"], b["quantile"], b["label"], b["future"])
                for b in compare["blocked"]]
     sizing = [_sizing_question(path, i, entry) for i, entry in enumerate(spec["sizing"])]
-    claims = [_claim(path, i, entry) for i, entry in enumerate(spec["claims"])]
+    built = {w.name: w.build() for w in laws} if spec["claims"] else {}
+    claims = [_claim(path, i, entry, built) for i, entry in enumerate(spec["claims"])]
     return Study(
         path=path, name=name, title=meta["title"] if meta["title"] is not None else name,
         question=meta["question"], dataset=dataset, select=data["select"], noise=noise,

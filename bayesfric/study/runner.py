@@ -36,7 +36,7 @@ from bayesfric.model import build_program
 from bayesfric.priors import PriorError
 from bayesfric.quantities import QUANTITIES
 from bayesfric.study import units
-from bayesfric.study.claims import ClaimError, check_claim, evaluate_claims
+from bayesfric.study.claims import ClaimError, basis_problem, check_claim, evaluate_claims
 from bayesfric.study.config import Study, StudyError, load_study, sampler_settings, walkers_problem
 from bayesfric.study.executor import open_client, run_units, timing_table, write_timings
 from bayesfric.study.outcome import LawOutcome, StudyOutcome, Weight
@@ -326,14 +326,20 @@ def _run_settings(study: Study, quick: bool) -> tuple[dict, int]:
         min(study.kfold, QUICK_KFOLD)
 
 
-def _check_claims(study: Study, labels: list[str]) -> None:
-    """The ``[[claims]]`` checked against the study's laws, schemes and evidence estimators."""
+def _check_claims(study: Study, labels: list[str], ds) -> None:
+    """The ``[[claims]]`` checked against the study's laws as they run on ``ds``, its schemes and
+    evidence estimators, and their ``basis`` against the data's provenance
+    (:func:`bayesfric.study.claims.basis_problem`)."""
     estimators = (["bridge", "importance"] + (["SMC"] if study.smc else [])) if study.evidence else []
+    laws = {spec.name: for_data(spec.build(), ds) for spec in study.laws} if study.claims else {}
+    provenance = str(ds.attrs.get("provenance", ""))
     for i, claim in enumerate(study.claims):
         try:
-            check_claim(claim, [spec.name for spec in study.laws], labels, estimators)
+            check_claim(claim, laws, labels, estimators)
         except ClaimError as exc:
             raise StudyError(f"{study.path}: claims[{i}].{exc}") from None
+        if problem := basis_problem(claim, provenance):
+            raise StudyError(f"{study.path}: claims[{i}].basis: {problem}")
 
 
 def _prepare(path: str | Path, out_root: str | Path, quick: bool):
@@ -348,7 +354,7 @@ def _prepare(path: str | Path, out_root: str | Path, quick: bool):
     validate_against_data(study, ds)
     settings, kfold = _run_settings(study, quick)
     schemes = _fold_schemes(study, ds, study.sampler["seed"], kfold)
-    _check_claims(study, [label for label, _, _ in schemes])
+    _check_claims(study, [label for label, _, _ in schemes], ds)
     return study, final, ds, settings, kfold, schemes, sizing_questions(study, ds)
 
 

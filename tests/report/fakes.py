@@ -3,7 +3,6 @@ values with numpy (not a posterior of the data — stated here, used only to exe
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
@@ -11,8 +10,10 @@ import xarray as xr
 
 from bayesfric.compare import CVResult, Evidence, LooResult
 from bayesfric.datasets.synthetic import simulate
+from bayesfric.inference.datatree import provenance
 from bayesfric.inference.diagnostics import Verdict
 from bayesfric.laws import get_law
+from bayesfric.model import build_program
 from bayesfric.study.outcome import Checks, LawOutcome, StudyOutcome, Weight
 from bayesfric.study.scores import score_table
 
@@ -40,7 +41,7 @@ def fake_fit(name: str, ds: xr.Dataset, centre: dict[str, float], sd: float = 0.
         "posterior": xr.Dataset(post),
         "posterior_predictive": xr.Dataset({"response": (("chain", "draw", "obs"), pp)}),
     })
-    tree.attrs.update(law=name, constants="{}", noise=json.dumps({"kind": "normal"}))
+    tree.attrs.update(provenance(build_program(law, ds), ds, "nuts", {}, 0))  # the attrs of a real fit
     return tree
 
 
