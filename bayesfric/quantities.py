@@ -22,7 +22,40 @@ __all__ = [
     "to_canonical",
     "check_unit",
     "conversion",
+    "SCALE_RANGE",
+    "ROUNDING",
+    "rounding_slack",
 ]
+
+#: Allowed range (SI) of the largest |value| of an operating quantity: the data loader checks the
+#: response and every input that is not all zero against it (:mod:`bayesfric.datasets.loader`), and
+#: every value a user states (sizing points, claims) must not exceed its upper end
+#: (:mod:`bayesfric.sizing.points`). Data-scaled priors use R^a X^b with |a|, |b| <= 2
+#: (:data:`bayesfric.priors.MAX_POWER`) and the likelihood divides by a noise scale of order R;
+#: within 1e-12..1e12 every such factor stays within 1e+-24, far inside float64 (1e-308..1e308),
+#: while 1e-300 would square to 0 and 1e300 to inf. No friction measurement or operating point
+#: leaves this range (an AFM's lateral force is about 1e-12 N, a micro-tribometer's 1e-6 N; the
+#: largest bearing moments are about 1e8 N*m): outside it, the unit is wrong.
+SCALE_RANGE = (1e-12, 1e12)
+
+#: Relative rounding of a unit conversion ``si = scale * value + offset`` in float64: a result
+#: within ``ROUNDING * (|scale * value| + |offset|)`` of a physical bound is *on* the bound
+#: (:func:`rounding_slack`), so -459.67 degF is 0 K (not the 6e-14 K that float64 computes) and
+#: fails "> 0 K", while 1e-300 K written in kelvin (no offset) is still above it.
+ROUNDING = 1e-9
+
+
+def rounding_slack(values, scale: float = 1.0, offset: float = 0.0) -> np.ndarray:
+    """How far from a bound a converted value may lie and still count as on it (see :data:`ROUNDING`).
+
+    Parameters
+    ----------
+    values : array_like
+        The values as written, in the unit whose conversion is ``scale``, ``offset``.
+    scale, offset : float
+        The conversion to SI (:func:`conversion`).
+    """
+    return ROUNDING * (np.abs(scale * np.asarray(values, dtype=float)) + abs(offset))
 
 def _unit_registry() -> pint.UnitRegistry:
     """pint's registry, its parsed definitions read from ``<cache>/pint`` when the cache is on.
@@ -76,12 +109,17 @@ class Quantity:
             return ""
         return f"{'>=' if self.lower_inclusive else '>'} {self.lower:g} {self.unit}"
 
-    def violations(self, values: np.ndarray) -> np.ndarray:
-        """Boolean mask of ``values`` (canonical unit) outside the physical bound."""
+    def violations(self, values: np.ndarray, slack=0.0) -> np.ndarray:
+        """Boolean mask of ``values`` (canonical unit) outside the physical bound.
+
+        A value within ``slack`` (:func:`rounding_slack` of its conversion) of the bound counts as
+        on it: allowed by an inclusive bound (``>= 0 N``), refused by an exclusive one (``> 0 K``).
+        """
         values = np.asarray(values, dtype=float)
         if self.lower is None:
             return np.zeros(values.shape, dtype=bool)
-        return values < self.lower if self.lower_inclusive else values <= self.lower
+        slack = np.asarray(slack, dtype=float)
+        return values < self.lower - slack if self.lower_inclusive else values <= self.lower + slack
 
 
 # Bounds: loads that the laws use as magnitudes (radial force of the drum's ball-load law,

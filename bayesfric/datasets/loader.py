@@ -38,14 +38,17 @@ rows are data rows counted from 1, comment lines ``#...`` and blank lines not co
   encoding Python knows: ``latin-1``, ``cp1252`` ...). First non-comment line is the header; header
   names may not repeat (empty header cells are unnamed, ignored columns); every row has as many
   cells as the header; at most :data:`MAX_ROWS` data rows.
-* Cells: numbers, finite before and after conversion to SI; group cells not empty.
+* Cells: numbers, finite before and after conversion to SI; group cells not empty; no cell longer
+  than :data:`MAX_CELL` characters.
 * Physical bounds, declared once per quantity in :mod:`bayesfric.quantities` (``Quantity.lower``),
   checked in SI: absolute temperature > 0 K; preload, axial and radial force >= 0 N (magnitudes);
-  time >= 0 s. Signed quantities (velocities, angles, torque, force, bending moment, initial
-  velocity) are unbounded.
+  time >= 0 s. A converted value within the conversion's rounding of a bound counts as on it
+  (:data:`bayesfric.quantities.ROUNDING`): -459.67 degF is 0 K and fails "> 0 K". Signed
+  quantities (velocities, angles, torque, force, bending moment, initial velocity) are unbounded.
 * Scale: the response must not be all zero (nothing to fit), and the largest |value| of the
-  response and of every input that is not all zero must lie in :data:`SCALE_RANGE` (SI), because
-  data-scaled priors are expressed in these scales (:mod:`bayesfric.priors`).
+  response and of every input that is not all zero must lie in
+  :data:`bayesfric.quantities.SCALE_RANGE` (SI), because data-scaled priors are expressed in these
+  scales (:mod:`bayesfric.priors`).
 * Trajectories (``trajectory = "<group column>"``): each trajectory's rows form one contiguous
   block, and with a ``time`` input, time strictly increases within a trajectory. Without a time
   input the row order *is* the trajectory order and only contiguity is checked: hysteresis loops
@@ -65,7 +68,7 @@ import xarray as xr
 
 from bayesfric.datasets.errors import DataError, decode_position, decode_utf8, read_file, shorten
 from bayesfric.datasets.sidecar import PROVENANCES, ROLES, read_sidecar
-from bayesfric.quantities import QUANTITIES, UnitError, conversion
+from bayesfric.quantities import QUANTITIES, SCALE_RANGE, UnitError, conversion, rounding_slack
 
 __all__ = ["DataError", "load_dataset", "PROVENANCES", "ROLES", "OBS_DIM", "MAX_ROWS", "SCALE_RANGE"]
 
@@ -80,14 +83,9 @@ OBS_DIM = "obs"
 #: a logger's raw stream that should be thinned, split, or cut to the rows of interest.
 MAX_ROWS = 20_000
 
-#: Allowed range (SI) of the largest |value| of the response and of every input that is not all
-#: zero. Data-scaled priors use R^a X^b with |a|, |b| <= 2 (:mod:`bayesfric.priors`) and the
-#: likelihood divides by a noise scale of order R; within 1e-12..1e12 every such factor stays
-#: within 1e+-24, far inside float64 (1e-308..1e308), while 1e-300 would square to 0 and 1e300 to
-#: inf. No friction measurement leaves this range (an AFM's lateral force is about 1e-12 N, a
-#: micro-tribometer's 1e-6 N; the largest bearing moments are about 1e8 N*m): outside it, the
-#: unit is wrong.
-SCALE_RANGE = (1e-12, 1e12)
+#: Longest cell (characters), the csv module's own default field limit: a longer cell is not a
+#: measurement (a pasted log, a binary file); the error names its row and column.
+MAX_CELL = 131_072
 
 
 def load_dataset(csv_path: str | Path, meta_path: str | Path | None = None) -> xr.Dataset:
@@ -170,14 +168,20 @@ def _decode(path: Path, meta_path: Path, data: bytes, encoding: str | None) -> s
 
 
 def _parse_table(path: Path, text: str) -> tuple[list[str], list[list[str]]]:
-    """Header (cells stripped) and data rows; stops reading at ``MAX_ROWS + 1`` rows."""
+    """Header (cells stripped) and data rows; stops reading at ``MAX_ROWS + 1`` rows.
+
+    The csv module's field limit is lifted while reading (the text is in memory already) so that
+    a cell longer than :data:`MAX_CELL` is reported with its row and column (:func:`_check_cells`).
+    """
     lines = (line for line in io.StringIO(text, newline="") if not line.startswith("#"))
     header: list[str] | None = None
     rows: list[list[str]] = []
+    limit = csv.field_size_limit(max(csv.field_size_limit(), len(text) + 1))
     try:
         for cells in csv.reader(lines):
             if not any(c.strip() for c in cells):
                 continue
+            _check_cells(path, header, cells, len(rows))
             if header is None:
                 header = [c.strip() for c in cells]
             elif len(rows) == MAX_ROWS:
@@ -193,11 +197,23 @@ def _parse_table(path: Path, text: str) -> tuple[list[str], list[list[str]]]:
     except csv.Error as exc:
         where = "header" if header is None else f"row {len(rows) + 1}"
         raise DataError(f"{path}: {where}: unreadable CSV ({exc})") from None
+    finally:
+        csv.field_size_limit(limit)
     if header is None:
         raise DataError(f"{path}: file is empty")
     if not rows:
         raise DataError(f"{path}: file has a header but no data rows")
     return header, rows
+
+
+def _check_cells(path: Path, header: list[str] | None, cells: list[str], done: int) -> None:
+    """No cell longer than :data:`MAX_CELL`; the error names the row (``done`` rows read) and column."""
+    for j, cell in enumerate(cells):
+        if len(cell) > MAX_CELL:
+            where = "header" if header is None else f"row {done + 1}"
+            name = f" {shorten(header[j].strip(), 20)}" if header is not None and j < len(header) else ""
+            raise DataError(f"{path}: {where}: column{name} (cell {j + 1} of the row): {len(cell)} characters, "
+                            f"more than {MAX_CELL}; not a measurement table cell")
 
 
 def _line_count(text: str) -> int:
@@ -269,7 +285,7 @@ def _numeric_column(path: Path, meta_path: Path, col: str, spec: dict, raw: list
         i = int(np.argmax(bad))
         raise DataError(f"{path}: row {i + 1}: column {col!r}: {raw[i].strip()} {unit} overflows when converted to "
                         f"{q.unit}")
-    bad = q.violations(si)
+    bad = q.violations(si, rounding_slack(numbers, scale, offset))  # -459.67 degF is 0 K
     if bad.any():
         i = int(np.argmax(bad))
         value = f"{raw[i].strip()} {unit}" + (f" is {si[i]:.6g} {q.unit}" if (scale, offset) != (1.0, 0.0) else "")

@@ -4,7 +4,9 @@ A value is a number and a pint unit of the quantity it names, ``"8 MN*m"``, ``"1
 ``"5 degC"`` (``°`` and ``·`` are accepted for ``deg`` and ``*``); a *range* is two numbers and one
 unit, ``"0.5..6 rad/s"`` (smaller first), sized at :data:`RANGE_POINTS` evenly spaced points, both
 ends included. Values are converted to SI and checked against the quantity's physical bound
-(:mod:`bayesfric.quantities`); the unit the user wrote is kept for display.
+(on the bound within the conversion's rounding: -459.67 degF is 0 K) and against the largest
+magnitude an operating value has, :data:`bayesfric.quantities.SCALE_RANGE` (1e12 in SI); the unit
+the user wrote is kept for display. A capacity is a magnitude: it must be positive.
 
 Every problem is a :class:`SizingError` carrying the key it concerns and a one-line problem;
 callers prefix the location (``studies/x.toml: sizing[0].at.velocity: ...`` or ``--at velocity: ...``).
@@ -20,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from bayesfric.errors import UserError
-from bayesfric.quantities import QUANTITIES, UnitError, conversion
+from bayesfric.quantities import QUANTITIES, SCALE_RANGE, UnitError, conversion, rounding_slack
 
 __all__ = [
     "RANGE_POINTS", "CLI_KEYS", "SizingError", "Value", "SizingQuestion", "parse_value", "parse_capacity",
@@ -81,8 +83,8 @@ def parse_value(text: object, quantity: str, key: str = "", allow_range: bool = 
     ------
     SizingError
         Not a string, no number, no unit, an unknown unit or one of another dimension, a range
-        where none is allowed, an empty or reversed range, a non-finite value or one outside the
-        quantity's physical bound.
+        where none is allowed, an empty or reversed range, a non-finite value, one outside the
+        quantity's physical bound or one above :data:`bayesfric.quantities.SCALE_RANGE` in magnitude.
     """
     key = key or quantity
     if quantity not in QUANTITIES:
@@ -107,22 +109,36 @@ def parse_value(text: object, quantity: str, key: str = "", allow_range: bool = 
         scale, offset = conversion(unit, quantity)
     except UnitError as exc:
         raise SizingError(key, f"{text!r}: {exc}") from None
-    si = [scale * x + offset for x in numbers]
+    with np.errstate(over="ignore", invalid="ignore"):
+        si = [scale * x + offset for x in numbers]
     if not all(math.isfinite(x) for x in si):
         raise SizingError(key, f"{text!r} is not a finite value")
-    bad = QUANTITIES[quantity].violations(np.asarray(si))
+    bad = QUANTITIES[quantity].violations(np.asarray(si), rounding_slack(numbers, scale, offset))
     if bad.any():
         raise SizingError(key, f"{text!r} is outside the physical bound of {quantity} "
                                f"({QUANTITIES[quantity].bound_text()})")
+    if max(abs(x) for x in si) > SCALE_RANGE[1]:  # beyond it the unit is wrong, and laws overflow
+        raise SizingError(key, f"{text!r} is {max(abs(x) for x in si):.3g} {QUANTITIES[quantity].unit} in SI, above "
+                               f"the {SCALE_RANGE[1]:g} that any operating value stays below; check the unit")
     if len(si) == 2 and not si[1] > si[0]:
         raise SizingError(key, f"range {text!r} must go from the smaller to the larger value")
     return Value(quantity, si[0], si[-1], text.strip(), unit, scale, offset)
 
 
 def parse_capacity(text: object, response: str | None = None, key: str = "capacity") -> Value:
-    """The available drive capacity: a torque or a force (the data's ``response`` once known)."""
-    if response is not None:
-        return parse_value(text, response, key, allow_range=False)
+    """The available drive capacity: a positive torque or force (the data's ``response`` once known).
+
+    Friction is sized by its magnitude, so a capacity is a magnitude too: zero or negative is an
+    error, not a question whose answer is "always exceeded".
+    """
+    value = parse_value(text, response, key, allow_range=False) if response is not None else _torque_or_force(text, key)
+    if not value.lo > 0:
+        raise SizingError(key, f"{value.text!r}: a capacity is the magnitude a drive delivers, so it must be "
+                               "positive")
+    return value
+
+
+def _torque_or_force(text: object, key: str) -> Value:
     problems = []
     for quantity in ("torque", "force"):
         try:

@@ -501,8 +501,8 @@ def load_study(path: str | Path) -> Study:
     if meta["name"] is None and (problem := name_problem(name)):
         raise StudyError(f"{path}: [study] name: not given, and the file name cannot serve: {problem}")
     dataset = data["dataset"]
-    if dataset.endswith(".csv"):
-        dataset = str((path.parent / dataset).resolve())
+    if dataset.endswith(".csv"):  # beside the path as written (a link's sidecar is beside the link, as in `data check`)
+        dataset = str((path.parent / dataset).absolute())
     noise = Noise(kind=spec["noise"]["kind"], group=spec["noise"]["group"])
     laws = [_law_spec(path, i, entry, noise) for i, entry in enumerate(spec["laws"])]
     names = [w.name for w in laws]

@@ -215,7 +215,17 @@ CASES = [
     Case("toml-nested-too-deeply", GOOD, ("bench.toml", "nested too deeply"),
          extra="deep = " + "[" * 5000 + "]" * 5000 + "\n"),
     Case("csv-field-too-large", f"{HEADER}\n60,1.5,a\n60,1.5,\"{'x' * 200_000}\"\n",
-         ("bench.csv", "row 2", "unreadable CSV", "field larger")),
+         ("bench.csv", "row 2", "column 'series'", "200000 characters")),
+    # -- issue 27: a 1 MB cell names its row and column; absolute zero in any unit is not > 0 K
+    Case("csv-cell-1mb", f"{HEADER}\n60,{'1' * 1_000_000},a\n", ("bench.csv", "row 1", "column 'torque'",
+                                                              "1000000 characters")),
+    Case("csv-header-cell-1mb", f"speed,torque,series,{'h' * 1_000_000}\n60,1.5,a,1\n",
+         ("bench.csv", "header", "cell 4", "1000000 characters")),
+    Case("temperature-absolute-zero-degF", f"{HEADER},temp\n60,1.5,a,20\n60,1.5,b,-459.67\n",
+         ("bench.csv", "row 2", "column 'temp'", "-459.67 degF", "> 0 K"),
+         extra=column("temp", "input", "temperature", "degF")),
+    Case("temperature-absolute-zero-degC", f"{HEADER},temp\n60,1.5,a,-273.15\n",
+         ("bench.csv", "row 1", "column 'temp'", "> 0 K"), extra=column("temp", "input", "temperature", "degC")),
 ]
 
 COMMANDS = {
@@ -234,3 +244,23 @@ def test_corpus_is_large_and_ids_unique():
 def test_bad_input(tmp_path, case, command):
     case.write(tmp_path)
     assert_user_error(COMMANDS[command], tmp_path, case.mentions)
+
+
+@pytest.mark.parametrize("command", ["check", "fit", "study"])
+def test_a_linked_csv_has_its_sidecar_beside_the_link(tmp_path, command):
+    """Issue 27: one rule for a CSV reached through a symbolic link: its sidecar is looked up beside
+    the path as given (the link), by ``data check``, ``fit`` and a study's ``dataset`` alike."""
+    (tmp_path / "real").mkdir()
+    make(tmp_path / "real" / "bench.csv", GOOD)
+    make(tmp_path / "real" / "bench.toml", BASE_META)  # beside the target only
+    (tmp_path / "link.csv").symlink_to(tmp_path / "real" / "bench.csv")
+    (tmp_path / "s.toml").write_text('[data]\ndataset = "link.csv"\n[[laws]]\nname = "coulomb"\n'
+                                     "[compare]\nevidence = false\n")
+    argv = {"check": ["data", "check", "link.csv"], "fit": ["fit", "link.csv", "coulomb", "--draws", "10"],
+            "study": ["study", "s.toml", "--out", "reports"]}[command]
+    assert_user_error(argv, tmp_path, ("link.toml", "metadata file not found"))
+    make(tmp_path / "link.toml", BASE_META)  # beside the link: accepted by all three
+    from bayesfric.study import load_study
+    from bayesfric.study.runner import load_study_data
+
+    assert load_study_data(load_study(tmp_path / "s.toml")).attrs["csv_file"] == str(tmp_path / "link.csv")

@@ -101,6 +101,30 @@ CASES = [
     ("fit-junk", ("size", "junk.nc", *AT), ("junk.nc", "not a readable fit")),
     ("fit-trajectory", ("size", "dahl.nc", "--at", "angle=1 deg, preload=10 N"), ("dahl.nc", "trajectory")),
     ("fit-bad-unit", ("size", "fit.nc", "--at", "velocity=3 N"), ("--at velocity", "dimension")),
+    # -- issue 27: silent acceptance and overflow ------------------------------------------------------
+    ("capacity-negative", ("size", "s.toml", *AT, "--capacity", "-40 N*m"), ("--capacity", "'-40 N*m'", "positive")),
+    ("capacity-zero", ("size", "s.toml", *AT, "--capacity", "0 kN*m"), ("--capacity", "positive")),
+    ("fit-capacity-negative", ("size", "fit.nc", *AT, "--capacity", "-40 N*m"), ("--capacity", "positive")),
+    ("fit-capacity-negative-force", ("size", "fit.nc", *AT, "--capacity", "-3 kN"), ("--capacity", "positive")),
+    ("fit-velocity-1e300", ("size", "fit.nc", "--at", "velocity=1e300 rad/s"), ("--at velocity", "above the 1e+12")),
+    ("fit-velocity-1e400", ("size", "fit.nc", "--at", "velocity=1e400 rad/s"), ("--at velocity", "not a finite")),
+    ("fit-range-to-1e300", ("size", "fit.nc", "--at", "velocity=1..1e300 rad/s"), ("--at velocity", "above")),
+    ("fit-velocity-huge-rpm", ("size", "fit.nc", "--at", "velocity=1e13 rpm"), ("--at velocity", "above")),
+    ("capacity-1e300", ("size", "fit.nc", *AT, "--capacity", "1e300 N*m"), ("--capacity", "above")),
+    ("rotation-1e300", ("size", "fit.nc", *AT, "--energy-rotation", "1e300 deg"), ("--energy-rotation", "above")),
+    ("fit-absolute-zero-degF", ("size", "fit.nc", "--at", "velocity=1 rad/s, temperature=-459.67 degF"),
+     ("--at temperature", "physical bound", "> 0 K")),
+    ("fit-absolute-zero-degC", ("size", "fit.nc", "--at", "velocity=1 rad/s, temperature=-273.15 degC"),
+     ("--at temperature", "> 0 K")),
+]
+
+#: ``[[sizing]]`` entries of a study file that must fail, through ``size`` and through ``study``.
+STUDY_CASES = [
+    ("capacity-negative", 'at = { velocity = "2 rad/s" }\ncapacity = "-40 N*m"\n', "sizing[0].capacity", "positive"),
+    ("capacity-zero", 'at = { velocity = "2 rad/s" }\ncapacity = "0 N*m"\n', "sizing[0].capacity", "positive"),
+    ("velocity-1e300", 'at = { velocity = "1e300 rad/s" }\n', "sizing[0].at.velocity", "above"),
+    ("rotation-1e300", 'at = { velocity = "2 rad/s" }\nenergy_rotation = "1e300 deg"\n', "sizing[0].energy_rotation",
+     "above"),
 ]
 
 
@@ -115,3 +139,11 @@ def test_study_sizing_question_errors_name_file_and_key(tree):
     (tree / "s.toml").write_text(STUDY + '[[sizing]]\nat = { temperature = "5 degC" }\n')
     assert_user_error(("study", "s.toml", "--out", "reports"), tree,
                       ("s.toml: sizing[0].at.temperature", "not an input of the data"))
+
+
+@pytest.mark.parametrize("command", ["size", "study"])
+@pytest.mark.parametrize(("entry", "key", "problem"), [c[1:] for c in STUDY_CASES], ids=[c[0] for c in STUDY_CASES])
+def test_bad_sizing_entry_of_a_study_is_one_line(tree, command, entry, key, problem):
+    (tree / "s.toml").write_text(STUDY + "[[sizing]]\n" + entry)
+    argv = ("size", "s.toml") if command == "size" else ("study", "s.toml", "--out", "reports")
+    assert_user_error(argv, tree, (f"s.toml: {key}", problem))
