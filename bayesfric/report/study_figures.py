@@ -35,6 +35,7 @@ from matplotlib.figure import Figure
 from bayesfric.quantities import QUANTITIES, UnitError, conversion
 from bayesfric.report.content import FigureRef
 from bayesfric.report.figures import banner, plot_sizing_fan, save
+from bayesfric.report.ranking_figure import plot_ranking
 from bayesfric.study import scores as sc
 
 if TYPE_CHECKING:
@@ -69,37 +70,6 @@ def _display(ds, name: str) -> tuple[str, float, float]:
 def _shown(ds, name: str, values) -> np.ndarray:
     _, scale, offset = _display(ds, name)
     return (np.asarray(values, dtype=float) - offset) / scale
-
-
-def plot_ranking(outcome: StudyOutcome, path: Path) -> Path:
-    """One panel per criterion (blocked elpd, LOO elpd, other CV, log evidence): each law's
-    estimate ± 1 se, the best law's value as a dashed line, unreliable results as red crosses
-    (the layout of ``arviz`` compare plots, one panel per scale)."""
-    table, crits = outcome.table, sc.criteria(outcome)
-    order = sc.ranking_order(table, [w.name for w in outcome.laws], crits[0] if crits else None)
-    fig = Figure(figsize=(3.1 * max(1, len(crits)) + 1.6, 0.42 * len(order) + 1.6), layout="constrained")
-    axes = np.atleast_1d(fig.subplots(1, max(1, len(crits)), sharey=True))
-    y = np.arange(len(order))[::-1]
-    for ax, c in zip(axes, crits, strict=False):
-        for yi, name in zip(y, order, strict=True):
-            row = sc.value(table, name, c.metric, c.scheme)
-            if row is None:
-                continue
-            se = row["se"] if math.isfinite(row["se"]) else 0.0
-            if row["reliable"]:
-                ax.errorbar(row["estimate"], yi, xerr=se, fmt="o", color="k", ms=5, capsize=3)
-            else:
-                ax.errorbar(row["estimate"], yi, xerr=se, fmt="x", color="crimson", ms=7, capsize=3)
-        winner = sc.best(table, c.metric, c.scheme)
-        if winner is not None:
-            ax.axvline(float(sc.value(table, winner, c.metric, c.scheme)["estimate"]), color="0.4", ls="--", lw=1)
-        ax.set_title(c.label if len(c.label) < 40 else c.label[:38] + "…", fontsize=8)
-        ax.set_xlabel("log evidence [nats]" if c.metric == "log_evidence" else "elpd [nats]", fontsize=8)
-        ax.tick_params(labelsize=7)
-        ax.grid(axis="x", lw=0.3)
-    axes[0].set_yticks(y, order, fontsize=8)
-    banner(fig, outcome.data)
-    return save(fig, path)
 
 
 def plot_penalty(outcome: StudyOutcome, path: Path) -> Path:
@@ -283,7 +253,8 @@ def draw(outcome: StudyOutcome, folder: Path) -> tuple[list[FigureRef], dict[int
         refs.append(FigureRef("ranking", "figures/ranking.png",
                               "Each law's score ± 1 standard error per criterion, best first; the dashed line is the "
                               "best ranked law. Read: is the leader separated from the next by more than the error "
-                              "bars? Red crosses are unreliable results, never ranked.", "ranking plot"))
+                              "bars? Red crosses: results that may not be ranked, shown where they scored (the reason "
+                              "is in the table's rank column).", "ranking plot"))
     if outcome.blocked and outcome.study.loo:
         plot_penalty(outcome, fdir / "penalty.png")
         refs.append(FigureRef("extrapolation", "figures/penalty.png",

@@ -11,10 +11,12 @@ import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
 
-__all__ = ["find_chromium", "PageCheck", "inspect_page", "WIDTH"]
+__all__ = ["find_chromium", "PageCheck", "inspect_page", "WIDTH", "PHONE"]
 
 #: Viewport width of the overflow check (a laptop screen).
 WIDTH = 1280
+#: Viewport width of a phone (the ranking figure must read there too).
+PHONE = 390
 
 
 #: Text of every text node whose element starts within the first 900 px (the first screen).
@@ -48,17 +50,18 @@ class PageCheck:
     scroll_width: int = 0
     first_screen_text: str = ""
     ranking_figure_top: float = float("inf")  # px from the top of the page to the ranking plot
+    ranking_figure_width: tuple[float, float] = (0.0, 0.0)  # (shown, natural) px width of the ranking plot
 
 
-def inspect_page(html: Path, screenshot: Path, chromium: str) -> PageCheck:
-    """Load ``html`` at :data:`WIDTH` px, wait for it, take a full-page ``screenshot``."""
+def inspect_page(html: Path, screenshot: Path, chromium: str, width: int = WIDTH) -> PageCheck:
+    """Load ``html`` at ``width`` px, wait for it, take a full-page ``screenshot``."""
     from playwright.sync_api import sync_playwright
 
     check = PageCheck()
     with sync_playwright() as p:
         browser = p.chromium.launch(executable_path=chromium, headless=True, args=["--no-sandbox"])
         try:
-            page = browser.new_page(viewport={"width": WIDTH, "height": 900})
+            page = browser.new_page(viewport={"width": width, "height": 900})
             page.on("console", lambda m: check.console_errors.append(m.text) if m.type == "error" else None)
             page.on("pageerror", lambda e: check.console_errors.append(str(e)))
             page.goto(html.resolve().as_uri(), wait_until="load")
@@ -71,6 +74,9 @@ def inspect_page(html: Path, screenshot: Path, chromium: str) -> PageCheck:
             check.ranking_figure_top = float(page.evaluate(
                 "(() => { const i = document.querySelector('#ranking img');"
                 " return i ? i.getBoundingClientRect().top : Infinity; })()"))
+            check.ranking_figure_width = tuple(page.evaluate(
+                "(() => { const i = document.querySelector('#ranking img');"
+                " return i ? [i.getBoundingClientRect().width, i.naturalWidth] : [0, 0]; })()"))
             page.screenshot(path=str(screenshot), full_page=True)
         finally:
             browser.close()

@@ -20,7 +20,7 @@ from bayesfric.laws import get_law
 from bayesfric.report.summary import write_reports
 from bayesfric.study import load_study, run_study
 from bayesfric.study.claims import evaluate_claims
-from tests.report.browser import WIDTH, find_chromium, inspect_page
+from tests.report.browser import PHONE, WIDTH, find_chromium, inspect_page
 from tests.report.fakes import outcome
 
 INSTALL = "apt-get install -y chromium (scripts/bootstrap.sh does it when missing)"
@@ -68,6 +68,26 @@ def test_fake_outcome_report_in_chromium(tmp_path):
     folder.mkdir()
     write_reports(out, folder)
     check(folder, tmp_path / "screenshot.png")
+
+
+def test_ranking_figure_reads_on_a_phone(tmp_path):
+    """At 390 px the page does not scroll sideways and the ranking figure is scaled to the
+    screen's width from at most 600 px, so its 13-point text stays about 10 px high (the figure
+    module's layout: bayesfric.report.ranking_figure)."""
+    (tmp_path / "tiny.toml").write_text(
+        '[study]\nname = "tiny"\n[data]\ndataset = "robot_joint"\n[[laws]]\nname = "coulomb"\n[[laws]]\n'
+        'name = "coulomb_viscous"\n[compare]\nevidence = false\n[[compare.blocked]]\naxis = "velocity"\n'
+        'threshold = 1.0\nlabel = "outside"\n')
+    out = outcome(load_study(tmp_path / "tiny.toml"), tmp_path)
+    folder = tmp_path / "report"
+    folder.mkdir()
+    write_reports(out, folder)
+    page = inspect_page(folder / "report.html", tmp_path / "phone.png", chromium(), width=PHONE)
+    assert page.console_errors == [] and page.broken_images == []
+    assert page.scroll_width <= PHONE  # wide tables scroll inside their own box
+    shown, natural = page.ranking_figure_width
+    assert PHONE * 0.75 <= shown <= PHONE and natural <= 600
+    assert natural / shown < 1.8  # scaled down by less than 1.8: 13 pt at 110 dpi stays ≥ 10 px
 
 
 @pytest.mark.slow
