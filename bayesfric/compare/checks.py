@@ -219,6 +219,7 @@ class PitCheck:
     within_band: bool  # PIT-ECDF inside the simultaneous band at ci_prob
     ci_prob: float
     notes: str = ""
+    band: np.ndarray | None = field(default=None, repr=False)  # (3, m): evaluation points, lower, upper
 
 
 def loo_pit_check(dt: xr.DataTree, *, ci_prob: float = 0.99, n_simulations: int = 1000,
@@ -233,7 +234,7 @@ def loo_pit_check(dt: xr.DataTree, *, ci_prob: float = 0.99, n_simulations: int 
         Level of the simultaneous PIT-ECDF band (arviz-stats' simulation method, as in
         ``plot_loo_pit``).
     n_simulations, seed
-        Simulations and seed of that band.
+        Simulations and seed of that band (kept in ``band``: the report draws it).
 
     Notes
     -----
@@ -242,10 +243,11 @@ def loo_pit_check(dt: xr.DataTree, *, ci_prob: float = 0.99, n_simulations: int 
     """
     pit = np.asarray(az.loo_pit(dt, var_names=OBS_SITE)[OBS_SITE]).reshape(-1)
     ks = kstest(pit, "uniform")
-    _, ecdf, lower, upper = ecdf_pit(pit, ci_prob, n_simulations, rng=np.random.default_rng(seed))
+    points, ecdf, lower, upper = ecdf_pit(pit, ci_prob, n_simulations, rng=np.random.default_rng(seed))
     within = bool(np.all((ecdf >= lower - 1e-12) & (ecdf <= upper + 1e-12)))
     return PitCheck(pit, float(ks.statistic), float(ks.pvalue), within, ci_prob,
-                    "LOO-PIT via arviz-stats; KS p-value approximate (PIT values are dependent)")
+                    "LOO-PIT via arviz-stats; KS p-value approximate (PIT values are dependent)",
+                    np.stack([points, lower, upper]))
 
 
 # -- prior sensitivity ----------------------------------------------------------------------------

@@ -35,6 +35,7 @@ from matplotlib.figure import Figure
 from bayesfric.quantities import QUANTITIES, UnitError, conversion
 from bayesfric.report.content import FigureRef
 from bayesfric.report.figures import banner, plot_sizing_fan, save
+from bayesfric.report.pit_figure import pit_caption, plot_loo_pit
 from bayesfric.report.ranking_figure import plot_ranking
 from bayesfric.study import scores as sc
 
@@ -279,6 +280,9 @@ def draw(outcome: StudyOutcome, folder: Path) -> tuple[list[FigureRef], dict[int
                                   "Posterior draws of each pair of coefficients, r = correlation (red when |r| > 0.7)."
                                   " Read: strongly correlated coefficients are not identified separately — quote "
                                   "their combination, not each alone.", f"pair plot {w.name}"))
+    for w in outcome.laws:  # the laws whose LOO-PIT left its band: which way they are off
+        if not w.loo_pit_ok and plot_loo_pit(outcome, w, fdir / f"loo_pit_{w.name}.png") is not None:
+            refs.append(FigureRef("data", f"figures/loo_pit_{w.name}.png", pit_caption(w), f"LOO-PIT {w.name}"))
     fans = {}
     if outcome.sizing is not None:
         for i, answer in enumerate(outcome.sizing.answers):

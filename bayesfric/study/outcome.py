@@ -29,6 +29,7 @@ class Checks:
     ci_prob: float = 0.94  # coverage of that band
     psense: tuple[str, ...] = ()  # parameters power-scaling flags as prior- or likelihood-sensitive
     pit: np.ndarray | None = field(default=None, compare=False, repr=False)  # the LOO-PIT values
+    pit_band: np.ndarray | None = field(default=None, compare=False, repr=False)  # (points, lower, upper) of the ECDF
     pit_shape: Any = None  # bayesfric.compare.PitShape: which way the PIT departs from uniform
 
     @property

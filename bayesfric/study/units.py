@@ -188,7 +188,7 @@ def _compute_rest(job: LawJob, unit: Unit, fit: xr.DataTree) -> tuple[dict, dict
         return {"implausible": compare.prior_predictive_check(program, seed=job.seed, prior=prior).implausible,
                 "ks_pvalue": pit.ks_pvalue, "within_band": bool(pit.within_band), "ci_prob": pit.ci_prob,
                 "psense": [f"{i} ({d})" for i, d in zip(sens.index, sens["diagnosis"], strict=True) if d != "-"]}, \
-            {"pit": pit.pit}  # the LOO-PIT values: the report names their shape and draws them
+            {"pit": pit.pit, "pit_band": pit.band}  # the LOO-PIT values and band: the report draws them
     raise ValueError(f"unknown unit stage {unit.stage!r}")
 
 
@@ -264,4 +264,5 @@ def _checks(record: dict, arrays: dict) -> Checks:
     pit = arrays.get("pit")
     return Checks(prior_implausible=record["implausible"], loo_pit_pvalue=record["ks_pvalue"],
                   loo_pit_ok=bool(record["within_band"]), ci_prob=record["ci_prob"], psense=tuple(record["psense"]),
-                  pit=pit, pit_shape=compare.pit_shape(pit) if pit is not None else None)
+                  pit=pit, pit_band=arrays.get("pit_band"),
+                  pit_shape=compare.pit_shape(pit) if pit is not None else None)
