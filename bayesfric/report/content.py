@@ -11,13 +11,12 @@ import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
 from bayesfric.report import findings as fd
 from bayesfric.report import sizing as sizing_report
 from bayesfric.report.figures import provenance_label
+from bayesfric.report.ranking import extrapolation_table, loo_numbers, ranking_records, ranking_table
 from bayesfric.report.tables import parameter_rows, retry_note
-from bayesfric.study import scores as sc
+from bayesfric.report.typeset import fmt, unit
 from bayesfric.study.outcome import Checks
 
 if TYPE_CHECKING:
@@ -94,38 +93,7 @@ class Report:
 
 
 def _num(x: Any, digits: int = 2) -> str:
-    return f"{x:.{digits}f}" if isinstance(x, float | int) and math.isfinite(x) else "–"
-
-
-def _pm(row) -> str:
-    if row is None or not math.isfinite(row["estimate"]):
-        return "–"
-    text = f"{row['estimate']:.1f}" + (f" ± {row['se']:.1f}" if math.isfinite(row["se"]) else "")
-    return text + ("" if row["reliable"] else " ⚠")
-
-
-def _ranking(outcome: StudyOutcome, table) -> tuple[Table, list[str]]:
-    crits = sc.criteria(outcome)
-    order = sc.ranking_order(table, [w.name for w in outcome.laws], crits[0] if crits else None)
-    weight_key = f"stacking {outcome.blocked[0]}" if outcome.blocked else "stacking LOO"
-    header = ["rank", "law", "diagnostics"] + [c.label for c in crits] + [f"penalty/pt {s}" for s in outcome.blocked]
-    header.append(f"weight ({weight_key})")
-    laws = {w.name: w for w in outcome.laws}
-    rows, warn = [], []
-    for i, name in enumerate(order):
-        row = [str(i + 1), name, "passed" if laws[name].reliable else "FAILED"]
-        row += [_pm(sc.value(table, name, c.metric, c.scheme)) for c in crits]
-        row += [_num(r["estimate"], 3) if (r := sc.value(table, name, "penalty", s)) is not None else "–"
-                for s in outcome.blocked]
-        w = sc.value(table, name, "weight", weight_key)
-        row.append(_num(w["estimate"], 3) if w is not None else "–")
-        rows.append(row)
-        if not laws[name].reliable:
-            warn.append(i)
-    caption = (f"Laws ordered by {crits[0].label if crits else 'name'} (higher elpd / log Z is better; "
-               "± one standard error). ⚠ = not ranked: the fit or a fold failed the diagnostics gate, or the evidence "
-               "estimators disagree. Every number, with p_loo, Pareto k and all weights: ranking.csv and scores.csv.")
-    return Table(caption, header, rows, warn), order
+    return fmt(x, digits=digits) if isinstance(x, float | int) and math.isfinite(x) else "–"
 
 
 def _claims(outcome: StudyOutcome) -> Table | None:
@@ -160,26 +128,11 @@ def _claims(outcome: StudyOutcome) -> Table | None:
     return Table(caption, ["claim", "source", "basis", "claimed", "posterior says", "verdict"], rows, warn)
 
 
-def _extrapolation(outcome: StudyOutcome, table, order) -> Table | None:
-    if not outcome.blocked:
-        return None
-    header = ["law"] + [f"{h} {s}" for s in outcome.blocked for h in ("elpd LOO on held-out", "penalty/pt")]
-    rows = []
-    for name in order:
-        row = [name]
-        for s in outcome.blocked:
-            pen = sc.value(table, name, "penalty", s)
-            cv = sc.value(table, name, "elpd_cv", s)
-            row += [_pm(cv), _num(pen["estimate"], 3) if pen is not None else "–"]
-        rows.append(row)
-    return Table("penalty/pt = (elpd_LOO − elpd_blocked) per held-out point, on the same points: how much worse "
-                 "(in nats per point) the law predicts outside the tested envelope than inside it.", header, rows)
-
-
 def _law_sections(outcome: StudyOutcome, figures: dict[str, FigureRef]) -> list[LawSection]:
     out = []
     for w in outcome.laws:
-        rows = [[r.name, r.unit, f"{r.mean:.4g}", f"{r.sd:.3g}", f"{r.q05:.4g} … {r.q95:.4g}", f"{r.r_hat:.3f}",
+        rows = [[r.name, unit(r.unit), fmt(r.mean, r.sd, pm=False), fmt(r.sd, digits=2),
+                 f"{fmt(r.q05, r.sd, pm=False)} … {fmt(r.q95, r.sd, pm=False)}", f"{r.r_hat:.3f}",
                  f"{r.ess_bulk:.0f}", r.meaning] for r in parameter_rows(w.fit, w.law)]
         table = Table("", ["parameter", "unit", "mean", "sd", "90 % interval", "R-hat", "ESS", "meaning"], rows)
         out.append(LawSection(w.name, w.law.summary, w.law.source, str(w.verdict) + retry_note(w.fit),
@@ -188,20 +141,14 @@ def _law_sections(outcome: StudyOutcome, figures: dict[str, FigureRef]) -> list[
     return out
 
 
-def _loo_numbers(w) -> dict:
-    """p_loo, the number of high-k points and the largest Pareto k of a law's PSIS-LOO (NaN: not run)."""
-    if w.loo is None:
-        return dict(p_loo=math.nan, n_high_k=0, pareto_k_max=math.nan)
-    return dict(p_loo=w.loo.p_loo, n_high_k=w.loo.n_high_k, pareto_k_max=float(np.max(w.loo.pareto_k)))
-
-
 def _checks(outcome: StudyOutcome) -> Table:
     rows, warn = [], []
     for i, w in enumerate(outcome.laws):
-        loo, checks = _loo_numbers(w), w.checks or Checks()
-        rows.append([w.name, "passed" if w.reliable else "FAILED", _num(loo["p_loo"], 1),
+        loo, checks = loo_numbers(w), w.checks or Checks()
+        shape = checks.pit_shape.label if checks.pit_shape is not None else "miscalibrated"
+        rows.append([w.name, "passed" if w.reliable else "FAILED", _num(loo["p_loo"], 2),
                      f"{loo['n_high_k']} (max {_num(loo['pareto_k_max'])})",
-                     _num(checks.loo_pit_pvalue, 3) + ("" if checks.loo_pit_ok else " ⚠"),
+                     _num(checks.loo_pit_pvalue, 2) + ("" if checks.loo_pit_ok else f" ⚠ {shape}"),
                      f"{checks.prior_implausible:.1%}" if math.isfinite(checks.prior_implausible) else "–",
                      checks.prior_sensitivity if w.checks else "–", "; ".join(w.flags) or "–",
                      f"fits/{w.fit_file.name}"])
@@ -209,7 +156,9 @@ def _checks(outcome: StudyOutcome) -> Table:
             warn.append(i)
     header = ["law", "diagnostics", "p_loo", "Pareto k > thr", "LOO-PIT p", "unphysical prior draws",
               "prior sensitivity", "flags", "fit file"]
-    return Table("Checks per law. ⚠ = LOO-PIT outside its simultaneous band (miscalibrated).", header, rows, warn)
+    return Table("Checks per law. ⚠ = LOO-PIT outside its simultaneous band (miscalibrated), with the direction read "
+                 "from the PIT values (bayesfric.compare.pit: too narrow, too wide, biased); each flagged law's "
+                 "LOO-PIT figure follows.", header, rows, warn)
 
 
 def _data_lines(outcome: StudyOutcome) -> list[str]:
@@ -243,7 +192,7 @@ def build(outcome: StudyOutcome, figures: list[FigureRef], sizing_figures: dict[
     """The report's content model (``sizing_figures``: question index -> the fan's reference as
     the rendering wants it, a file name or an encoded image)."""
     table = outcome.table
-    ranking, order = _ranking(outcome, table)
+    ranking, order = ranking_table(outcome)
     by_section: dict[str, list[FigureRef]] = {}
     pair = {}
     for f in figures:
@@ -266,7 +215,7 @@ def build(outcome: StudyOutcome, figures: list[FigureRef], sizing_figures: dict[
         claims=_claims(outcome), ranking=ranking,
         ranking_note="Weights exclude fits that failed the diagnostics gate"
                      + (" (the study asked to include them)." if outcome.study.include_failed else "."),
-        sensitivity=outcome.ranking_sensitivity, extrapolation=_extrapolation(outcome, table, order),
+        sensitivity=outcome.ranking_sensitivity, extrapolation=extrapolation_table(outcome, order),
         laws=_law_sections(outcome, pair), data_lines=_data_lines(outcome), checks=_checks(outcome),
         sizing_intro="Friction opposes motion, so sizing works on magnitudes |T|. Mean function: the law's curve "
                      "with parameter uncertainty only; with noise: plus the fit's observation noise (what a drive "
@@ -282,33 +231,3 @@ def build(outcome: StudyOutcome, figures: list[FigureRef], sizing_figures: dict[
                "sizing": bool(sizing)}
     rep.sections = [(k, h) for k, h in SECTIONS if present.get(k, True)]
     return rep
-
-
-def ranking_records(outcome: StudyOutcome) -> list[dict]:
-    """``ranking.csv``: one row per law (in ranking order), every score of the table in columns,
-    with the law's diagnostics and checks."""
-    table = outcome.table
-    crits = sc.criteria(outcome)
-    order = sc.ranking_order(table, [w.name for w in outcome.laws], crits[0] if crits else None)
-    laws = {w.name: w for w in outcome.laws}
-    records = []
-    for name in order:
-        w = laws[name]
-        rec: dict = {"law": name, "n_params": sum(max(1, math.prod(p.shape)) for p in w.law.params.values()),
-                     "diagnostics_passed": w.reliable, "rhat_max": w.verdict.rhat_max,
-                     "ess_bulk_min": w.verdict.ess_bulk_min}
-        for r in table[table["law"] == name].itertuples():
-            key = {"elpd_loo": "elpd_loo", "elpd_cv": f"elpd[{r.scheme}]", "log_evidence": f"log_z_{r.scheme}",
-                   "penalty": f"penalty_per_point[{r.scheme}]", "weight": f"weight[{r.scheme}]"}[r.metric]
-            rec[key] = r.estimate
-            if r.metric in ("elpd_loo", "elpd_cv", "log_evidence"):
-                err = {"elpd_loo": "elpd_loo_se", "elpd_cv": f"se[{r.scheme}]"}.get(r.metric, f"{key}_error")
-                rec[err] = r.se
-            rec[f"reliable[{r.metric} {r.scheme}]".replace(" ]", "]")] = r.reliable
-        if w.agreement is not None:
-            rec["evidence_disagreement"] = abs(w.agreement.difference)
-        checks = w.checks or Checks()
-        rec.update(_loo_numbers(w), loo_pit_pvalue=checks.loo_pit_pvalue, loo_pit_ok=checks.loo_pit_ok,
-                   flags="; ".join(w.flags))
-        records.append(rec)
-    return records

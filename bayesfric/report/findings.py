@@ -14,12 +14,13 @@ from typing import TYPE_CHECKING
 import pandas as pd
 
 from bayesfric.compare.asymmetry import asymmetry
+from bayesfric.report.typeset import fmt
 from bayesfric.study import scores as sc
 
 if TYPE_CHECKING:
     from bayesfric.study.outcome import StudyOutcome
 
-__all__ = ["Finding", "Summary", "findings", "summary_block", "plain", "RECOMMEND_WEIGHT"]
+__all__ = ["Finding", "Summary", "findings", "summary_block", "plain", "counted_winners", "RECOMMEND_WEIGHT"]
 
 #: A law is recommended alone when its stacking weight on the deciding criterion is at least
 #: this; below it the report recommends the stacking-averaged prediction.
@@ -64,16 +65,38 @@ class Summary:
 
 def _unranked(table: pd.DataFrame, c: sc.Criterion) -> str:
     above = sc.passed_over(table, c.metric, c.scheme)
-    return (f" ({', '.join(above)} scored higher but is not ranked: its fit or a fold failed the diagnostics gate, "
-            "or its evidence estimators disagree)" if above else "")
+    if not above:
+        return ""
+    why = "; ".join(f"{name}: {sc.value(table, name, c.metric, c.scheme)['reason']}" for name in above)
+    return f" ({', '.join(above)} scored higher but {'is' if len(above) == 1 else 'are'} not ranked — {why})"
+
+
+def _score(table: pd.DataFrame, name: str, c: sc.Criterion) -> str:
+    row = sc.value(table, name, c.metric, c.scheme)
+    return f"{fmt(row['estimate'], row['se'])} nats"
+
+
+def counted_winners(outcome: StudyOutcome, table: pd.DataFrame) -> list[Finding]:
+    """Per criterion whose winner would differ if the laws that may not be ranked were counted
+    (a fold failed the gate, ...): who would win, by how much, and why it is not ranked."""
+    out = []
+    for c in sc.criteria(outcome):
+        winner, counted = sc.best(table, c.metric, c.scheme), sc.best(table, c.metric, c.scheme, counted=True)
+        if counted is None or counted == winner:
+            continue
+        row = sc.value(table, counted, c.metric, c.scheme)
+        against = (f"; the ranked winner {winner} has {_score(table, winner, c)}" if winner is not None
+                   else "; no law is ranked")
+        out.append(_f(f"{c.label}: the winner would differ if ", _law(counted), f" were counted — it scored "
+                      f"{_score(table, counted, c)}{against}. Not ranked: {row['reason']}.", warning=True))
+    return out
 
 
 def _answer(table: pd.DataFrame, c: sc.Criterion, loo_winner: str | None) -> Finding | None:
     winner = sc.best(table, c.metric, c.scheme)
     if winner is None:
         return _f(f"{c.label}: no law could be ranked (every result unreliable or missing).", warning=True)
-    row = sc.value(table, winner, c.metric, c.scheme)
-    number = f"{row['estimate']:.1f} ± {row['se']:.1f} nats"
+    number = _score(table, winner, c)
     if c.kind == "extrapolation":
         same = ("the same law as under LOO" if winner == loo_winner or loo_winner is None
                 else f"a different law from LOO ({loo_winner})")
@@ -95,7 +118,7 @@ def findings(outcome: StudyOutcome, table: pd.DataFrame) -> list[Finding]:
     for w in outcome.laws:  # direction-dependent coefficients (laws.variants): is the asymmetry supported?
         if w.law.recipe.get("asymmetric"):
             lines += [_f("Direction asymmetry of ", _law(w.name), f": {a.text()}.") for a in asymmetry(w.fit)]
-    lines += _warnings(outcome)
+    lines += counted_winners(outcome, table) + _warnings(outcome)
     for label, reason in outcome.extra.get("weight_errors", []):
         lines.append(plain(f"{label} weights not computed: {reason}", warning=True))
     if outcome.extra.get("quick"):
@@ -123,9 +146,11 @@ def _warnings(outcome: StudyOutcome) -> list[Finding]:
             out.append(_f(_law(w.name), ": the full fit failed the diagnostics gate, so "
                           f"{', '.join(w.skipped)} were not computed (compare.failed_fits = "
                           f"\"{outcome.study.failed_fits}\"; set \"run\" to compute them anyway).", warning=True))
-    pit = [w.name for w in outcome.laws if not w.loo_pit_ok]
+    pit = [w for w in outcome.laws if not w.loo_pit_ok]
     if pit:
-        out.append(plain(f"LOO-PIT miscalibrated (predictive intervals too narrow or too wide): {', '.join(pit)}.",
+        named = ", ".join(w.name + (f" ({w.checks.pit_shape.label})" if w.checks.pit_shape is not None else "")
+                          for w in pit)
+        out.append(plain(f"LOO-PIT miscalibrated (see the LOO-PIT figures under Data and checks): {named}.",
                          warning=True))
     if outcome.ranking_changed:
         out.append(plain("The LOO ranking CHANGES when the priors are scaled (α = 0.5 or 2): the ranking is "
@@ -133,7 +158,8 @@ def _warnings(outcome: StudyOutcome) -> list[Finding]:
     unreliable_cv = sorted({w.name for w in outcome.laws if w.reliable and not w.cv_reliable})
     if unreliable_cv:
         out.append(plain(f"Some cross-validation folds failed the gate for: {', '.join(unreliable_cv)} "
-                         "(those scores are not ranked).", warning=True))
+                         "(those scores are not ranked; each keeps its place in the ranking, marked ⚠ with the "
+                         "reason).", warning=True))
     return out
 
 
@@ -160,7 +186,8 @@ def recommendation(outcome: StudyOutcome, table: pd.DataFrame) -> Finding:
                                   if c.kind == "extrapolation" else " (no extrapolation scheme in this study)")
     if top >= RECOMMEND_WEIGHT or len(weights) < 2:
         return _f("Recommended: ", _law(winner), f" — {why}.")
-    mix = ", ".join(f"{r.law} {r.estimate:.2f}" for r in weights.sort_values("estimate", ascending=False).itertuples())
+    mix = ", ".join(f"{r.law} {fmt(r.estimate, digits=2)}"
+                    for r in weights.sort_values("estimate", ascending=False).itertuples())
     return _f("Recommended: the ", ("stacking-averaged prediction", True), f" ({_weight_key(c)}: {mix}) — no single "
               f"law carries ≥ {RECOMMEND_WEIGHT:.0%} of the weight; ", _law(winner), f" alone has the {why}.")
 
@@ -169,7 +196,7 @@ def summary_block(outcome: StudyOutcome, table: pd.DataFrame, extra_warnings: li
     """The top summary: question, one answer per criterion, recommendation, decision warnings."""
     loo_winner = sc.best(table, "elpd_loo") if outcome.study.loo else None
     answers = [a for c in sc.criteria(outcome) if (a := _answer(table, c, loo_winner)) is not None]
-    warnings = _warnings(outcome) + list(extra_warnings or [])
+    warnings = counted_winners(outcome, table) + _warnings(outcome) + list(extra_warnings or [])
     blocked_winners = {sc.best(table, "elpd_cv", s) for s in outcome.blocked}
     if loo_winner and blocked_winners and loo_winner not in blocked_winners:
         warnings.insert(0, _f("The best law inside the tested envelope (", _law(loo_winner), ") is not the best "

@@ -79,7 +79,8 @@ def _md_plain_table(header: list[str], rows: list[list[str]]) -> str:
 
 
 def _md_table(t: Table) -> str:
-    rows = [[("⚠ " if i in t.warn and j == 0 else "") + c for j, c in enumerate(r)] for i, r in enumerate(t.rows)]
+    rows = [[("⚠ " if i in t.warn and j == 0 and not c.startswith("⚠") else "") + c for j, c in enumerate(r)]
+            for i, r in enumerate(t.rows)]
     text = _md_plain_table(t.header, rows)
     return (f"*{md_text(t.caption, inline=True)}*\n\n" + text) if t.caption else text
 

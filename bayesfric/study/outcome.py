@@ -110,13 +110,17 @@ class LawOutcome:
         if self.loo is not None and not self.loo.reliable:
             why = "the full fit failed the gate" if not self.loo.fit_passed else self.loo.handling
             out.append(f"LOO unreliable ({why})")
-        out += [f"{label}: folds {cv.failed_folds} failed the gate" for label, cv in self.cv.items() if not cv.reliable]
+        from bayesfric.study.scores import fold_failure
+
+        out += [f"{label}: {fold_failure(cv)}" for label, cv in self.cv.items() if not cv.reliable]
         if not self.evidence_agree:
             out.append(_disagreement(self.agreement))
         if self.checks is not None and not self.checks.loo_pit_ok:
             shape = self.checks.pit_shape
-            out.append(f"LOO-PIT outside the {self.checks.ci_prob:.0%} band (KS p = {self.checks.loo_pit_pvalue:.2g}): "
-                       "miscalibrated" + (f", {shape.label}" if shape is not None else ""))
+            p = self.checks.loo_pit_pvalue
+            ks = "< 0.001" if p < 1e-3 else f"= {p:.2g}"
+            out.append(f"LOO-PIT outside the {self.checks.ci_prob:.0%} band (KS p {ks}): miscalibrated"
+                       + (f", {shape.label}" if shape is not None else ""))
         return out
 
 

@@ -71,7 +71,7 @@ def test_figures_and_csvs_written(report):
     for name in ("ranking.csv", "scores.csv", "claims.csv", "parameters.csv"):
         assert (report / name).stat().st_size > 0
     ranking = (report / "ranking.csv").read_text().splitlines()
-    assert ranking[1].startswith("coulomb_viscous,")  # ranked first by the blocked scheme
+    assert ranking[0].startswith("rank,place,law,") and ranking[1].startswith("1,1,coulomb_viscous,")  # first
 
 
 def test_finding_text_joins_parts():
