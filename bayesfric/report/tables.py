@@ -12,8 +12,9 @@ import xarray as xr
 from bayesfric.inference.diagnostics import verdict_of
 from bayesfric.laws.base import Law
 from bayesfric.quantities import QUANTITIES
+from bayesfric.report.typeset import fmt, unit
 
-__all__ = ["ParameterRow", "parameter_rows", "format_table", "law_rows", "unit_of"]
+__all__ = ["ParameterRow", "parameter_rows", "format_table", "law_rows", "unit_of", "noise_text", "fit_report"]
 
 _NOISE_UNITS = {"sigma": "response", "sigma_floor": "response", "nu": "1", "sigma_rel": "1", "group_sd": "1",
                 "rho": "1"}
@@ -101,17 +102,68 @@ def format_table(header: list[str], rows: list[list[str]], markdown: bool = Fals
                      + [fmt.format(*r) for r in rows])
 
 
+_NOISE_FORM = {
+    "normal": "Gaussian residuals, sd sigma",
+    "student_t": "Student-t residuals, scale sigma, nu degrees of freedom",
+    "proportional": "Gaussian residuals, sd = sqrt((sigma_rel · mean)² + sigma_floor²)",
+    "ar1": "Gaussian AR(1) residuals along each trajectory: lag-one correlation rho, innovation sd sigma",
+}
+
+
+def noise_text(dt: xr.DataTree, law: Law) -> str:
+    """The noise model a fit used, in one line: its kind, its form and each of its parameters
+    (posterior mean ± sd with its unit, or the known value it was held at).
+
+    Parameters
+    ----------
+    dt : xarray.DataTree
+        A fit (its ``noise`` attribute and posterior).
+    law : Law
+        The fitted law (for the response's unit).
+
+    Returns
+    -------
+    str
+        E.g. ``"noise model: normal (Gaussian residuals, sd sigma): sigma = 0.198 ± 0.011 N·m"``.
+    """
+    try:
+        noise = json.loads(dt.attrs.get("noise", "{}"))
+    except (TypeError, ValueError):
+        noise = {}
+    kind = noise.get("kind", "?")
+    response = dt.attrs.get("response_quantity", law.response)
+    post = dt["posterior"] if "posterior" in dt.children else None
+    values = []
+    for name in (*_NOISE_MEANING, "group_sd"):
+        if post is None or name not in post or name in law.params or name in values:
+            continue
+        draws = np.asarray(post[name].values, dtype=float).ravel()
+        shown = unit(unit_of(name, law, response))
+        values.append(f"{name} = {fmt(float(draws.mean()), float(draws.std(ddof=1)))}"
+                      + (f" {shown}" if shown not in ("", "–") else ""))
+    if noise.get("sigma") is not None:
+        shown = unit(unit_of("sigma", law, response))
+        values.append(f"sigma = {fmt(float(noise['sigma']))} {shown} (known, not sampled)")
+    form = _NOISE_FORM.get(kind, "")
+    group = f", partial-pooled offsets per {noise['group']}" if noise.get("group") else ""
+    return (f"noise model: {kind}{group}" + (f" ({form})" if form else "") + ": "
+            + ("; ".join(values) if values else "no noise parameter in the posterior"))
+
+
 def fit_report(dt: xr.DataTree, law: Law, markdown: bool = False) -> str:
-    """The parameter report of one fit: table with units, mean, sd, 90 % interval, diagnostics."""
+    """The parameter report of one fit: table with units, mean, sd, 90 % interval (each rounded to
+    the parameter's posterior sd), the noise model it used and the diagnostics."""
     header = ["parameter", "unit", "mean", "sd", "5 %", "95 %", "R-hat", "ESS bulk", "meaning"]
-    rows = [[r.name, r.unit, f"{r.mean:.4g}", f"{r.sd:.3g}", f"{r.q05:.4g}", f"{r.q95:.4g}",
-             f"{r.r_hat:.3f}", f"{r.ess_bulk:.0f}", r.meaning] for r in parameter_rows(dt, law)]
+    rows = [[r.name, unit(r.unit), fmt(r.mean, r.sd, pm=False), fmt(r.sd, digits=2), fmt(r.q05, r.sd, pm=False),
+             fmt(r.q95, r.sd, pm=False), f"{r.r_hat:.3f}", f"{r.ess_bulk:.0f}", r.meaning]
+            for r in parameter_rows(dt, law)]
     verdict = verdict_of(dt)
     lines = [
         f"law {law.name}: {law.summary}",
         f"source: {law.source}",
         f"data: {dt.attrs.get('dataset')} ({dt.attrs.get('data_provenance')}), "
         f"{dt['observed_data'].sizes.get('obs', 0)} observations, sampler {dt.attrs.get('sampler')}",
+        noise_text(dt, law),
         "",
         format_table(header, rows, markdown=markdown),
         "",
