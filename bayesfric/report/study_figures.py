@@ -37,6 +37,7 @@ from bayesfric.report.content import FigureRef
 from bayesfric.report.figures import banner, plot_sizing_fan, save
 from bayesfric.report.pit_figure import pit_caption, plot_loo_pit
 from bayesfric.report.ranking_figure import plot_ranking
+from bayesfric.report.typeset import unit
 from bayesfric.study import scores as sc
 
 if TYPE_CHECKING:
@@ -56,16 +57,17 @@ def _colours() -> list[str]:
 
 def _display(ds, name: str) -> tuple[str, float, float]:
     """(unit, scale, offset) to show ``name`` in the unit of the data file (MN·m, rpm, °C), with
-    ``shown = (si − offset) / scale``; SI when the data set does not record its original unit."""
+    ``shown = (si − offset) / scale``; SI when the data set does not record its original unit. The
+    unit is typeset (:func:`bayesfric.report.typeset.unit`)."""
     attrs = ds[name].attrs
-    unit, quantity = attrs.get("original_unit"), attrs.get("quantity", name)
-    if unit and quantity in QUANTITIES:
+    original, quantity = attrs.get("original_unit"), attrs.get("quantity", name)
+    if original and quantity in QUANTITIES:
         try:
-            scale, offset = conversion(unit, quantity)
-            return str(unit), float(scale), float(offset)
+            scale, offset = conversion(original, quantity)
+            return unit(str(original)), float(scale), float(offset)
         except UnitError:
             pass
-    return str(attrs.get("units") or (QUANTITIES[name].unit if name in QUANTITIES else "")), 1.0, 0.0
+    return unit(str(attrs.get("units") or (QUANTITIES[name].unit if name in QUANTITIES else ""))), 1.0, 0.0
 
 
 def _shown(ds, name: str, values) -> np.ndarray:
@@ -178,9 +180,9 @@ def plot_pairs(outcome: StudyOutcome, w: LawOutcome, path: Path) -> Path | None:
                         color="crimson" if abs(r) > 0.7 else "k")
             ax.tick_params(labelsize=6)
             if i == n - 1:
-                ax.set_xlabel(f"{b} [{w.law.params[b].unit}]", fontsize=7)
+                ax.set_xlabel(f"{b} [{unit(w.law.params[b].unit)}]", fontsize=7)
             if j == 0 and i > 0:
-                ax.set_ylabel(f"{a} [{w.law.params[a].unit}]", fontsize=7)
+                ax.set_ylabel(f"{a} [{unit(w.law.params[a].unit)}]", fontsize=7)
     banner(fig, outcome.data)
     return save(fig, path, trim=False)
 
