@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 import pandas as pd
 
 from bayesfric.compare.asymmetry import asymmetry
-from bayesfric.report.typeset import fmt
+from bayesfric.report.typeset import fmt, unit
 from bayesfric.study import scores as sc
 
 if TYPE_CHECKING:
@@ -110,6 +110,15 @@ def _answer(table: pd.DataFrame, c: sc.Criterion, loo_winner: str | None) -> Fin
     return _f(f"Best under {c.scheme}: ", _law(winner), f", elpd {number}{_unranked(table, c)}.")
 
 
+def _asymmetry(a) -> str:
+    """A :class:`~bayesfric.compare.asymmetry.Asymmetry` in words, rounded to its posterior sd."""
+    shown = unit(a.unit)
+    shown = "" if shown in ("", "–") else f" {shown}"
+    return (f"{a.parameter}_pos − {a.parameter}_neg = {fmt(a.mean, a.sd, pm=False)}{shown} "
+            f"[{fmt(a.low, a.sd, pm=False)}, {fmt(a.high, a.sd, pm=False)}] ({a.prob:.0%}), "
+            f"P(> 0) = {a.p_positive:.2f}")
+
+
 def findings(outcome: StudyOutcome, table: pd.DataFrame) -> list[Finding]:
     """The study's findings: the best law per criterion and the problems that limit them."""
     crits = sc.criteria(outcome)
@@ -117,7 +126,7 @@ def findings(outcome: StudyOutcome, table: pd.DataFrame) -> list[Finding]:
     lines = [a for c in crits if (a := _answer(table, c, loo_winner)) is not None]
     for w in outcome.laws:  # direction-dependent coefficients (laws.variants): is the asymmetry supported?
         if w.law.recipe.get("asymmetric"):
-            lines += [_f("Direction asymmetry of ", _law(w.name), f": {a.text()}.") for a in asymmetry(w.fit)]
+            lines += [_f("Direction asymmetry of ", _law(w.name), f": {_asymmetry(a)}.") for a in asymmetry(w.fit)]
     lines += counted_winners(outcome, table) + _warnings(outcome)
     for label, reason in outcome.extra.get("weight_errors", []):
         lines.append(plain(f"{label} weights not computed: {reason}", warning=True))

@@ -114,3 +114,12 @@ def test_numbers_are_rounded_and_units_typeset(folder):
                              re.sub(r"data:image/png;base64,[^\"]+", "", text))  # no 5.505e-10
         assert "N*m" not in text
     assert "| T\\_C | N·m |" in (folder / "summary.md").read_text()
+
+
+def test_direction_asymmetry_is_rounded_to_its_sd():
+    from bayesfric.compare.asymmetry import Asymmetry
+    from bayesfric.report.findings import _asymmetry
+
+    a = Asymmetry(law="x", parameter="T_C", unit="N*m", mean=5.505e-4, sd=2.1e-5, low=5.16e-4, high=5.85e-4,
+                  prob=0.9, p_positive=1.0, draws=400)
+    assert _asymmetry(a) == "T_C_pos − T_C_neg = 5.50 × 10⁻⁴ N·m [5.16 × 10⁻⁴, 5.85 × 10⁻⁴] (90%), P(> 0) = 1.00"
