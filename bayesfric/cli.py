@@ -174,7 +174,12 @@ def _cmd_fit(args: argparse.Namespace) -> None:
     if args.group is not None and args.group not in ds.coords:
         raise UserError(f"--group {args.group}: not a coordinate of the data ({', '.join(ds.coords)})")
     priors = _parse_priors(args.prior, list(law.params) + list(noise.sites()), law.name)
-    program = build_program(law, ds, priors=priors, noise=noise)  # data-scaled priors resolve here
+    try:
+        program = build_program(law, ds, priors=priors, noise=noise)  # data-scaled priors resolve here
+    except PriorError as exc:  # exc.key: priors.<parameter>.<key in its spec>
+        name, _, key = exc.key.removeprefix("priors.").partition(".")
+        where = f"--prior {name}" if name in priors else f"law {law.name!r}: prior of {name}"
+        raise UserError(f"{where}{': ' + key if key else ''}: {exc.problem}") from None
     if args.sampler == "emcee" and (problem := walkers_problem(program, settings.get("walkers"))):
         raise UserError(f"--walkers: {problem}")
     dt = fit(law, ds, sampler=args.sampler, priors=priors, noise=noise, seed=args.seed, progress=not args.quiet,

@@ -35,7 +35,7 @@ from bayesfric.density import OBS_SITE, Density, build_density
 from bayesfric.laws.base import Law
 from bayesfric.laws.variants import for_data
 from bayesfric.noise import AR1Residuals
-from bayesfric.priors import DataScale, Prior, PriorError
+from bayesfric.priors import DataScale, Prior, PriorError, resolve_all
 from bayesfric.runtime import configure
 
 __all__ = ["Noise", "Program", "build_program", "OBS_SITE", "NOISE_PRIORS"]
@@ -242,7 +242,7 @@ def build_program(
             )
         declared[name] = spec if isinstance(spec, Prior) else Prior.from_dict(spec)
     scale = scale or data_scale(ds)
-    resolved = {k: p.resolve(scale) for k, p in declared.items()}
+    resolved = resolve_all(declared, scale)  # an error names priors.<parameter>.<key>
     consts = {k: c.value for k, c in law.constants.items()}
     for k, v in (constants or {}).items():
         if k not in consts:

@@ -16,13 +16,26 @@ against a dataset, the *data scale* is
 
 where R is the response scale and X_k the scale of input k (both: the largest absolute value in
 the data, ignoring non-finite entries and falling back to 1 for an all-zero column), and a, b_k are
-the declared powers. Location-scale arguments (``loc``, ``scale``, ``low``, ``high``) of the spec are
-multiplied by S; for ``LogNormal`` (whose ``loc`` is on the log scale) ``log S`` is added to ``loc``
-instead. Shape arguments (``df``, ``concentration`` ...) are left alone. Read: "a term of this
-law, at the largest tested input, is of the order of the largest observed response" -- so
-``HalfNormal(scale=1)`` scaled by the rule puts about 68 % of its mass on terms no larger than the
-biggest observed response and leaves room for 2–3 times that. The rule is stated once, here; the
+the declared powers. Location-scale arguments (``loc``, ``scale``, ``low``, ``high``) of the spec
+are multiplied by S; for ``LogNormal`` (whose ``loc`` is on the log scale) ``log S`` is added to
+``loc`` instead; a rate (``Exponential``, ``Gamma``) is divided by S. Shape arguments (``df``,
+``concentration`` ...) are left alone. Read: "a term of this law, at the largest tested input, is
+of the order of the largest observed response" -- so ``HalfNormal(scale=1)`` scaled by the rule
+puts about 68 % of its mass on terms no larger than the biggest observed response and leaves room
+for 2–3 times that.
+
+Bounds: each power is a finite number in [-:data:`MAX_POWER`, :data:`MAX_POWER`] (a coefficient's
+unit is a small power of the response's and the inputs' units) named ``"response"`` or an
+operating quantity (:data:`bayesfric.quantities.QUANTITIES`), checked when the spec is made; S is
+computed in logarithms and must lie within 1e±:data:`MAX_LOG10` (data scales lie within
+1e±12, :data:`bayesfric.quantities.SCALE_RANGE`, so real data never come near it), and every
+resolved argument must be a finite number (positive where the distribution needs it), checked
+where priors are resolved (:meth:`Prior.resolve`). The rule is stated once, here; the
 report prints both the declared spec and its resolved numbers.
+
+Every problem is a :class:`PriorError` with a one-line ``problem`` and the ``key`` inside the spec
+it concerns (``scaled_by.response``, ``scale``; with :meth:`PriorError.within` also the parameter,
+``priors.T_C.scaled_by.response``), which callers prefix with the study file's entry or the option.
 """
 
 from __future__ import annotations
@@ -35,11 +48,28 @@ from typing import Any
 import numpy as np
 import numpyro.distributions as dist
 
-__all__ = ["Prior", "DataScale", "PriorError", "DISTRIBUTIONS"]
+__all__ = ["Prior", "DataScale", "PriorError", "DISTRIBUTIONS", "MAX_POWER", "MAX_LOG10", "resolve_all"]
+
+#: Largest |power| of a data scale in ``scaled_by`` (module docstring).
+MAX_POWER = 2.0
+#: Largest |log10| of a number a model is given: a data-scale factor S, the bulk of a prior
+#: (:meth:`Prior.reach`), a fixed parameter or constant (:mod:`bayesfric.laws.variants`). Within
+#: 1e±100 squares and products with data (1e±12) stay far inside float64; a prior whose draws
+#: reach 1e300 overflows the likelihood and leaves a fit of non-finite draws.
+MAX_LOG10 = 100.0
 
 
 class PriorError(ValueError):
-    """An invalid prior spec (unknown distribution or argument)."""
+    """An invalid prior spec: a one-line ``problem`` and the ``key`` inside the spec it concerns
+    (``scaled_by.response``, ``scale``; empty for the spec as a whole)."""
+
+    def __init__(self, problem: str, key: str = ""):
+        super().__init__(f"{key}: {problem}" if key else problem)
+        self.problem, self.key = problem, key
+
+    def within(self, prefix: str) -> PriorError:
+        """The same problem, its key placed under ``prefix`` (e.g. ``priors.T_C``)."""
+        return PriorError(self.problem, f"{prefix}.{self.key}" if self.key else prefix)
 
 
 # name -> (numpyro class, allowed args, location/scale args that the scaling rule multiplies)
@@ -84,15 +114,31 @@ class DataScale:
         return DataScale(scale(response), {k: scale(v) for k, v in inputs.items()})
 
     def factor(self, powers: Mapping[str, float]) -> float:
-        """S = R^a · Π X_k^(b_k) for the given powers (see the module docstring)."""
-        s = 1.0
+        """S = R^a · Π X_k^(b_k) for the given powers (see the module docstring), computed in logarithms.
+
+        Raises
+        ------
+        PriorError
+            The data has no such input, a scale is not a positive finite number, or S lies
+            beyond 1e±:data:`MAX_LOG10`.
+        """
+        log10_s = 0.0
         for name, power in powers.items():
-            if name == "response":
-                s *= self.response**power
-            elif name in self.inputs:
-                s *= self.inputs[name] ** power
-            else:
-                raise PriorError(f"prior scaled by {name!r}, but the data has no such input")
+            if name != "response" and name not in self.inputs:
+                raise PriorError(f"prior scaled by {name!r}, but the data has no such input", f"scaled_by.{name}")
+            x = self.response if name == "response" else self.inputs[name]
+            if not (math.isfinite(x) and x > 0):
+                raise PriorError(f"the data scale of {name} is {x!r}, not a positive number", f"scaled_by.{name}")
+            log10_s += power * math.log10(x)
+        try:
+            if abs(log10_s) > MAX_LOG10:
+                raise OverflowError
+            s = 1.0
+            for name, power in powers.items():  # the product as stated (the logarithms only bound it)
+                s *= (self.response if name == "response" else self.inputs[name]) ** power
+        except OverflowError:
+            raise PriorError(f"the data scale {_scale_text(powers)} is 1e{log10_s:+.0f}, beyond "
+                             f"1e±{MAX_LOG10:g}: the powers do not fit this data", "scaled_by") from None
         return s
 
 
@@ -127,17 +173,18 @@ class Prior:
             )
         for k, v in args.items():
             if not _finite(v):
-                raise PriorError(f"{dist} argument {k}={v!r} is not a finite number")
+                raise PriorError(f"{dist} argument {k}={v!r} is not a finite number", k)
             if k in _POSITIVE_ARGS and not v > 0:
-                raise PriorError(f"{dist} argument {k}={_fmt(v)} must be > 0")
+                raise PriorError(f"{dist} argument {k}={_fmt(v)} must be > 0", k)
         if "low" in args and "high" in args and not args["low"] < args["high"]:
             raise PriorError(f"{dist} arguments low={_fmt(args['low'])}, high={_fmt(args['high'])}: "
                              "low must be < high")
-        if scaled_by is not None and not isinstance(scaled_by, Mapping):
-            raise PriorError(f"scaled_by must be a table of powers by name, got {scaled_by!r}")
-        for k, v in (scaled_by or {}).items():
-            if not isinstance(k, str) or not _finite(v):
-                raise PriorError(f"scaled_by {k}={v!r}: powers must be finite numbers")
+        if (reach := _reach_log10(dist, args)) > MAX_LOG10:
+            body = ", ".join(f"{k}={_fmt(v)}" for k, v in args.items())
+            shown = f"1e{reach:.0f}" if math.isfinite(reach) else "beyond float64"
+            raise PriorError(f"{dist}({body}) reaches {shown}: the bulk of a prior (location ± 10 scales) "
+                             f"must stay within ±1e{MAX_LOG10:g}")
+        _check_powers(scaled_by)
         object.__setattr__(self, "dist", dist)
         object.__setattr__(self, "args", dict(args))
         object.__setattr__(self, "scaled_by", dict(scaled_by or {}))
@@ -199,12 +246,60 @@ class Prior:
             elif self.dist == "LogNormal" and k == "loc":
                 v = v + math.log(s)
             args[k] = float(v)
-        return Prior(self.dist, **args)
+        try:
+            return Prior(self.dist, **args)
+        except PriorError as exc:
+            raise PriorError(f"scaled by the data scale {_scale_text(self.scaled_by)} = {s:.3g}: {exc.problem}",
+                             exc.key) from None
 
     def to_numpyro(self, scale: DataScale | None = None) -> dist.Distribution:
         """Build the numpyro distribution (resolving the data scale first if needed)."""
         p = self.resolve(scale)
         return DISTRIBUTIONS[p.dist][0](**p.args)
+
+
+def resolve_all(priors: Mapping[str, Prior], scale: DataScale | None) -> dict[str, Prior]:
+    """Every prior of ``priors`` (parameter -> prior) resolved; an error's key names the parameter
+    (``priors.T_C.scaled_by``)."""
+    resolved = {}
+    for name, prior in priors.items():
+        try:
+            resolved[name] = prior.resolve(scale)
+        except PriorError as exc:
+            raise exc.within(f"priors.{name}") from None
+    return resolved
+
+
+def _check_powers(scaled_by: object) -> None:
+    """``scaled_by``: None or a table of powers in [-MAX_POWER, MAX_POWER] by ``response`` or quantity."""
+    from bayesfric.quantities import QUANTITIES
+
+    if scaled_by is None:
+        return
+    if not isinstance(scaled_by, Mapping):
+        raise PriorError(f"must be a table of powers by name, got {scaled_by!r}", "scaled_by")
+    for k, v in scaled_by.items():
+        if not isinstance(k, str) or (k != "response" and k not in QUANTITIES):
+            raise PriorError(f"{k!r} is neither 'response' nor an operating quantity ({', '.join(QUANTITIES)})",
+                             f"scaled_by.{k}")
+        if not _finite(v) or abs(v) > MAX_POWER:
+            raise PriorError(f"the power must be a number from {-MAX_POWER:g} to {MAX_POWER:g}, got {v!r}",
+                             f"scaled_by.{k}")
+
+
+def _reach_log10(dist: str, a: Mapping[str, float]) -> float:
+    """log10 of the largest magnitude in the bulk of a prior: location ± 10 scales (``LogNormal``:
+    of its exponent; a rate: 10 / rate), the bounds of a uniform or truncated one."""
+    if dist == "LogNormal":
+        return (abs(a["loc"]) + 10 * a["scale"]) / math.log(10)
+    if dist in ("Exponential", "Gamma"):  # float arithmetic overflows to inf, never raises here
+        shape = a.get("concentration", 1.0)
+        peak = (shape + 10 * math.sqrt(shape)) / a["rate"]
+    elif dist == "Beta":
+        peak = 1.0
+    else:
+        peak = max([abs(a.get("loc", 0.0)) + 10 * a.get("scale", 0.0)] + [abs(a[k]) for k in ("low", "high") if k in a])
+    return math.log10(peak) if peak > 0 else -math.inf
 
 
 def _fmt(v: float) -> str:

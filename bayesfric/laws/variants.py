@@ -60,7 +60,7 @@ from bayesfric.laws.base import (
     declare,
     get_law,
 )
-from bayesfric.priors import Prior
+from bayesfric.priors import MAX_LOG10, Prior
 from bayesfric.quantities import parse_unit
 
 __all__ = [
@@ -238,6 +238,9 @@ def _fix(law: Law, values: Mapping[str, float]) -> Law:
     for name, value in values.items():
         if not isinstance(value, int | float) or isinstance(value, bool) or not math.isfinite(value):
             raise VariantError(f"must be a finite number, got {value!r}", f"fixed.{name}")
+        if value and abs(math.log10(abs(value))) > MAX_LOG10:  # the bound of every number a model is given
+            raise VariantError(f"{value:g} lies beyond 1e±{MAX_LOG10:g}, where the law's arithmetic overflows",
+                               f"fixed.{name}")
         value = float(value)
         if name in constants:
             constants[name] = dataclasses.replace(constants[name], value=value)

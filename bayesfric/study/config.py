@@ -423,8 +423,8 @@ def _law_spec(path: Path, i: int, entry: dict[str, Any], noise: Noise) -> LawSpe
                              f"(parameters: {', '.join(law.params)}; noise: {', '.join(noise.sites()) or 'none'})")
         try:
             priors[pname] = Prior.from_dict(spec)
-        except PriorError as exc:
-            raise StudyError(f"{where}.priors.{pname}: {exc}") from None
+        except PriorError as exc:  # exc.key: where inside the spec (scaled_by.response), if anywhere
+            raise StudyError(f"{where}.{exc.within(f'priors.{pname}')}") from None
     add = _listed(entry["add"]) + (("offset",) if entry["offset"] and "offset" not in _listed(entry["add"]) else ())
     return LawSpec(entry["label"] or entry["name"], priors, dict(entry["constants"]), law=entry["name"],
                    fixed=dict(entry["fixed"]), add=add, asymmetric=_listed(entry["asymmetric"]),

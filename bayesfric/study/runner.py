@@ -105,7 +105,10 @@ def validate_against_data(study: Study, ds) -> None:
                              f"{ds.attrs['response']}")
         try:
             program = build_program(law, ds, priors=spec.priors, noise=study.noise, constants=spec.constants)
-        except (PriorError, DataError) as exc:
+        except PriorError as exc:  # exc.key: priors.<parameter>.<key in its spec>
+            key = f"laws[{i}].{exc.key}" if exc.key else f"laws[{i}]"
+            raise StudyError(f"{where}: {key}: {exc.problem} (law {spec.name!r})") from None
+        except DataError as exc:
             raise StudyError(f"{where}: laws[{i}] ({spec.name}): {exc}") from None
         if study.sampler["name"] == "emcee" and (problem := walkers_problem(program, study.sampler["walkers"])):
             raise StudyError(f"{where}: [sampler] walkers: {problem}")

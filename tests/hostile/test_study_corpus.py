@@ -68,6 +68,11 @@ AS_ROOT = "file permissions do not bind root" if os.geteuid() == 0 else None
 NO_PROC = None if Path("/proc/self").is_dir() and not os.access("/proc/self", os.W_OK) else "no read-only /proc/self"
 
 
+def HN(scale: float, **powers: float) -> dict:
+    """A HalfNormal prior spec, data-scaled by ``powers`` when given."""
+    return {"dist": "HalfNormal", "scale": scale} | ({"scaled_by": powers} if powers else {})
+
+
 NAME = "[study] name"
 CASES = [
     # -- finding 1: the study name is a path --------------------------------------------------
@@ -143,9 +148,28 @@ CASES = [
     S("prior-negative-scale", {"laws.0.priors": {"T_C": {"dist": "HalfNormal", "scale": -1.0}}},
       "laws[0].priors.T_C", "scale=-1 must be > 0"),
     S("prior-not-table", {"laws.0.priors": {"T_C": [1, 2]}}, "laws[0].priors.T_C", "must be a table"),
-    S("prior-scaled-by-missing-input", {"laws.0.priors": {"T_C": {"dist": "HalfNormal", "scale": 1.0,
-                                                                  "scaled_by": {"temperature": 1}}}},
-      "laws[0] (coulomb_viscous)", "temperature"),
+    S("prior-scaled-by-missing-input", {"laws.0.priors": {"T_C": HN(1.0, temperature=1)}},
+      "laws[0].priors.T_C.scaled_by.temperature", "no such input", "coulomb_viscous"),
+    # -- issue 27: priors overflow while resolved, keys named ------------------------------------
+    S("prior-power-1e308", {"laws.0.priors": {"T_C": HN(1.0, response=1e308)}},
+      "laws[0].priors.T_C.scaled_by.response", "from -2 to 2"),
+    S("prior-power-400", {"laws.0.priors": {"T_C": HN(1.0, response=400)}},
+      "laws[0].priors.T_C.scaled_by.response", "got 400"),
+    S("prior-power-nan", {"laws.0.priors": {"T_C": HN(1.0, response=float("nan"))}},
+      "laws[0].priors.T_C.scaled_by.response"),
+    S("prior-scaled-by-unknown-name", {"laws.0.priors": {"T_C": HN(1.0, pressure=1)}},
+      "laws[0].priors.T_C.scaled_by.pressure", "neither 'response' nor an operating quantity"),
+    S("prior-scaled-by-not-table", {"laws.0.priors": {"T_C": {"dist": "HalfNormal", "scale": 1.0, "scaled_by": 2}}},
+      "laws[0].priors.T_C.scaled_by", "table of powers"),
+    S("prior-scale-1e300", {"laws.0.priors": {"T_C": HN(1e300)}}, "laws[0].priors.T_C", "reaches 1e301"),
+    S("prior-lognormal-wide", {"laws.0.priors": {"T_C": {"dist": "LogNormal", "loc": 0.0, "scale": 400.0}}},
+      "laws[0].priors.T_C", "must stay within"),
+    S("prior-rate-tiny", {"laws.0.priors": {"T_C": {"dist": "Exponential", "rate": 1e-300}}},
+      "laws[0].priors.T_C", "must stay within"),
+    S("prior-overflows-when-scaled", {"laws.0.priors": {"T_C": HN(1e99, response=2)}},
+      "laws[0].priors.T_C", "scaled by the data scale R^2"),
+    S("fixed-1e308", {"laws.0.fixed": {"c_v": 1e308}}, "laws[0].fixed.c_v", "1e±100"),
+    S("fixed-1e-300", {"laws.0.fixed": {"c_v": 1e-300}}, "laws[0].fixed.c_v", "1e±100"),
     S("law-unknown", {"laws.0.name": "no_such_law"}, "laws[0].name", "unknown law"),
     S("law-twice", {"laws": [{"name": "coulomb"}, {"name": "coulomb"}]}, "laws[1].name", "twice"),
     S("constant-unknown", {"laws.0.constants": {"nope": 1.0}}, "laws[0].constants.nope"),
@@ -195,6 +219,20 @@ CASES = [
       "scale=-1 must be > 0"),
     C("fit-prior-bad-json", FIT + ("--prior", "T_C={dist"), "--prior T_C", "invalid JSON"),
     C("fit-prior-unknown-parameter", FIT + ("--prior", 'nope={"dist":"HalfNormal","scale":1}'), "--prior nope"),
+    C("fit-prior-power-1e308", FIT + ("--prior", 'T_C={"dist":"HalfNormal","scale":1,"scaled_by":{"response":1e308}}'),
+      "--prior T_C", "scaled_by.response", "from -2 to 2"),
+    C("fit-prior-power-400", FIT + ("--prior", 'T_C={"dist":"HalfNormal","scale":1,"scaled_by":{"response":400}}'),
+      "--prior T_C", "scaled_by.response"),
+    C("fit-prior-scaled-by-pressure", FIT + ("--prior", 'T_C={"dist":"HalfNormal","scale":1,"scaled_by":{"pressure":1}}'),
+      "--prior T_C", "scaled_by.pressure"),
+    C("fit-prior-scaled-by-missing-input",
+      FIT + ("--prior", 'T_C={"dist":"HalfNormal","scale":1,"scaled_by":{"temperature":1}}'),
+      "--prior T_C", "scaled_by.temperature", "no such input"),
+    C("fit-prior-scale-1e300", FIT + ("--prior", 'T_C={"dist":"HalfNormal","scale":1e300}'), "--prior T_C", "reaches"),
+    C("fit-prior-overflows-when-scaled",
+      FIT + ("--prior", 'T_C={"dist":"HalfNormal","scale":1e99,"scaled_by":{"response":2}}'),
+      "--prior T_C", "scaled by the data scale"),
+    C("fit-fix-1e308", FIT + ("--fix", "c_v=1e308"), "--fix c_v", "1e±100"),
     C("fit-out-folder", FIT + ("--out", "reports"), "--out reports", "is a folder"),
     C("fit-out-under-file", FIT + ("--out", "notes.txt/fit.nc"), "--out notes.txt/fit.nc", "not a folder"),
     C("fit-out-unwritable", FIT + ("--out", "locked/sub/fit.nc"), "--out locked/sub/fit.nc", "not writable",
