@@ -180,11 +180,6 @@ def _claim_warnings(outcome: StudyOutcome) -> list[fd.Finding]:
         if bad:
             out.append(fd.plain(f"{len(bad)} {what} NOT reproduced by the posterior (see the claims section).",
                                 warning=True))
-    checks = sum(r.claim.pipeline_check for r in outcome.claims)
-    if checks:
-        out.append(fd.plain(f"{checks} of the {len(outcome.claims)} claims are pipeline checks, not evidence: their "
-                            "numbers were used to build the reconstructed data, so reproducing them checks the "
-                            "reconstruction and the pipeline, not the paper."))
     return out
 
 
