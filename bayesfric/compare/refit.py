@@ -111,10 +111,24 @@ class CVResult:
         return int(self.heldout.sum())
 
     def __str__(self) -> str:
-        flag = "" if self.reliable else f"  [FLAGGED: folds {self.failed_folds} failed the gate]"
+        flag = "" if self.reliable else f"  [FLAGGED: {self.failure}]"
         return (f"{self.law} / {self.scheme}: elpd {self.elpd:.2f} ± {self.se:.2f} "
                 f"on {self.n_heldout} held-out points{flag}")
 
+
+    @property
+    def failure(self) -> str:
+        """Which folds failed the gate and why, numbered from 1 (``"fold 2 of 4 failed the
+        diagnostics gate (R-hat 1.05 > 1.01)"``); ``""`` when every fold passed."""
+        failed = self.failed_folds
+        if not failed:
+            return ""
+        why = [(f"fold {i + 1}: " if len(failed) > 1 else "") + (self.verdicts[i].problems or ["failed"])[0]
+               for i in failed]
+        which = ("its only fold" if len(self.verdicts) == 1 else
+                 f"{'fold' if len(failed) == 1 else 'folds'} {', '.join(str(i + 1) for i in failed)} of "
+                 f"{len(self.verdicts)}")
+        return f"{which} failed the diagnostics gate ({'; '.join(why)})"
 
 def cross_validate(engine: RefitEngine, folds: Folds, *, seed: int = 0) -> CVResult:
     """Refit on every fold's training mask and score its held-out points.

@@ -75,7 +75,7 @@ def _why_unreliable(result: LooResult | CVResult) -> str | None:
             return f"high Pareto k not resolved: {result.handling}"
         return None
     if result.failed_folds:
-        return f"folds {result.failed_folds} failed the diagnostics gate"
+        return result.failure
     return None
 
 

@@ -131,7 +131,7 @@ def _claims(outcome: StudyOutcome) -> Table | None:
 def _law_sections(outcome: StudyOutcome, figures: dict[str, FigureRef]) -> list[LawSection]:
     out = []
     for w in outcome.laws:
-        rows = [[r.name, unit(r.unit), fmt(r.mean, r.sd, pm=False), fmt(r.sd, digits=2),
+        rows = [[r.name, unit(r.unit), fmt(r.mean, r.sd, pm=False), fmt(r.sd, r.sd, pm=False),
                  f"{fmt(r.q05, r.sd, pm=False)} … {fmt(r.q95, r.sd, pm=False)}", f"{r.r_hat:.3f}",
                  f"{r.ess_bulk:.0f}", r.meaning] for r in parameter_rows(w.fit, w.law)]
         table = Table("", ["parameter", "unit", "mean", "sd", "90 % interval", "R-hat", "ESS", "meaning"], rows)

@@ -154,7 +154,7 @@ def fit_report(dt: xr.DataTree, law: Law, markdown: bool = False) -> str:
     """The parameter report of one fit: table with units, mean, sd, 90 % interval (each rounded to
     the parameter's posterior sd), the noise model it used and the diagnostics."""
     header = ["parameter", "unit", "mean", "sd", "5 %", "95 %", "R-hat", "ESS bulk", "meaning"]
-    rows = [[r.name, unit(r.unit), fmt(r.mean, r.sd, pm=False), fmt(r.sd, digits=2), fmt(r.q05, r.sd, pm=False),
+    rows = [[r.name, unit(r.unit), fmt(r.mean, r.sd, pm=False), fmt(r.sd, r.sd, pm=False), fmt(r.q05, r.sd, pm=False),
              fmt(r.q95, r.sd, pm=False), f"{r.r_hat:.3f}", f"{r.ess_bulk:.0f}", r.meaning]
             for r in parameter_rows(dt, law)]
     verdict = verdict_of(dt)

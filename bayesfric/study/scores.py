@@ -80,15 +80,8 @@ def _loo_rows(w, gate) -> list[tuple]:
 
 def fold_failure(cv) -> str:
     """Why a cross-validation result may not be ranked: which folds failed the gate and the first
-    problem of each (``"fold 2 failed the diagnostics gate (R-hat 1.05 > 1.01)"``); ``""`` when
-    every fold passed."""
-    failed = cv.failed_folds
-    if not failed:
-        return ""
-    problems = [f"fold {i + 1}" + (f": {cv.verdicts[i].problems[0]}" if cv.verdicts[i].problems else "")
-                for i in failed]
-    return (f"{'fold' if len(failed) == 1 else 'folds'} {', '.join(str(i + 1) for i in failed)} of "
-            f"{len(cv.verdicts)} failed the diagnostics gate ({'; '.join(problems)})")
+    problem of each (:attr:`bayesfric.compare.CVResult.failure`); ``""`` when every fold passed."""
+    return cv.failure
 
 
 def _cv_rows(w, gate, blocked: list[str]) -> list[tuple]:

@@ -21,7 +21,7 @@ from tests.report.fakes import cv_result, outcome
 STUDY = ('[study]\nname = "tiny"\n[data]\ndataset = "robot_joint"\n[[laws]]\nname = "coulomb"\n[[laws]]\n'
          'name = "coulomb_viscous"\n[compare]\nevidence = false\n[[compare.blocked]]\naxis = "velocity"\n'
          'threshold = 1.0\nlabel = "outside"\n')
-REASON = "fold 1 of 1 failed the diagnostics gate (fold 1: R-hat 1.2 > 1.01)"
+REASON = "its only fold failed the diagnostics gate (R-hat 1.2 > 1.01)"
 MD_REASON = REASON.replace(">", "\\>")  # Markdown-escaped
 
 

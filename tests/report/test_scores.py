@@ -57,7 +57,7 @@ def test_winner_skips_unreliable_fold_and_names_it(study, tmp_path):
     assert sc.best(table, "elpd_cv", LABEL) == "coulomb_viscous"
     assert sc.passed_over(table, "elpd_cv", LABEL) == ["coulomb"]
     assert sc.value(table, "coulomb", "elpd_cv", LABEL)["reason"] == (
-        "fold 1 of 1 failed the diagnostics gate (fold 1: R-hat 1.2 > 1.01)")  # which fold and why
+        "its only fold failed the diagnostics gate (R-hat 1.2 > 1.01)")  # which fold and why
     assert sc.ranking_order(table, ["coulomb_viscous", "coulomb"], sc.Criterion("elpd_cv", LABEL, "x")) == [
         "coulomb", "coulomb_viscous"]  # the unreliable higher score keeps its place (issue 29)
     assert sc.best(table, "elpd_cv", LABEL, counted=True) == "coulomb"  # the winner if it were counted
@@ -102,3 +102,17 @@ def test_penalty_carries_its_standard_error(study, tmp_path):
     a = replace(a, penalty_se={LABEL: 0.12})
     table = sc.score_table(StudyOutcome(study=study, data=None, schemes=[LABEL], blocked=[LABEL], laws=[a]))
     assert sc.value(table, "coulomb", "penalty", LABEL)["se"] == 0.12
+
+
+def test_fold_failure_names_the_folds_from_one_with_their_problems():
+    from dataclasses import replace
+
+    from tests.report.fakes import BAD
+
+    held = np.arange(10) > 6
+    cv = cv_result("coulomb", LABEL, -5.0, 1.0, held)
+    other = replace(BAD, problems=["3 divergent transitions"])
+    assert replace(cv, verdicts=[OK, BAD, OK, other]).failure == (
+        "folds 2, 4 of 4 failed the diagnostics gate (fold 2: R-hat 1.2 > 1.01; fold 4: 3 divergent transitions)")
+    assert replace(cv, verdicts=[OK, BAD]).failure == "fold 2 of 2 failed the diagnostics gate (R-hat 1.2 > 1.01)"
+    assert replace(cv, verdicts=[OK, OK]).failure == "" and sc.fold_failure(cv) == ""
