@@ -169,23 +169,38 @@ class Program:
 
     def _likelihood(self, mu, mask=None, response=None):
         r = self.resolved
+        values = {name: numpyro.sample(name, r[name].to_numpyro()) for name in _NOISE_SITES[self.noise.kind]
+                  if not (name == "sigma" and self.noise.sigma is not None)}
         if self.noise.kind == "ar1":  # the mask is integrated out exactly (bayesfric.noise)
-            sigma = numpyro.sample("sigma", r["sigma"].to_numpyro())
-            rho = numpyro.sample("rho", r["rho"].to_numpyro())
             # predictive draws: one step ahead given the observed data (what the likelihood scores)
             past = self.response if response is None else None
-            return AR1Residuals(mu, sigma, rho, self.chain_start, mask, past)
-        if self.noise.kind == "normal":
-            if self.noise.sigma is not None:
-                return dist.Normal(mu, self.noise.sigma)
-            return dist.Normal(mu, numpyro.sample("sigma", r["sigma"].to_numpyro()))
-        if self.noise.kind == "student_t":
-            sigma = numpyro.sample("sigma", r["sigma"].to_numpyro())
-            nu = numpyro.sample("nu", r["nu"].to_numpyro())
-            return dist.StudentT(nu, mu, sigma)
-        rel = numpyro.sample("sigma_rel", r["sigma_rel"].to_numpyro())
-        floor = numpyro.sample("sigma_floor", r["sigma_floor"].to_numpyro())
-        return dist.Normal(mu, jnp.sqrt((rel * mu) ** 2 + floor**2))
+            return AR1Residuals(mu, values["sigma"], values["rho"], self.chain_start, mask, past)
+        return self.observation(mu, values)
+
+    def observation(self, mu, values: Mapping[str, Any]) -> dist.Distribution:
+        """The distribution of one observation with mean ``mu`` given noise-parameter ``values``.
+
+        The likelihood uses exactly this distribution (normal, student_t, proportional); for
+        ``ar1`` it is the stationary marginal ``N(mu, σ² / (1 − ρ²))`` of a point, the predictive
+        of a new operating point with no observed predecessor. Sizing and the held-out predictive
+        summaries of cross-validation draw their noise from here, so there is one noise model.
+
+        Parameters
+        ----------
+        mu : array
+            Mean function values (any shape broadcasting with the parameter values).
+        values : mapping of str to array
+            Noise-parameter draws by site name (:meth:`Noise.sites`, without ``group_sd``).
+        """
+        kind = self.noise.kind
+        if kind == "normal":
+            return dist.Normal(mu, self.noise.sigma if self.noise.sigma is not None else values["sigma"])
+        if kind == "student_t":
+            return dist.StudentT(values["nu"], mu, values["sigma"])
+        if kind == "ar1":
+            rho = values["rho"]
+            return dist.Normal(mu, values["sigma"] / jnp.sqrt(1.0 - rho**2))
+        return dist.Normal(mu, jnp.sqrt((values["sigma_rel"] * mu) ** 2 + values["sigma_floor"] ** 2))
 
     def parameter_names(self) -> list[str]:
         """Law parameters, derived quantities, then noise parameters (report order)."""

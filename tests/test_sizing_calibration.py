@@ -1,139 +1,146 @@
-"""Calibration of the sizing interval (issue #10, slow): how often does the nominal 90 % interval of
-the model-averaged predictive cover the truth outside the tested envelope?
+"""Calibration of sizing beyond the tested envelope (issues #10, #28): how often does the nominal
+90 % band of the model-averaged friction curve cover the true mean curve, within-model and
+calibrated for the model-form error that a blocked fold measured?
 
-Each replicate simulates a fresh data set on 30 speeds in 0.1–2 rad/s (normal noise, sd 0.3 N·m),
-fits the candidate laws ``coulomb_viscous`` and ``coulomb`` (blackjax NUTS, 2 chains × 1000 draws
-after 500 warm-up steps, the project's compile-once refit sampler), weights them by stacking on a
-blocked fold inside the data (train ≤ 1.4 rad/s, score above — what a study does), and sizes the
-range 2.5–4 rad/s (0.26–1.05 tested ranges beyond the data) exactly as ``bayesfric size`` does.
-The truth at a point is a fresh observation there (what the drive meets), so the interval is the
-5–95 % band of ``|T|`` with observation noise.
+Each replicate simulates 30 speeds in 0.1–2 rad/s (normal noise, sd 0.3 N·m), fits the candidate
+laws ``coulomb_viscous`` and ``coulomb``, refits them on a blocked fold inside the data (train ≤
+1.4 rad/s, score above: what a study does), weights them by stacking on that fold, measures each
+law's miss there, and sizes the range 2.5–4 rad/s (0.26–1.05 tested ranges beyond the data)
+through :func:`bayesfric.sizing.answer_question`, exactly as ``bayesfric size`` does.
 
-* **True law a candidate:** data from ``coulomb_viscous`` (T_C = 5 N·m, c_v = 2 N·m·s/rad).
-  Asserted: the coverage at 3 rad/s, of the model average and of the true law's own interval, is
-  consistent with 85–95 %. With :data:`REPLICATES` replicates each check fails only if the count
-  of covers is below the 1 % quantile of Binomial(R, 0.85) or above the 99 % quantile of
-  Binomial(R, 0.95) (for R = 200: outside 158–196): a false-alarm rate of at most 1 % per check
-  (2 % for the test) when the true coverage lies anywhere in 85–95 %.
-* **True law not a candidate:** data from a sub-linear viscous law T = 4 + 3 v^0.6 that neither
-  candidate can represent. Nothing about its coverage is promised; it is printed, and the test
-  asserts only what we know: the linear law extrapolates too high, so its misses lie mostly
-  above the truth (the safe side for sizing), and coverage is below the candidate case's.
+Posteriors are **exact** rather than sampled: both candidates are linear in their coefficients, so
+with flat priors on them and ``p(σ²) ∝ 1/σ²`` the posterior is normal-inverse-χ² and is drawn
+directly (2 chains × 500 draws), for the full fit and the fold alike. This tests the sizing and
+calibration method, not the sampler (NUTS is checked against such posteriors elsewhere), and
+makes 200 replicates per scenario affordable.
+
+Scenarios (truth = mean torque at speed v > 0):
+
+* the true law is a candidate: ``5 + 2 v`` (coulomb_viscous);
+* no candidate is the true law, form errors the blocked fold sees: a Stribeck decay plus a gear
+  power-law viscous term (the robot-joint generator's shape), and viscous plus quadratic
+  churning drag;
+* no candidate is the true law, *mild* form errors hidden in the noise of the ten held-out
+  points: a sub-linear viscous term ``4 + 3 v^0.6`` and a Stribeck dip on a linear law.
+
+Asserted: with R = 200, the calibrated band covers the true curve at 3 rad/s in ≥ 85 % of
+replicates in every scenario whose form error the fold sees, and in 85–95 % (consistent at 1 %
+false alarm) when the truth is a candidate, where its median width is ≤ 1.5× the within-model
+width. For the mild scenarios the calibrated coverage is printed and asserted only to exceed the
+within-model one: the method cannot see a miss that the held-out points do not show (see
+:mod:`bayesfric.sizing.calibration`). Figures: README, *Actuator sizing*.
 """
 
 from __future__ import annotations
 
 import math
 
-import arviz as az
 import numpy as np
 import pytest
-from scipy import stats
+from scipy import special, stats
 
 from bayesfric import compare, sizing
+from bayesfric.compare.heldout import HeldOut
 from bayesfric.datasets.synthetic import make_dataset
-from bayesfric.inference.datatree import provenance
-from bayesfric.laws import get_law
-from bayesfric.model import build_program
+from bayesfric.sizing.calibration import Scheme, measure_miss
+from tests.sizing_helpers import PASSED, hand_fit
 
 REPLICATES = 200
-LAWS = ("coulomb_viscous", "coulomb")
 SIGMA = 0.3
 SPEEDS = np.linspace(0.1, 2.0, 30)
-TRUTHS = {
-    "candidate": lambda v: 5.0 + 2.0 * v,
-    "not a candidate": lambda v: 4.0 + 3.0 * v**0.6,
-}
+CUT = 1.4
 ASKED = "2.5..4 rad/s"
 REPORT_AT = (2.5, 3.0, 4.0)  # rad/s: grid points of the asked range (25 points, 0.0625 apart)
 ASSERT_AT = 3.0
+CHAINS, DRAWS = 2, 500
+DESIGN = {"coulomb_viscous": lambda v: np.c_[np.sign(v), v], "coulomb": lambda v: np.sign(v)[:, None]}
+PARAMS = {"coulomb_viscous": ("T_C", "c_v"), "coulomb": ("T_C",)}
+VISIBLE = {
+    "Stribeck + gear power law": lambda v: 2.0 + 2.0 * np.exp(-np.sqrt(v / 0.1)) + 3.0 * np.sqrt(v),
+    "viscous + quadratic drag": lambda v: 4.0 + 1.0 * v + 0.8 * v**2,
+}
+MILD = {
+    "sub-linear viscous (mild)": lambda v: 4.0 + 3.0 * v**0.6,
+    "Stribeck dip + linear (mild)": lambda v: 3.0 + 2.0 * np.exp(-((v / 0.3) ** 2)) + 2.0 * v,
+}
+TRUTHS = {"candidate": lambda v: 5.0 + 2.0 * v, **VISIBLE, **MILD}
 
 
-class Sampler:
-    """One compiled NUTS sampler per law, reused for every replicate (only the response changes)."""
-
-    def __init__(self, ds):
-        self.engines = {}
-        for name in LAWS:
-            program = build_program(get_law(name), ds)
-            self.engines[name] = compare.RefitEngine(program, draws=1000, tune=500, chains=2, seed=0)
-        self.folds = compare.blocked_masks(ds, "velocity", threshold=1.4, direction="upper")
-
-    def sources(self, ds, seed: int) -> list[sizing.LawSource]:
-        fits, cvs = {}, {}
-        y = np.asarray(ds["torque"].values, dtype=float)
-        for name, base in self.engines.items():
-            engine = base.with_response(y)  # the same compiled sampler on this replicate's data
-            full = engine.run(np.ones((1, y.size), dtype=bool), seed=seed)
-            dt = az.from_dict({"posterior": {k: v[0] for k, v in full.samples.items()}})
-            dt.attrs.update(provenance(engine.program, ds, "nuts", {}, seed))
-            dt.attrs["diagnostics"] = full.verdicts[0].to_json()
-            fits[name] = dt
-            cvs[name] = compare.cross_validate(engine, self.folds, seed=seed)
-        weights = compare.model_weights(cvs, method="stacking", fits=fits)
-        # as the runner and weights.json do: a failed full fit is excluded from sizing; a law the
-        # weighting left out (a blocked fold failed the gate) stays, with weight 0
-        return [sizing.LawSource(name, fits[name], weights.weights.get(name, 0.0),
-                                 excluded=sizing.exclusion({"diagnostics_passed": full_passed(fits[name])}),
-                                 weight_note=weights.excluded.get(name, ""))
-                for name in LAWS]
+def posterior(x: np.ndarray, y: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Exact posterior draws (coefficients (S, p), sigma (S,)) of y = x β + N(0, σ²)."""
+    n, p = x.shape
+    xtx = x.T @ x
+    beta_hat = np.linalg.solve(xtx, x.T @ y)
+    s2 = float(np.sum((y - x @ beta_hat) ** 2)) / (n - p)
+    s = CHAINS * DRAWS
+    sigma2 = (n - p) * s2 / rng.chisquare(n - p, s)
+    chol = np.linalg.cholesky(np.linalg.inv(xtx))
+    beta = beta_hat + np.sqrt(sigma2)[:, None] * (rng.standard_normal((s, p)) @ chol.T)
+    return beta, np.sqrt(sigma2)
 
 
-def full_passed(dt) -> bool:
-    from bayesfric.inference.diagnostics import verdict_of
+def law_pieces(name: str, y: np.ndarray, heldout: np.ndarray, label: str, rng: np.random.Generator):
+    """The full fit (a DataTree as sampled fits are) and the blocked fold's CVResult of a law."""
+    x = DESIGN[name](SPEEDS)
+    beta, sigma = posterior(x, y, rng)
+    shape = (CHAINS, DRAWS)
+    draws = {k: beta[:, i].reshape(shape) for i, k in enumerate(PARAMS[name])} | {"sigma": sigma.reshape(shape)}
+    fit = hand_fit(name, draws, {"velocity": SPEEDS})
+    beta_f, sigma_f = posterior(x[~heldout], y[~heldout], rng)
+    mu = beta_f @ x[heldout].T  # (S, n_heldout)
+    lpd = special.logsumexp(stats.norm.logpdf(y[heldout], mu, sigma_f[:, None]), axis=0) - math.log(mu.shape[0])
+    elpd_i = np.full(SPEEDS.size, np.nan)
+    elpd_i[heldout] = lpd
+    index = np.flatnonzero(heldout)
+    cv = compare.CVResult(name, label, float(lpd.sum()), float(np.sqrt(lpd.size * lpd.var())), elpd_i, heldout,
+                          [PASSED], 0.0, predictive=HeldOut(index, np.zeros(index.size, dtype=int), mu,
+                                                            np.full(index.size, float(np.mean(sigma_f**2)))))
+    return fit, cv
 
-    return verdict_of(dt).passed
+
+def sources(y: np.ndarray, rng: np.random.Generator) -> tuple[list[sizing.LawSource], Scheme]:
+    """Every candidate's LawSource, weighted and with its measured miss, as a study gives them."""
+    ds = make_dataset({"velocity": SPEEDS}, y)
+    folds = compare.blocked_masks(ds, "velocity", threshold=CUT, direction="upper")
+    label = folds.labels[0]
+    scheme = Scheme(label, "velocity", "upper")
+    pieces = {name: law_pieces(name, y, folds.heldout[0], label, rng) for name in DESIGN}
+    weights = compare.model_weights({k: cv for k, (_, cv) in pieces.items()}, method="stacking")
+    out = []
+    for name, (fit, cv) in pieces.items():
+        miss = measure_miss(cv, ds, scheme)
+        out.append(sizing.LawSource(name, fit, {label: weights.weights.get(name, 0.0)},
+                                    misses={label: miss} if miss is not None else {}))
+    return out, scheme
 
 
 def calibrate(replicates: int = REPLICATES, seed: int = 2026) -> dict:
-    """Coverage of the averaged 90 % interval (and of the true law's own) per scenario and point."""
+    """Per scenario and reported point: coverage of the true mean curve, within-model and
+    calibrated, and the calibrated width relative to the within-model width."""
     rng = np.random.default_rng(seed)
     question = sizing.check_question(sizing.make_question({"velocity": ASKED}, 0.9), ["velocity"], ["velocity"],
                                      "torque")
     x = question.grid()["velocity"]
     cols = [int(np.argmin(np.abs(x - v))) for v in REPORT_AT]
-    template = make_dataset({"velocity": SPEEDS}, TRUTHS["candidate"](SPEEDS))
-    sampler = Sampler(template)
     out = {}
     for scenario, truth in TRUTHS.items():
-        hits = {"average": [], "coulomb_viscous": [], "mean function": []}
-        above, below, excluded, weight, no_average = [], [], 0, [], 0
+        within, calibrated, ratio, new_obs = [], [], [], []
+        mu = np.abs(truth(x))
         for r in range(replicates):
             y = truth(SPEEDS) + rng.normal(0, SIGMA, SPEEDS.size)
-            ds = make_dataset({"velocity": SPEEDS}, y)
-            answer = sizing.answer_question(question, sampler.sources(ds, seed=r), {"velocity": (0.1, 2.0)},
-                                            seed=r, fan=False)
-            excluded += sum(a.excluded is not None for a in answer.laws)
-            new = np.abs(truth(x) + rng.normal(0, SIGMA, x.size))  # what the drive meets
-            mix = answer.average
-            if mix is None:  # every law excluded: no interval, counted as a miss
-                no_average += 1
-                for k in hits:
-                    hits[k].append(np.zeros(x.size, dtype=bool))
-                above.append(np.zeros(x.size, dtype=bool))
-                below.append(np.zeros(x.size, dtype=bool))
-                continue
-            weight.append(mix.weights.get("coulomb_viscous", 0.0))
-            lo, hi = mix.noisy.q(0.05), mix.noisy.q(0.95)
-            hits["average"].append((lo <= new) & (new <= hi))
-            above.append(new > hi)
-            below.append(new < lo)
-            law = next(a for a in answer.laws if a.name == "coulomb_viscous")
-            hits["coulomb_viscous"].append((law.noisy.q(0.05) <= new) & (new <= law.noisy.q(0.95)))
-            mu = np.abs(truth(x))
-            hits["mean function"].append((mix.mean_fn.q(0.05) <= mu) & (mu <= mix.mean_fn.q(0.95)))
+            laws, scheme = sources(y, rng)
+            answer = sizing.answer_question(question, laws, {"velocity": SPEEDS}, schemes=[scheme], seed=r, fan=False)
+            mix, cal = answer.average, answer.average.calibrated
+            within.append((mix.mean_fn.q(0.05) <= mu) & (mu <= mix.mean_fn.q(0.95)))
+            calibrated.append((cal.mean_fn.q(0.05) <= mu) & (mu <= cal.mean_fn.q(0.95)))
+            ratio.append((cal.mean_fn.q(0.95) - cal.mean_fn.q(0.05)) / (mix.mean_fn.q(0.95) - mix.mean_fn.q(0.05)))
+            new = np.abs(truth(x) + rng.normal(0, SIGMA, x.size))
+            new_obs.append((cal.noisy.q(0.05) <= new) & (new <= cal.noisy.q(0.95)))
         out[scenario] = {
-            "x": x[cols],
-            "distance": sizing.extrapolation_distance(x[cols], 0.1, 2.0),
-            **{k: np.mean(v, axis=0)[cols] for k, v in hits.items()},
-            "truth above the 95 % bound": np.mean(above, axis=0)[cols],
-            "truth below the 5 % bound": np.mean(below, axis=0)[cols],
-            "covers at 3 rad/s": int(np.sum(np.asarray(hits["average"])[:, cols[REPORT_AT.index(ASSERT_AT)]])),
-            "law alone covers at 3 rad/s": int(np.sum(np.asarray(hits["coulomb_viscous"])
-                                                      [:, cols[REPORT_AT.index(ASSERT_AT)]])),
-            "excluded fits": excluded,
-            "no average": no_average,
-            "mean weight of coulomb_viscous": float(np.mean(weight)) if weight else math.nan,
+            "x": x[cols], "distance": sizing.extrapolation_distance(x[cols], SPEEDS[0], SPEEDS[-1]),
+            "within": np.mean(within, axis=0)[cols], "calibrated": np.mean(calibrated, axis=0)[cols],
+            "width ratio": np.median(ratio, axis=0)[cols], "new observation": np.mean(new_obs, axis=0)[cols],
+            "covers": int(np.sum(np.asarray(calibrated)[:, cols[REPORT_AT.index(ASSERT_AT)]])),
         }
     return out
 
@@ -145,36 +152,28 @@ def acceptance(replicates: int, level: float = 0.01) -> tuple[int, int]:
     return low, high
 
 
-def _table(result: dict) -> str:
+def table(result: dict) -> str:
+    """The figures as printed (and quoted in the README)."""
     lines = []
     for scenario, r in result.items():
-        lines.append(f"true law {scenario}:")
+        lines.append(f"{scenario}:")
         for i, v in enumerate(r["x"]):
-            lines.append(
-                f"  v = {v:.2f} rad/s (distance {r['distance'][i]:.2f}): averaged 90 % interval covers "
-                f"{r['average'][i]:.1%} (above {r['truth above the 95 % bound'][i]:.1%}, below "
-                f"{r['truth below the 5 % bound'][i]:.1%}); coulomb_viscous alone {r['coulomb_viscous'][i]:.1%}; "
-                f"mean-function interval covers the true mean {r['mean function'][i]:.1%}")
-        lines.append(f"  full fits that failed the gate (excluded): {r['excluded fits']}; replicates without an "
-                     f"average: {r['no average']}; mean stacking weight of coulomb_viscous "
-                     f"{r['mean weight of coulomb_viscous']:.3f}")
+            lines.append(f"  v = {v:.2f} rad/s (distance {r['distance'][i]:.2f}): 90 % band of the mean curve covers "
+                         f"the truth {r['within'][i]:.1%} within-model, {r['calibrated'][i]:.1%} calibrated (median "
+                         f"width {r['width ratio'][i]:.2f}x); calibrated band with noise covers a new observation "
+                         f"{r['new observation'][i]:.1%}")
     return "\n".join(lines)
 
 
 @pytest.mark.slow
-def test_sizing_interval_calibration():
+def test_calibrated_sizing_covers_the_truth_beyond_the_envelope():
     result = calibrate()
-    print("\n" + _table(result))
-    low, high = acceptance(REPLICATES)
-    for key in ("covers at 3 rad/s", "law alone covers at 3 rad/s"):
-        covers = result["candidate"][key]
-        ci = stats.binomtest(covers, REPLICATES).proportion_ci(0.95, method="wilson")
-        print(f"true law a candidate, {key}: {covers}/{REPLICATES} = {covers / REPLICATES:.1%} (Wilson 95 % "
-              f"{ci.low:.1%}-{ci.high:.1%}); consistent with 85-95 % (false alarm <= 1 %) if in [{low}, {high}]")
-    for key in ("covers at 3 rad/s", "law alone covers at 3 rad/s"):
-        assert low <= result["candidate"][key] <= high
-    miss = result["not a candidate"]
+    print("\n" + table(result))
     i = REPORT_AT.index(ASSERT_AT)
-    assert miss["average"][i] < result["candidate"]["average"][i]
-    assert miss["truth below the 5 % bound"][i] > miss["truth above the 95 % bound"][i]  # misses on the safe side
-    assert math.isfinite(miss["mean function"][i])
+    low, high = acceptance(REPLICATES)
+    assert low <= result["candidate"]["covers"] <= high
+    assert result["candidate"]["width ratio"][i] <= 1.5
+    for scenario in VISIBLE:
+        assert result[scenario]["calibrated"][i] >= 0.85, scenario
+    for scenario in MILD:
+        assert result[scenario]["calibrated"][i] > result[scenario]["within"][i] + 0.2, scenario

@@ -28,6 +28,7 @@ import numpy as np
 import xarray as xr
 
 from bayesfric.compare.folds import Folds
+from bayesfric.compare.heldout import HeldOut, heldout_predictive
 from bayesfric.inference.diagnostics import Verdict
 from bayesfric.inference.engine import FoldFits, NutsEngine
 from bayesfric.laws.variants import law_of_fit
@@ -85,6 +86,10 @@ class CVResult:
         ``(n_obs,)`` bool, the points scored.
     verdicts : list of Verdict
         Gate verdict per fold; :attr:`failed_folds` lists those that failed.
+    predictive : HeldOut or None
+        Thinned fold-posterior mean-function draws and noise variance at the held-out points
+        (:mod:`bayesfric.compare.heldout`), kept when asked (blocked schemes: sizing measures
+        the model-form error from them).
     """
 
     law: str
@@ -96,6 +101,7 @@ class CVResult:
     verdicts: list[Verdict]
     seconds: float
     settings: dict = field(default_factory=dict)
+    predictive: HeldOut | None = None
 
     @property
     def failed_folds(self) -> list[int]:
@@ -109,12 +115,6 @@ class CVResult:
     @property
     def n_heldout(self) -> int:
         return int(self.heldout.sum())
-
-    def __str__(self) -> str:
-        flag = "" if self.reliable else f"  [FLAGGED: {self.failure}]"
-        return (f"{self.law} / {self.scheme}: elpd {self.elpd:.2f} ± {self.se:.2f} "
-                f"on {self.n_heldout} held-out points{flag}")
-
 
     @property
     def failure(self) -> str:
@@ -130,7 +130,13 @@ class CVResult:
                  f"{len(self.verdicts)}")
         return f"{which} failed the diagnostics gate ({'; '.join(why)})"
 
-def cross_validate(engine: RefitEngine, folds: Folds, *, seed: int = 0) -> CVResult:
+    def __str__(self) -> str:
+        flag = "" if self.reliable else f"  [FLAGGED: {self.failure}]"
+        return (f"{self.law} / {self.scheme}: elpd {self.elpd:.2f} ± {self.se:.2f} "
+                f"on {self.n_heldout} held-out points{flag}")
+
+
+def cross_validate(engine: RefitEngine, folds: Folds, *, seed: int = 0, predictive: bool = False) -> CVResult:
     """Refit on every fold's training mask and score its held-out points.
 
     Parameters
@@ -141,6 +147,8 @@ def cross_validate(engine: RefitEngine, folds: Folds, *, seed: int = 0) -> CVRes
         From :mod:`bayesfric.compare.folds`; each point may be held out at most once.
     seed : int
         Seed of the fold fits.
+    predictive : bool
+        Also keep the held-out predictive draws (:attr:`CVResult.predictive`).
 
     Returns
     -------
@@ -167,5 +175,6 @@ def cross_validate(engine: RefitEngine, folds: Folds, *, seed: int = 0) -> CVRes
         verdicts=fits.verdicts,
         seconds=fits.seconds,
         settings=engine.settings | {"fold_target_accept": [float(t) for t in fits.target_accept]},
+        predictive=heldout_predictive(engine.program, fits.samples, folds.heldout) if predictive else None,
     )
 

@@ -69,8 +69,11 @@ def plot_sizing_fan(result, answer, path: Path, *, title: str = "") -> Path:
     it extrapolates most along; other inputs at the question's values): the tested region
     shaded; per law its curve (median of the mean function) and 5–95 % band with observation
     noise, excluded laws dotted for reference; the model average's curve, band and required
-    capacity at the question's confidence (dashed); the available capacity (horizontal line) and
-    the asked point(s). Units are those the question and data use.
+    capacity at the question's confidence (dashed), and where blocked folds measured the laws'
+    model-form error the average's calibrated 5–95 % band of the curve (grey) and calibrated
+    required capacity (dash-dot); laws with zero weight faded; the measured data (grey dots,
+    every condition); the available capacity (horizontal line) and the asked point(s). Units are
+    those the question and data use.
     """
     fan = answer.fan
     question = answer.question
@@ -81,21 +84,24 @@ def plot_sizing_fan(result, answer, path: Path, *, title: str = "") -> Path:
     ax = fig.subplots()
     lo, hi = value.display(np.array(fan.tested))
     ax.axvspan(min(lo, hi), max(lo, hi), color="0.9", lw=0, label="tested range")
-    colours = mpl.rcParams["axes.prop_cycle"].by_key()["color"]
-    for i, (name, band) in enumerate(fan.laws.items()):
-        c = colours[i % len(colours)]
+    if fan.measured is not None:  # the data along this axis (other inputs at every tested value)
+        ax.plot(value.display(fan.measured[0]), fan.measured[1] / scale, ".", ms=2.5, color="0.45", alpha=0.6,
+                zorder=1, label="measured (all conditions)")
+    colours = [mpl.colormaps["tab10"](i % 10) for i in range(len(fan.laws))]
+    for c, (name, band) in zip(colours, fan.laws.items(), strict=True):
         if name in fan.excluded:
             ax.plot(x, band["curve"] / scale, ":", lw=1.0, color=c, label=f"{name} (excluded)")
             continue
         weight = next((a.weight for a in answer.laws if a.name == name), 0.0)
-        ax.plot(x, band["curve"] / scale, "-", lw=1.1, color=c, label=f"{name} (w = {weight:.2f})")
-        ax.fill_between(x, band["lo"] / scale, band["hi"] / scale, color=c, alpha=0.10, lw=0)
-    if fan.average is not None:
-        ax.fill_between(x, fan.average["lo"] / scale, fan.average["hi"] / scale, facecolor="none",
-                        edgecolor="k", hatch="///", lw=0.6, label="model average, 5–95 % with noise")
-        ax.plot(x, fan.average["curve"] / scale, "k-", lw=2.0, label="model average, curve")
-        ax.plot(x, fan.average["required"] / scale, "k--", lw=1.4,
-                label=f"required capacity ({question.confidence:g} quantile)")
+        faded = answer.basis is not None and not weight > 0.005  # zero weight: shown, faded
+        ax.plot(x, band["curve"] / scale, "-", lw=0.8 if faded else 1.3, color=c, alpha=0.35 if faded else 1.0,
+                label=f"{name} (w = {weight:.2f})" if answer.basis is not None else name)
+        ax.fill_between(x, band["lo"] / scale, band["hi"] / scale, color=c, alpha=0.04 if faded else 0.12, lw=0)
+    if fan.average is not None and "cal_lo" in fan.average:
+        ax.fill_between(x, fan.average["cal_lo"] / scale, fan.average["cal_hi"] / scale, color="k", alpha=0.15,
+                        lw=0, label="model average, calibrated 5–95 % of the curve (model-form error)")
+        ax.plot(x, fan.average["cal_required"] / scale, "k-.", lw=1.4,
+                label=f"calibrated required capacity ({question.confidence:g})")
     if question.capacity is not None:
         ax.axhline(question.capacity.lo / scale, color="crimson", lw=1.5, label=f"capacity {question.capacity.text}")
     asked = value.display(np.array([value.lo, value.hi]))

@@ -201,10 +201,30 @@ def recommendation(outcome: StudyOutcome, table: pd.DataFrame) -> Finding:
               f"law carries ≥ {RECOMMEND_WEIGHT:.0%} of the weight; ", _law(winner), f" alone has the {why}.")
 
 
+def no_law_extrapolates(outcome: StudyOutcome, table: pd.DataFrame) -> Finding | None:
+    """The verdict "no law extrapolates" for the first blocked scheme on which every law's
+    extrapolation penalty exceeds :data:`bayesfric.sizing.basis.NO_EXTRAPOLATION` nats per
+    held-out point (None when some law stays under it on every scheme)."""
+    from bayesfric.sizing.basis import NO_EXTRAPOLATION
+
+    for scheme in outcome.blocked:
+        rows = table[(table["metric"] == "penalty") & (table["scheme"] == scheme)].dropna(subset=["estimate"])
+        if len(rows) and len(rows) == len(outcome.laws) and rows["estimate"].min() > NO_EXTRAPOLATION:
+            best = rows.loc[rows["estimate"].idxmin()]
+            return _f(f"NO LAW EXTRAPOLATES along '{scheme}': every law loses more than {NO_EXTRAPOLATION:g} nats "
+                      "per held-out point beyond its training envelope (the least, ", _law(best["law"]),
+                      f", {best['estimate']:.3g}). Read every ranking and recommendation below as valid inside the "
+                      "tested envelope only; sizing beyond it quotes calibrated numbers only.", warning=True)
+    return None
+
+
 def summary_block(outcome: StudyOutcome, table: pd.DataFrame, extra_warnings: list[Finding] | None = None) -> Summary:
-    """The top summary: question, one answer per criterion, recommendation, decision warnings."""
+    """The top summary: question, one answer per criterion (after the verdict that no law
+    extrapolates, when that holds), recommendation, decision warnings."""
     loo_winner = sc.best(table, "elpd_loo") if outcome.study.loo else None
     answers = [a for c in sc.criteria(outcome) if (a := _answer(table, c, loo_winner)) is not None]
+    if (verdict := no_law_extrapolates(outcome, table)) is not None:
+        answers.insert(0, verdict)
     warnings = counted_winners(outcome, table) + _warnings(outcome) + list(extra_warnings or [])
     blocked_winners = {sc.best(table, "elpd_cv", s) for s in outcome.blocked}
     if loo_winner and blocked_winners and loo_winner not in blocked_winners:

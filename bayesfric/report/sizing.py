@@ -80,38 +80,52 @@ def _p_text(p: float, se: float, bound: float) -> str:
     return f"{p:.3g} ± {se:.2g}"
 
 
+def _cal_cells(a, j: int, scale: float, capacity) -> list[str]:
+    """Calibrated friction-curve 5/50/95 %, required capacity and P(exceed) of a law or average."""
+    cal = a.calibrated
+    if cal is None:
+        return ["–"] * (4 + (capacity is not None))
+    cells = [_g(float(cal.mean_fn.q(q)[j]) / scale) for q in LEVELS] + [_g(float(cal.required[j]) / scale)]
+    if capacity is not None:
+        cells.append(_p_text(float(cal.p_exceed[j]), float(cal.p_se[j]), float(cal.p_bound[j])))
+    return cells
+
+
 def _law_table(result: SizingResult, answer: Answer, j: int) -> tuple[str, list[str], list[list[str]]]:
     scale, unit, c = result.response_scale, result.response_unit, answer.question.confidence
-    header = ["law", "weight (blocked)", "used", "weight (LOO)",
-              *(f"mean fn {_pct(q)}" for q in LEVELS), *(f"with noise {_pct(q)}" for q in LEVELS),
-              f"required @ {c:g}"]
+    single = answer.basis is None
     capacity = answer.question.capacity
-    if capacity is not None:
-        header.append(f"P(|{result.response}| > {capacity.text})")
-    rows = []
+    within = not (answer.basis is not None and answer.basis.no_extrapolation)
+    calibrated = answer.basis is not None and answer.basis.calibrated
+    header = ["law"] + ([] if single else ["weight (basis)", "used", "weight (LOO)"])
+    if within:
+        header += [*(f"mean fn {_pct(q)}" for q in LEVELS), *(f"with noise {_pct(q)}" for q in LEVELS),
+                   f"required @ {c:g}"] + ([f"P(|{result.response}| > {capacity.text})"] if capacity else [])
+    if calibrated:
+        header += [*(f"calibrated curve {_pct(q)}" for q in LEVELS), f"calibrated required @ {c:g}"]
+        header += [f"calibrated P(> {capacity.text})"] if capacity else []
 
-    def row(name, w_raw, w_used, w_loo, mean_fn, noisy, required, p=None):
-        cells = [name, _w(w_raw), _w(w_used), _w(w_loo)]
-        cells += [_g(float(mean_fn.q(q)[j]) / scale) for q in LEVELS]
-        cells += [_g(float(noisy.q(q)[j]) / scale) for q in LEVELS]
-        cells.append(_g(float(required[j]) / scale))
-        if capacity is not None:
-            cells.append(_p_text(*(float(x[j]) for x in p)) if p is not None else "–")
-        return cells
+    def row(name, a, weights=(math.nan, math.nan, math.nan)):
+        cells = [name] + ([] if single else [_w(w) for w in weights])
+        if within:
+            cells += [_g(float(a.mean_fn.q(q)[j]) / scale) for q in LEVELS]
+            cells += [_g(float(a.noisy.q(q)[j]) / scale) for q in LEVELS]
+            cells.append(_g(float(a.required[j]) / scale))
+            if capacity is not None:
+                cells.append(_p_text(float(a.p_exceed[j]), float(a.p_se[j]), float(a.p_bound[j])))
+        return cells + (_cal_cells(a, j, scale, capacity) if calibrated else [])
 
-    for a in answer.used:
-        rows.append(row(a.name, a.weight_raw, a.weight, a.weight_loo, a.mean_fn, a.noisy, a.required,
-                        (a.p_exceed, a.p_se, a.p_bound)))
-    for a in answer.laws:  # for reference, marked: never in the average
-        if a.excluded is not None:
-            rows.append(row(f"{a.name} (EXCLUDED)", a.weight_raw, math.nan, a.weight_loo, a.mean_fn, a.noisy,
-                            a.required, (a.p_exceed, a.p_se, a.p_bound)))
+    rows = [row(a.name, a, (a.weight_raw, a.weight, a.weight_loo)) for a in answer.used]
+    rows += [row(f"{a.name} (EXCLUDED)", a, (a.weight_raw, math.nan, a.weight_loo))
+             for a in answer.laws if a.excluded is not None]
     for mix, name in ((answer.average, "MODEL AVERAGE"), (answer.average_loo, "average by LOO weights")):
-        if mix is not None and (len(answer.laws) > 1):
-            rows.append(row(name, math.nan, 1.0 if name == "MODEL AVERAGE" else math.nan, math.nan, mix.mean_fn,
-                            mix.noisy, mix.required, (mix.p_exceed, mix.p_se, mix.p_bound)))
+        if mix is not None and not single:
+            rows.append(row(name, mix, (math.nan, 1.0 if name == "MODEL AVERAGE" else math.nan, math.nan)))
     caption = (f"|{result.response}| [{unit}] at {_point_text(answer, j)}: quantiles of the {_MEAN_FN} and "
                f"{_NOISY}; required capacity = the {c:g} quantile with noise")
+    if calibrated:
+        caption += ("; calibrated = with the model-form error the blocked folds measured (the friction curve's "
+                    "band, and the required capacity and P(exceed) with noise and that error)")
     return caption, header, rows
 
 
@@ -198,12 +212,14 @@ def sections(result: SizingResult, figures: dict[int, str] | None = None) -> lis
         if q.axis and answer.n_points > 1:
             worst = {k: float(np.max(d)) for k, d in answer.distance.items()}
             sec.lines.append("Largest over the range: " + "; ".join(f"{k} {_g(d, 3)}" for k, d in worst.items()) + ".")
-        if result.basis == "single fit":
-            sec.lines.append("One fit: no model average.")
+        sec.warnings += _first_warnings(answer)
+        if answer.basis is None:
+            sec.lines.append("One fit: no model average, no weights; no blocked fold measured this law's model-form "
+                             "error, so no calibrated numbers: its intervals carry parameter and noise uncertainty "
+                             "only.")
         elif answer.average is not None:
-            sec.lines.append(f"Model average: weights '{result.basis}' (stacking on the first blocked extrapolation "
-                             "scheme when the study has one), renormalised over the laws sizing uses ('used'); "
-                             f"'{result.basis_loo or 'no LOO'}' weights shown beside and as a second average.")
+            sec.lines.append(f"Model average ({answer.basis.note}), renormalised over the laws sizing uses ('used'); "
+                             "LOO stacking weights shown beside and as a second average.")
         else:
             sec.warnings.append(f"no model average: {answer.no_average}")
         excluded = [f"{a.name} ({a.excluded})" for a in answer.laws if a.excluded is not None]
@@ -222,24 +238,52 @@ def sections(result: SizingResult, figures: dict[int, str] | None = None) -> lis
     return out
 
 
+def _first_warnings(answer: Answer) -> list[str]:
+    """What the data cannot support, said before any number: no law extrapolates here; a direction
+    no blocked fold tests; a model-form error nothing measured."""
+    basis = answer.basis
+    out = []
+    if basis is not None and basis.no_extrapolation:
+        out.append(f"NO LAW EXTRAPOLATES HERE: {basis.no_extrapolation}; only calibrated numbers are quoted")
+    if basis is not None and basis.uncovered:
+        out.append(basis.note.split("; ")[0])
+    if basis is not None and not basis.calibrated and any(float(np.max(d)) > 0 for d in answer.distance.values()):
+        out.append("no blocked fold measured any law's miss beyond the envelope: the model-form error of this "
+                   "extrapolated answer is UNMEASURED and its intervals are not calibrated")
+    return out
+
+
 def headlines(result: SizingResult) -> list[Finding]:
-    """One finding per question: the averaged required capacity at its governing point (emphasised)."""
+    """One finding per question: the calibrated required capacity at its governing point
+    (emphasised), the within-model one beside it, and what to distrust first."""
     lines = []
     for answer in result.answers:
         q, j = answer.question, answer.governing
         unit, scale = result.response_unit, result.response_scale
+        first = _first_warnings(answer)
         if answer.average is None:
-            lines.append(plain(f"Sizing '{q.label}': no model average ({answer.no_average})."))
+            lines.append(plain(f"Sizing '{q.label}': no model average ({answer.no_average}).", warning=True))
             continue
-        tail = f" at confidence {q.confidence:g} (model average, {_point_text(answer, j)})"
+        mix = answer.average.calibrated or answer.average
+        what = "calibrated for model-form error" if answer.average.calibrated is not None else "within-model"
+        tail = f" at confidence {q.confidence:g} ({what}, model average, {_point_text(answer, j)}"
+        if answer.average.calibrated is not None and not (answer.basis and answer.basis.no_extrapolation):
+            tail += f"; within-model {_g(float(answer.average.required[j]) / scale)} {unit}"
+        if q.capacity is not None:
+            p = _p_text(float(mix.p_exceed[j]), float(mix.p_se[j]), float(mix.p_bound[j]))
+            tail += f"; P(> {q.capacity.text}) {p}"
+        tail += ")"
         if q.energy_rotation is not None:
-            energy = float(answer.energy(answer.average.noisy, q.confidence)[j])
+            energy = float(answer.energy(mix.noisy, q.confidence)[j])
             e_unit, e_scale = _energy_unit(energy)
             tail += f"; friction energy of one {q.energy_rotation.text} rotation {_g(energy / e_scale)} {e_unit}"
+        if first:
+            tail += " — " + "; ".join(first)
         if answer.warnings:
             tail += f" — {len(answer.warnings)} warning(s), see Sizing"
         lines.append(Finding(((f"Sizing '{q.label}': required |{result.response}| ", False),
-                              (f"{_g(float(answer.average.required[j]) / scale)} {unit}", True), (tail + ".", False))))
+                              (f"{_g(float(mix.required[j]) / scale)} {unit}", True), (tail + ".", False)),
+                             warning=bool(first)))
     return lines
 
 
@@ -255,12 +299,42 @@ def text_report(result: SizingResult) -> str:
     return "\n".join(lines)
 
 
+def _rows(answer: Answer) -> list[tuple]:
+    """(name, role, excluded, weights or None, answer-like) of every law and average of a question."""
+    single = answer.basis is None
+    rows = [(a.name, "law", a.excluded, None if single else (a.weight_raw, a.weight, a.weight_loo), a)
+            for a in answer.laws]
+    if not single:
+        rows += [(mix.basis, role, None, (math.nan, math.nan, math.nan), mix)
+                 for mix, role in ((answer.average, "average"), (answer.average_loo, "average LOO")) if mix is not None]
+    return rows
+
+
+def _calibrated_record(a, j: int, levels) -> dict:
+    cal = getattr(a, "calibrated", None)
+    rec = {f"calibrated_q{level * 100:g}": float(cal.mean_fn.q(level)[j]) if cal else math.nan
+           for level in (0.05, 0.5, 0.95)}
+    rec["calibrated_required"] = float(cal.required[j]) if cal else math.nan
+    rec["calibrated_p_exceed"] = float(cal.p_exceed[j]) if cal else math.nan
+    rec["calibrated_p_exceed_se"] = float(cal.p_se[j]) if cal else math.nan
+    rel = getattr(a, "rel_sd", None)
+    rec["model_form_rel_sd"] = float(rel[j]) if rel is not None else math.nan
+    return rec
+
+
 def records(result: SizingResult) -> list[dict]:
-    """``sizing.csv``: one row per question, point and law (plus the averages), SI units."""
+    """``sizing.csv``: one row per question, point and law (plus the averages), SI units.
+
+    ``calibrated_q5/q50/q95`` are the friction curve's quantiles with the measured model-form
+    error, ``calibrated_required`` and ``calibrated_p_exceed`` the required capacity and
+    exceedance probability with noise and that error (NaN where nothing was measured: one fit,
+    no blocked fold). One fit (``bayesfric size FIT.nc``) has no weight columns and no averages.
+    """
     out = []
     for i, answer in enumerate(result.answers):
         q = answer.question
         levels = answer.energy_levels
+        basis = answer.basis.key if answer.basis is not None else "single fit"
         for j in range(answer.n_points):
             base: dict = {"question": i + 1, "label": q.label, "point": j + 1, "confidence": q.confidence}
             for k, v in q.at.items():
@@ -270,32 +344,27 @@ def records(result: SizingResult) -> list[dict]:
             base["unit"] = QUANTITIES[result.response].unit
             base["capacity"] = q.capacity.lo if q.capacity is not None else math.nan
             base["governing"] = j == answer.governing
-            rows = [(a.name, "law", a.excluded, a.weight_raw, a.weight, a.weight_loo, a.mean_fn, a.noisy, a.required,
-                     a.p_exceed, a.p_se, a.p_bound, a.var_param, a.var_noise, None) for a in answer.laws]
-            for mix, role in ((answer.average, "average"), (answer.average_loo, "average LOO")):
-                if mix is not None:
-                    rows.append((mix.basis, role, None, math.nan, math.nan, math.nan, mix.mean_fn, mix.noisy,
-                                 mix.required, mix.p_exceed, mix.p_se, mix.p_bound, mix.var_param, mix.var_noise,
-                                 mix.var_between))
-            for name, role, excluded, w_raw, w_used, w_loo, mean_fn, noisy, required, p, se, bound, vp, vn, vb in rows:
-                rec = dict(base, role=role, law=name, included=excluded is None, excluded_reason=excluded or "",
-                           weight_stacking_blocked=w_raw, weight_used=w_used, weight_stacking_loo=w_loo)
+            base["basis"] = basis
+            for name, role, excluded, weights, a in _rows(answer):
+                rec = dict(base, role=role, law=name, included=excluded is None, excluded_reason=excluded or "")
+                if weights is not None:
+                    rec.update(zip(("weight_basis", "weight_used", "weight_stacking_loo"), weights, strict=True))
                 for level in levels:
-                    rec[f"mean_fn_q{level * 100:g}"] = float(mean_fn.q(level)[j])
+                    rec[f"mean_fn_q{level * 100:g}"] = float(a.mean_fn.q(level)[j])
                 for level in levels:
-                    rec[f"noisy_q{level * 100:g}"] = float(noisy.q(level)[j])
-                rec["required"] = float(required[j])
-                rec["p_exceed"], rec["p_exceed_se"] = float(p[j]), float(se[j])
-                rec["p_exceed_bound"] = float(bound[j]) if bound is not None else math.nan
-                rec["var_param"], rec["var_noise"] = float(vp[j]), float(vn[j])
-                rec["var_between"] = float(vb[j]) if vb is not None else math.nan
+                    rec[f"noisy_q{level * 100:g}"] = float(a.noisy.q(level)[j])
+                rec["required"] = float(a.required[j])
+                rec["p_exceed"], rec["p_exceed_se"] = float(a.p_exceed[j]), float(a.p_se[j])
+                rec["p_exceed_bound"] = float(a.p_bound[j])
+                rec["var_param"], rec["var_noise"] = float(a.var_param[j]), float(a.var_noise[j])
+                rec["var_between"] = float(a.var_between[j]) if hasattr(a, "var_between") else math.nan
+                rec.update(_calibrated_record(a, j, levels))
                 if q.energy_rotation is not None:
                     rec["energy_rotation_rad"] = q.energy_rotation.lo
                     for level in levels:
-                        rec[f"energy_mean_fn_q{level * 100:g}_J"] = float(answer.energy(mean_fn, level)[j])
+                        rec[f"energy_mean_fn_q{level * 100:g}_J"] = float(answer.energy(a.mean_fn, level)[j])
                     for level in levels:
-                        rec[f"energy_noisy_q{level * 100:g}_J"] = float(answer.energy(noisy, level)[j])
-                rec["warnings"] = "; ".join(answer.warnings)
+                        rec[f"energy_noisy_q{level * 100:g}_J"] = float(answer.energy(a.noisy, level)[j])
+                rec["warnings"] = "; ".join(_first_warnings(answer) + answer.warnings)
                 out.append(rec)
     return out
-

@@ -6,6 +6,9 @@ into a :class:`SizingResult`; ``summary.md``, ``report.html``, ``sizing.csv``, t
 * :mod:`bayesfric.sizing.points` — questions: values with units, ranges, checks against the data;
 * :mod:`bayesfric.sizing.compute` — predictive draws, quantiles, required capacity, exceedance
   probability, model average, variance split, extrapolation distance, energy of a rotation;
+* :mod:`bayesfric.sizing.calibration` — model-form error: the miss blocked folds measured, scaled
+  to a point's distance beyond the envelope (the calibrated answers);
+* :mod:`bayesfric.sizing.basis` — which weights and misses answer a question, from its direction;
 * :mod:`bayesfric.sizing.store` — ``weights.json``: what a study run stores so sizing never refits.
 """
 
@@ -13,9 +16,12 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+import numpy as np
 import xarray as xr
 
 from bayesfric.quantities import QUANTITIES, conversion
+from bayesfric.sizing.basis import LOO, NO_EXTRAPOLATION, Basis, choose_basis
+from bayesfric.sizing.calibration import Miss, Scheme, measure_miss
 from bayesfric.sizing.compute import (
     EXTRAPOLATION_WARN,
     FAN_POINTS,
@@ -44,9 +50,18 @@ from bayesfric.sizing.points import (
     parse_capacity,
     parse_value,
 )
-from bayesfric.sizing.store import RECORD, exclusion, read_record, sources, weights_record, write_record
+from bayesfric.sizing.store import (
+    RECORD,
+    exclusion,
+    read_record,
+    record_schemes,
+    sources,
+    weights_record,
+    write_record,
+)
 
 __all__ = [
+    "LOO", "NO_EXTRAPOLATION", "Basis", "choose_basis", "Miss", "Scheme", "measure_miss", "record_schemes",
     "CLI_KEYS", "EXTRAPOLATION_WARN", "FAN_POINTS", "LEVELS", "RANGE_POINTS", "RECORD", "Answer", "LawSource",
     "Mixture",
     "SizingError", "SizingQuestion", "SizingResult", "Value", "answer", "answer_question", "check_question",
@@ -64,16 +79,16 @@ def _response_display(response: str, unit: str | None) -> tuple[str, float]:
 
 def size_study(questions: Sequence[SizingQuestion], ds: xr.Dataset, law_sources: Sequence[LawSource],
                record: dict, *, study_name: str, seed: int = 0, fan: bool = True) -> SizingResult:
-    """Answer a study's questions from its laws' fits and stored weights (``record``)."""
+    """Answer a study's questions from its laws' fits, stored weights and misses (``record``)."""
     from bayesfric.report.figures import provenance_label
 
     response = ds.attrs["response"]
     unit, scale = _response_display(response, ds[response].attrs.get("original_unit"))
     inputs = [k for k, v in ds.coords.items() if v.attrs.get("role") == "input"]
-    return answer(questions, law_sources, tested_ranges(ds, inputs), response=response, response_unit=unit,
-                  response_scale=scale, provenance=provenance_label(ds),
-                  basis=record.get("average_by") or "", basis_loo=record.get("shown_beside") or "",
-                  source=f"study {study_name}", seed=seed, fan=fan)
+    return answer(questions, law_sources, {k: np.asarray(ds[k].values, dtype=float) for k in inputs},
+                  response=response, response_unit=unit, response_scale=scale, provenance=provenance_label(ds),
+                  source=f"study {study_name}", schemes=record_schemes(record),
+                  measured=np.asarray(ds[response].values, dtype=float), seed=seed, fan=fan)
 
 
 def provenance_of_fit(fit: xr.DataTree) -> str:
@@ -92,7 +107,7 @@ def size_fit(fit: xr.DataTree, question: SizingQuestion, *, name: str, seed: int
     data = fit["constant_data"].to_dataset()
     unit = question.capacity.unit if question.capacity is not None else None
     unit, scale = _response_display(law.response, unit)
-    return answer([question], [LawSource(law.name, fit, 1.0)], tested_ranges(data, law.operating_inputs),
+    return answer([question], [LawSource(law.name, fit)],
+                  {k: np.asarray(data[k].values, dtype=float) for k in law.operating_inputs if k in data},
                   response=law.response, response_unit=unit, response_scale=scale,
-                  provenance=provenance_of_fit(fit), basis="single fit", basis_loo="", source=f"fit {name}",
-                  seed=seed, fan=False)
+                  provenance=provenance_of_fit(fit), source=f"fit {name}", seed=seed, fan=False)

@@ -65,6 +65,8 @@ import xarray as xr
 from bayesfric.datasets.synthetic import make_dataset
 from bayesfric.inference.diagnostics import import_statistics, verdict_of
 from bayesfric.laws.variants import law_of_fit
+from bayesfric.sizing.basis import LOO, Basis, choose_basis
+from bayesfric.sizing.calibration import Miss, Scheme, natural, relative_sd, widen
 from bayesfric.sizing.points import SizingError, SizingQuestion
 
 __all__ = [
@@ -83,18 +85,22 @@ LEVELS = (0.05, 0.5, 0.95)
 
 @dataclass(frozen=True)
 class LawSource:
-    """What sizing needs of one law: its fit, its weights and why it is excluded (None: used).
+    """What sizing needs of one law: its fit, weights, measured misses and why it is excluded.
 
-    ``weight``: stacking weight of the first blocked extrapolation scheme (NaN: not computed);
-    ``weight_loo``: stacking weight from PSIS-LOO; ``weight_note``: why the weighting gave it 0.
+    ``weights``: weighting key (:data:`bayesfric.sizing.basis.LOO` or a blocked scheme's label)
+    -> stacking weight (NaN: not computed); ``misses``: blocked label -> the law's measured miss
+    there (:mod:`bayesfric.sizing.calibration`); ``penalties``: blocked label -> extrapolation
+    penalty (nats per held-out point); ``excluded``: why its predictions may not be used (a
+    failed diagnostics gate; None: used); ``weight_note``: why a weighting gave it 0.
     """
 
     name: str
     fit: xr.DataTree
-    weight: float = math.nan
-    weight_loo: float = math.nan
+    weights: Mapping[str, float] = field(default_factory=dict)
     excluded: str | None = None
     weight_note: str = ""
+    misses: Mapping[str, Miss] = field(default_factory=dict)
+    penalties: Mapping[str, float] = field(default_factory=dict)
 
 
 @dataclass
@@ -127,7 +133,7 @@ class LawAnswer:
 
     name: str
     weight: float  # in the average (renormalised over the laws used; 0 if excluded)
-    weight_raw: float  # the study's stacking weight of the first blocked scheme, as computed
+    weight_raw: float  # the basis's weight, as computed (before renormalisation)
     weight_loo: float  # the study's LOO stacking weight, as computed
     excluded: str | None
     weight_note: str
@@ -142,6 +148,8 @@ class LawAnswer:
     var_noise: np.ndarray
     infinite_noise: float  # fraction of draws whose noise variance is infinite (Student-t nu <= 2)
     n_draws: int
+    rel_sd: np.ndarray | None = None  # relative sd of the model-form discrepancy per point (calibrated only)
+    calibrated: LawAnswer | None = None  # the same answer with the measured model-form error added
 
 
 @dataclass
@@ -159,6 +167,7 @@ class Mixture:
     var_param: np.ndarray
     var_noise: np.ndarray
     var_between: np.ndarray
+    calibrated: Mixture | None = None  # the same average of the laws' calibrated answers
 
     @property
     def var_total(self) -> np.ndarray:
@@ -174,7 +183,9 @@ class Fan:
     tested: tuple[float, float]
     laws: dict[str, dict[str, np.ndarray]]  # law -> {"curve": median |mu|, "lo", "hi": 5/95 % of |T| with noise}
     excluded: list[str]  # laws drawn for reference only
-    average: dict[str, np.ndarray] | None  # {"curve", "lo", "hi", "required"} of the blocked-weight average
+    average: dict[str, np.ndarray] | None  # {"curve", "lo", "hi", "required"} of the average, and its
+    # calibrated friction-curve band and required capacity {"cal_lo", "cal_hi", "cal_required"} when measured
+    measured: tuple[np.ndarray, np.ndarray] | None = None  # (axis values, |response|) of the data, SI
 
 
 @dataclass
@@ -193,6 +204,7 @@ class Answer:
     energy_levels: tuple[float, ...]
     warnings: list[str] = field(default_factory=list)
     fan: Fan | None = None
+    basis: Basis | None = None  # which weights and measured misses answer it (None: a single fit)
 
     @property
     def n_points(self) -> int:
@@ -216,8 +228,6 @@ class SizingResult:
     response_unit: str  # display unit (data's own, or the capacity's)
     response_scale: float  # SI = scale * display
     provenance: str  # the data's provenance label
-    basis: str  # averaging weights
-    basis_loo: str
     source: str  # "study <name>" or "fit <file>"
 
 
@@ -302,21 +312,19 @@ def predict(fit: xr.DataTree, grid: Mapping[str, np.ndarray], seed: int = 0) -> 
     rng = np.random.default_rng([seed, zlib.crc32(law.name.encode())])
     if noise.get("group"):
         mu *= np.exp(rng.normal(0.0, 1.0, (s, 1)) * flat("group_sd")[:, None])
-    # One standardised noise draw per posterior draw, shared by the question's points (common
-    # random numbers): each point's distribution is unchanged, and curves along a range are smooth.
-    kind = noise["kind"]
-    if kind == "normal":
-        sd = np.full((s, 1), float(noise["sigma"])) if noise.get("sigma") is not None else flat("sigma")[:, None]
-        sd = np.broadcast_to(sd, (s, n))
-        y, var = mu + sd * rng.normal(size=(s, 1)), sd**2
-    elif kind == "student_t":
-        sigma, nu = flat("sigma")[:, None], flat("nu")[:, None]
-        y = mu + sigma * rng.standard_t(nu)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            var = np.broadcast_to(np.where(nu > 2, sigma**2 * nu / (nu - 2), np.inf), (s, n))
+    # The fit's own observation distribution (Program.observation: the likelihood's, ar1 at its
+    # stationary marginal). One standardised noise draw per posterior draw, shared by the
+    # question's points (common random numbers): each point's distribution is unchanged, and
+    # curves along a range are smooth.
+    values = {k: jnp.asarray(flat(k))[:, None] for k in program.noise.sites() if k != "group_sd"}
+    obs = program.observation(jnp.asarray(mu), values)
+    loc, scale = np.asarray(obs.loc, dtype=float), np.broadcast_to(np.asarray(obs.scale, dtype=float), (s, n))
+    if program.noise.kind == "student_t":
+        y = loc + scale * rng.standard_t(np.asarray(obs.df, dtype=float)[:, :1])
     else:
-        sd = np.sqrt((flat("sigma_rel")[:, None] * mu) ** 2 + flat("sigma_floor")[:, None] ** 2)
-        y, var = mu + sd * rng.normal(size=(s, 1)), sd**2
+        y = loc + scale * rng.normal(size=(s, 1))
+    var = np.asarray(jnp.broadcast_to(obs.variance, (s, n)), dtype=float)
+    var = np.where(np.isfinite(var), var, np.inf)
     shape = (chains, draws, n)
     return Draws(mu.reshape(shape), y.reshape(shape), np.asarray(var, dtype=float).reshape(shape))
 
@@ -359,7 +367,8 @@ def _law_answer(source: LawSource, draws: Draws, question: SizingQuestion, level
     infinite = float(1.0 - finite[:, 0].mean()) if var.size else 0.0
     var_noise = np.where(finite.any(axis=0), np.nanmean(np.where(finite, var, np.nan), axis=0), np.inf)
     return LawAnswer(
-        name=source.name, weight=0.0, weight_raw=source.weight, weight_loo=source.weight_loo, excluded=source.excluded,
+        name=source.name, weight=0.0, weight_raw=math.nan, weight_loo=source.weights.get(LOO, math.nan),
+        excluded=source.excluded,
         weight_note=source.weight_note, mean_fn=mean_fn, noisy=noisy, required=noisy.q(question.confidence),
         p_exceed=p, p_se=se, p_bound=bound, ess=ess, var_param=mu_abs.reshape(-1, mu_abs.shape[-1]).var(axis=0),
         var_noise=var_noise, infinite_noise=infinite, n_draws=draws.n_draws,
@@ -400,24 +409,12 @@ def _fan_axis(question: SizingQuestion, distance: Mapping[str, np.ndarray],
     return max(spans, key=lambda k: float(np.max(distance[k])))
 
 
-def answer_question(question: SizingQuestion, sources: Sequence[LawSource],
-                    tested: Mapping[str, tuple[float, float]], *, seed: int = 0, basis: str = "",
-                    basis_loo: str = "", fan: bool = True) -> Answer:
-    """Answer one question from the laws' fits and weights (see the module docstring).
-
-    ``tested`` gives the tested [lo, hi] (SI) of every input of the question.
-    """
-    levels = _levels(question.confidence)
-    grid = question.grid()
-    distance = {k: extrapolation_distance(grid[k], *tested[k]) for k in grid if k in tested}
-    draws = {s.name: predict(s.fit, grid, seed) for s in sources}
-    answers = [_law_answer(s, draws[s.name], question, levels) for s in sources]
-    used = [a for a in answers if a.excluded is None]
+def _warnings(distance: Mapping[str, np.ndarray], sources: Sequence[LawSource], used: Sequence[LawAnswer]) -> list[str]:
     warnings = []
     for k, d in distance.items():
         worst = float(np.max(d))
         if worst > EXTRAPOLATION_WARN:
-            warnings.append(f"{k}: up to {worst:.4g} tested ranges beyond the data (more than "
+            warnings.append(f"{k}: up to {worst:.2g} tested ranges beyond the data (more than "
                             f"{EXTRAPOLATION_WARN:g}): the answer rests on extrapolation")
     if len(sources) == 1 and "diagnostics" in sources[0].fit.attrs and not verdict_of(sources[0].fit).passed:
         problems = "; ".join(verdict_of(sources[0].fit).problems)
@@ -427,37 +424,79 @@ def answer_question(question: SizingQuestion, sources: Sequence[LawSource],
         if a.infinite_noise > 0:
             warnings.append(f"{a.name}: {a.infinite_noise:.1%} of draws have Student-t nu ≤ 2 (infinite noise "
                             "variance), left out of its noise variance term")
-    weights = {s.name: s.weight for s in sources if s.excluded is None}
-    weights_loo = {s.name: s.weight_loo for s in sources if s.excluded is None}
-    average = average_loo = None
-    no_average = ""
-    if len(used) == 1 and len(sources) == 1:
-        weights = {used[0].name: 1.0}
-    good = {k: v for k, v in weights.items() if math.isfinite(v) and v > 0}
-    if good:
-        average = mixture(used, draws, good, question.confidence, levels, basis)
-        for a in answers:
-            a.weight = average.weights.get(a.name, 0.0)
-    else:
-        no_average = ("every law is excluded" if not used else
-                      f"no law sizing may use has a positive weight ({basis or 'no weights computed'})")
-    good_loo = {k: v for k, v in weights_loo.items() if math.isfinite(v) and v > 0}
-    if good_loo and len(used) > 1:
-        average_loo = mixture(used, draws, good_loo, question.confidence, levels, basis_loo)
+    return warnings
+
+
+def _calibrate(answers: Sequence[LawAnswer], draws: Mapping[str, Draws], sources: Sequence[LawSource],
+               basis: Basis, schemes: Sequence[Scheme], grid, data, question: SizingQuestion, levels,
+               seed: int) -> dict[str, Draws]:
+    """Each law's answer with its measured model-form error added (``LawAnswer.calibrated``)."""
+    out = {}
+    for a, src in zip(answers, sources, strict=True):
+        rel = relative_sd(grid, data, src.misses, schemes, basis.schemes, basis.fallback_rate, basis.uncovered)
+        rng = np.random.default_rng([seed, zlib.crc32(("calibrated " + src.name).encode())])
+        d = draws[src.name]
+        mu, y, var = widen(d.mu, d.y, rel, rng)
+        out[src.name] = Draws(mu, y, d.noise_var)
+        a.rel_sd = rel
+        a.calibrated = _law_answer(src, out[src.name], question, levels)
+    return out
+
+
+def _averages(used, draws, weights, question, levels, key) -> Mixture | None:
+    good = {k: v for k, v in weights.items() if math.isfinite(v) and v > 0 and k in {a.name for a in used}}
+    return mixture(used, draws, good, question.confidence, levels, key) if good else None
+
+
+def answer_question(question: SizingQuestion, sources: Sequence[LawSource], data: Mapping[str, np.ndarray], *,
+                    schemes: Sequence[Scheme] = (), seed: int = 0, fan: bool = True) -> Answer:
+    """Answer one question from the laws' fits, weights and measured misses (see the module).
+
+    ``data`` gives the data's SI values of every input of the question (the tested envelope);
+    ``schemes`` the study's blocked extrapolation schemes. With one source and no scheme (one
+    fit), the law's answer is the only one: no average, no weights, no calibrated numbers.
+    """
+    levels = _levels(question.confidence)
+    grid = question.grid()
+    tested = {k: (float(np.min(v)), float(np.max(v))) for k, v in data.items() if k in grid}
+    distance = {k: sum(natural(k, data[k], side).distance(grid[k], *natural(k, data[k], side).tested(data[k]))
+                       for side in ("upper", "lower")) for k in grid if k in data}
+    draws = {s.name: predict(s.fit, grid, seed) for s in sources}
+    answers = [_law_answer(s, draws[s.name], question, levels) for s in sources]
+    used = [a for a in answers if a.excluded is None]
+    warnings = _warnings(distance, sources, used)
+    single = len(sources) == 1 and not schemes
+    basis = None if single else choose_basis(
+        grid, data, schemes, [a.name for a in used], {s.name: dict(s.weights) for s in sources},
+        {s.name: dict(s.misses) for s in sources}, {s.name: dict(s.penalties) for s in sources})
+    weights = {used[0].name: 1.0} if single and used else (basis.weights if basis else {})
+    average = _averages(used, draws, weights, question, levels, basis.key if basis else "single fit")
+    if average is not None and basis is not None and basis.calibrated:
+        calibrated = _calibrate(answers, draws, sources, basis, schemes, grid, data, question, levels, seed)
+        average.calibrated = mixture([a.calibrated for a in used], calibrated, average.weights, question.confidence,
+                                     levels, basis.key)
+    for a in answers:
+        a.weight = average.weights.get(a.name, 0.0) if average is not None else 0.0
+        a.weight_raw = weights.get(a.name, math.nan)
+    no_average = "" if average is not None else (
+        "every law is excluded" if not used else f"no law sizing may use has a positive weight ({basis.key})")
+    loo = {s.name: s.weights.get(LOO, math.nan) for s in sources if s.excluded is None}
+    average_loo = _averages(used, draws, loo, question, levels, f"stacking {LOO}") if len(used) > 1 else None
     if average is not None:
-        governing = int(np.argmax(average.required))
+        governing = int(np.argmax((average.calibrated or average).required))
     elif used:
         governing = int(np.argmax(np.max([a.required for a in used], axis=0)))
     else:
         governing = 0
-    out = Answer(question, grid, dict(tested), distance, answers, average, average_loo, no_average, governing,
-                 levels, warnings)
+    out = Answer(question, grid, tested, distance, answers, average, average_loo, no_average, governing,
+                 levels, warnings, basis=basis)
     if fan:
-        out.fan = _fan(out, sources, seed)
+        out.fan = _fan(out, sources, data, seed, schemes=schemes)
     return out
 
 
-def _fan(out: Answer, sources: Sequence[LawSource], seed: int) -> Fan | None:
+def _fan(out: Answer, sources: Sequence[LawSource], data: Mapping[str, np.ndarray], seed: int,
+         measured: tuple[np.ndarray, np.ndarray] | None = None, schemes: Sequence[Scheme] = ()) -> Fan | None:
     question = out.question
     axis = _fan_axis(question, out.distance, out.tested)
     if axis is None:
@@ -480,13 +519,31 @@ def _fan(out: Answer, sources: Sequence[LawSource], seed: int) -> Fan | None:
         mix = mixture(stub, draws, out.average.weights, question.confidence, levels, out.average.basis)
         average = {"curve": mix.mean_fn.q(0.5), "lo": mix.noisy.q(LEVELS[0]), "hi": mix.noisy.q(LEVELS[-1]),
                    "required": mix.required}
-    return Fan(axis, x, (lo, hi), bands, [s.name for s in sources if s.excluded is not None], average)
+        if out.average.calibrated is not None:
+            picked = [s for s in sources if s.name in out.average.weights]
+            cal = {s.name: Draws(*widen(draws[s.name].mu, draws[s.name].y, relative_sd(
+                grid, data, s.misses, schemes, out.basis.schemes, out.basis.fallback_rate, out.basis.uncovered),
+                np.random.default_rng([seed, zlib.crc32(("calibrated " + s.name).encode())]))) for s in picked}
+            stub = [_law_answer(s, cal[s.name], question, levels, exceedance=False) for s in picked]
+            cmix = mixture(stub, cal, out.average.weights, question.confidence, levels, out.average.basis)
+            average |= {"cal_lo": cmix.mean_fn.q(LEVELS[0]), "cal_hi": cmix.mean_fn.q(LEVELS[-1]),
+                        "cal_required": cmix.required}
+    return Fan(axis, x, (lo, hi), bands, [s.name for s in sources if s.excluded is not None], average,
+               measured=measured)
 
 
-def answer(questions: Sequence[SizingQuestion], sources: Sequence[LawSource],
-           tested: Mapping[str, tuple[float, float]], *, response: str, response_unit: str, response_scale: float,
-           provenance: str, basis: str, basis_loo: str, source: str, seed: int = 0, fan: bool = True) -> SizingResult:
-    """Answer every question (see :func:`answer_question`); ``fan``: also the fan figures' bands."""
-    answers = [answer_question(q, sources, tested, seed=seed, basis=basis, basis_loo=basis_loo, fan=fan)
-               for q in questions]
-    return SizingResult(answers, response, response_unit, response_scale, provenance, basis, basis_loo, source)
+def answer(questions: Sequence[SizingQuestion], sources: Sequence[LawSource], data: Mapping[str, np.ndarray], *,
+           response: str, response_unit: str, response_scale: float, provenance: str, source: str,
+           schemes: Sequence[Scheme] = (), measured: np.ndarray | None = None, seed: int = 0,
+           fan: bool = True) -> SizingResult:
+    """Answer every question (see :func:`answer_question`); ``fan``: also the fan figures' bands
+    (with the ``measured`` response, SI, drawn against the fan's axis when given)."""
+    answers = []
+    for q in questions:
+        out = answer_question(q, sources, data, schemes=schemes, seed=seed, fan=False)
+        if fan:
+            axis = _fan_axis(q, out.distance, out.tested)
+            points = (np.asarray(data[axis]), np.abs(np.asarray(measured))) if axis and measured is not None else None
+            out.fan = _fan(out, sources, data, seed, points, schemes)
+        answers.append(out)
+    return SizingResult(answers, response, response_unit, response_scale, provenance, source)

@@ -1,13 +1,15 @@
 """What a study run stores so that sizing never refits: ``weights.json`` next to ``fits/*.nc``.
 
 ``weights.json`` (format :data:`FORMAT`) records, per law, its fit file, the diagnostics verdict,
-whether the evidence estimators agreed, every weight the study computed (keys as in
-:attr:`bayesfric.study.outcome.LawOutcome.weights`: ``"stacking LOO"``, ``"stacking <first
-blocked label>"`` ...) and why a weighting left the law out; plus which weights sizing averages
-by (``average_by``: stacking on the first blocked extrapolation scheme, else LOO stacking) and
-which it shows beside them (``shown_beside``). ``bayesfric size STUDY.toml`` reads it back as
-data; the exclusion reasons are derived from its booleans (:func:`exclusion`), never parsed
-from text.
+whether the evidence estimators agreed (shown, never a reason to leave a law out of sizing),
+every weight the study computed (keys as in :attr:`bayesfric.study.outcome.LawOutcome.weights`:
+``"stacking LOO"``, ``"stacking <blocked label>"`` for every blocked scheme ...), why a weighting
+left the law out, the law's measured miss on every blocked scheme
+(:mod:`bayesfric.sizing.calibration`) and its extrapolation penalties; plus the study's blocked
+schemes (axis, direction, ``|x|`` or not). Which weights answer a question is chosen per
+question from its direction (:mod:`bayesfric.sizing.basis`). ``bayesfric size STUDY.toml``
+reads the record back as data; the exclusion reason is derived from its booleans
+(:func:`exclusion`), never parsed from text.
 """
 
 from __future__ import annotations
@@ -23,25 +25,48 @@ from typing import Any
 import xarray as xr
 
 from bayesfric.inference import load_fit
+from bayesfric.sizing.basis import LOO
+from bayesfric.sizing.calibration import Miss, Scheme, measure_miss
 from bayesfric.sizing.compute import LawSource
 from bayesfric.sizing.points import SizingError
 
-__all__ = ["RECORD", "FORMAT", "weights_record", "write_record", "read_record", "exclusion", "sources"]
+__all__ = ["RECORD", "FORMAT", "schemes_of", "weights_record", "write_record", "read_record", "exclusion",
+           "record_schemes", "sources"]
 
 #: File name of the record in a report folder.
 RECORD = "weights.json"
-#: Version of the record's layout.
-FORMAT = 1
+#: Version of the record's layout (2: blocked schemes, misses and penalties per law).
+FORMAT = 2
 
 
 def _number(x: Any) -> float | None:
     return float(x) if isinstance(x, int | float) and math.isfinite(x) else None
 
 
+def schemes_of(outcome) -> list[Scheme]:
+    """The study's blocked extrapolation schemes as sizing reads them (leave-future-out ones are
+    not envelope extrapolations and are left out); ``|x|`` where the input has both signs, as
+    :func:`bayesfric.compare.blocked_masks` blocks it."""
+    out = []
+    for label, spec in zip(outcome.blocked, outcome.study.blocked, strict=True):
+        if spec.future:
+            continue
+        values = outcome.data[spec.axis].values
+        out.append(Scheme(label, spec.axis, spec.direction, bool((values < 0).any() and (values > 0).any())))
+    return out
+
+
+def _misses(w, data, schemes: Sequence[Scheme]) -> dict[str, dict]:
+    out = {}
+    for scheme in schemes:
+        if scheme.label in w.cv and (miss := measure_miss(w.cv[scheme.label], data, scheme)) is not None:
+            out[scheme.label] = miss.to_json()
+    return out
+
+
 def weights_record(outcome) -> dict[str, Any]:
     """The record of a :class:`~bayesfric.study.outcome.StudyOutcome` (after its weights)."""
-    blocked = f"stacking {outcome.blocked[0]}" if outcome.blocked else None
-    loo = "stacking LOO" if outcome.study.loo else None
+    schemes = schemes_of(outcome)
     laws = []
     for w in outcome.laws:
         laws.append({
@@ -53,14 +78,15 @@ def weights_record(outcome) -> dict[str, Any]:
             "evidence_disagreement": _number(w.agreement.difference if w.agreement is not None else math.nan),
             "weights": {k: _number(v.value) for k, v in w.weights.items()},
             "weight_exclusions": {k: v.excluded for k, v in w.weights.items() if v.excluded},
+            "misses": _misses(w, outcome.data, schemes),
+            "penalties": {k: _number(v) for k, v in w.penalty.items()},
         })
     return {
         "format": FORMAT,
         "study": outcome.study.name,
         "dataset": str(outcome.data.attrs.get("name", "")),
         "data_hash": str(outcome.data.attrs.get("data_hash", "")),
-        "average_by": blocked or loo,
-        "shown_beside": loo if blocked else None,
+        "schemes": [s.to_json() for s in schemes],
         "laws": laws,
     }
 
@@ -89,15 +115,19 @@ def read_record(folder: Path) -> dict[str, Any]:
 
 
 def exclusion(entry: dict[str, Any]) -> str | None:
-    """Why sizing leaves a law out (None: it may be used): failed gate, disagreeing evidence."""
-    reasons = []
-    if not entry.get("diagnostics_passed", False):
-        problems = "; ".join(entry.get("diagnostics_problems") or [])
-        reasons.append("failed the diagnostics gate" + (f" ({problems})" if problems else ""))
-    if not entry.get("evidence_agree", True):
-        gap = entry.get("evidence_disagreement")
-        reasons.append("evidence estimators disagree" + (f" by {abs(gap):.2f} nat" if gap is not None else ""))
-    return "; ".join(reasons) or None
+    """Why sizing may not use a law's predictions (None: it may): its full fit failed the
+    diagnostics gate. Only a reason about its predictions counts: an unreliable *evidence*
+    estimate removes a law from the evidence ranking and nothing else."""
+    if entry.get("diagnostics_passed", False):
+        return None
+    problems = "; ".join(entry.get("diagnostics_problems") or [])
+    return "failed the diagnostics gate" + (f" ({problems})" if problems else "")
+
+
+def record_schemes(record: dict[str, Any]) -> list[Scheme]:
+    """The blocked schemes of a record (:func:`schemes_of`)."""
+    return [Scheme(str(s["label"]), str(s["axis"]), str(s["direction"]), bool(s["use_abs"]))
+            for s in record.get("schemes") or []]
 
 
 def sources(record: dict[str, Any], folder: Path, laws: Sequence[str] | None = None,
@@ -120,7 +150,6 @@ def sources(record: dict[str, Any], folder: Path, laws: Sequence[str] | None = N
     if missing:
         raise SizingError("", f"{folder}: the report has no fit of {', '.join(missing)} (the study's laws changed "
                               "since it ran); run the study again")
-    average_by, beside = record.get("average_by"), record.get("shown_beside") or "stacking LOO"
     out = []
     for name in names:
         entry = entries[name]
@@ -142,12 +171,11 @@ def sources(record: dict[str, Any], folder: Path, laws: Sequence[str] | None = N
             raise SizingError("", f"{folder}: the fit of {name} was made from another row selection "
                                   f"({fit.attrs.get('data_selection') or 'all rows'}; the study now selects "
                                   f"{selection or 'all rows'}); run the study again")
-        weights = entry.get("weights") or {}
-
-        def weight(key, weights=weights):
-            value = weights.get(key) if key else None
-            return float(value) if value is not None else math.nan
-
-        note = (entry.get("weight_exclusions") or {}).get(average_by, "") if average_by else ""
-        out.append(LawSource(name, fit, weight(average_by), weight(beside), exclusion(entry), note))
+        stored = entry.get("weights") or {}
+        weights = {(LOO if key == "stacking LOO" else key.removeprefix("stacking ")): float(v)
+                   for key, v in stored.items() if key.startswith("stacking ") and v is not None}
+        notes = "; ".join(f"{k}: {v}" for k, v in (entry.get("weight_exclusions") or {}).items())
+        misses = {k: Miss.from_json(v) for k, v in (entry.get("misses") or {}).items()}
+        penalties = {k: float(v) for k, v in (entry.get("penalties") or {}).items() if v is not None}
+        out.append(LawSource(name, fit, weights, exclusion(entry), notes, misses, penalties))
     return out

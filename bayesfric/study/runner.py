@@ -280,8 +280,8 @@ def _assign_weights(out: StudyOutcome) -> None:
     bases = []
     if out.study.loo:
         bases += [("stacking LOO", "loo", "stacking"), ("pseudo-BMA+ LOO", "loo", "pseudo-BMA+")]
-    if out.blocked:
-        bases.append((f"stacking {out.blocked[0]}", out.blocked[0], "stacking"))
+    # every blocked scheme: a sizing question is weighed by the schemes that extrapolate in its direction
+    bases += [(f"stacking {label}", label, "stacking") for label in out.blocked]
     by_law: dict[str, dict[str, Weight]] = {w.name: {} for w in out.laws}
     for label, key, method in bases:
         results = {w.name: r for w in out.laws if (r := w.loo if key == "loo" else w.cv.get(key)) is not None}

@@ -29,6 +29,7 @@ import numpy as np
 import xarray as xr
 
 from bayesfric import compare
+from bayesfric.compare.heldout import HeldOut
 from bayesfric.compare.loo import loo_from_values
 from bayesfric.fingerprint import data_fingerprint, law_fingerprint, unit_key
 from bayesfric.inference import MAPPINGS_BUDGET, SAMPLERS, release_compiled_code
@@ -169,10 +170,12 @@ def _compute_rest(job: LawJob, unit: Unit, fit: xr.DataTree) -> tuple[dict, dict
         # random K-fold drops a few points (warm start); grouped and blocked folds start cold
         p = unit.params
         folds = compare.Folds(np.asarray(p["train"]), np.asarray(p["heldout"]), p["scheme"], p["labels"])
-        cv = compare.cross_validate(_engine(job, fit, warm=passed and p["kind"] == "kfold"), folds, seed=job.seed)
+        cv = compare.cross_validate(_engine(job, fit, warm=passed and p["kind"] == "kfold"), folds, seed=job.seed,
+                                    predictive=p["kind"] == "blocked")
+        kept = cv.predictive.arrays() if cv.predictive is not None else {}
         return ({"law": cv.law, "scheme": cv.scheme, "elpd": cv.elpd, "se": cv.se, "seconds": cv.seconds,
                  "verdicts": [v.to_json() for v in cv.verdicts], "settings": cv.settings},
-                {"elpd_i": cv.elpd_i, "heldout": cv.heldout})
+                {"elpd_i": cv.elpd_i, "heldout": cv.heldout} | kept)
     program = _program(job)
     if unit.stage == "bridge":
         return _evidence_record(compare.bridge_log_evidence(program, fit, seed=job.seed)), {}
@@ -257,7 +260,7 @@ def _cv(payload: bytes) -> compare.CVResult:
     return compare.CVResult(law=record["law"], scheme=record["scheme"], elpd=record["elpd"], se=record["se"],
                             elpd_i=arrays["elpd_i"], heldout=arrays["heldout"].astype(bool),
                             verdicts=[Verdict.from_json(v) for v in record["verdicts"]], seconds=record["seconds"],
-                            settings=record["settings"])
+                            settings=record["settings"], predictive=HeldOut.from_arrays(arrays))
 
 
 def _checks(record: dict, arrays: dict) -> Checks:

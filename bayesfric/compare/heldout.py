@@ -1,0 +1,128 @@
+"""What a law predicted at the points a fold held out: the raw material of model-form error.
+
+A blocked extrapolation fold trains a law inside part of the tested envelope and scores it
+beyond. Its log predictive density says *how much* worse the law is out there; sizing also needs
+*how far* its mean curve missed, per point and with its own uncertainty, to widen an
+extrapolated answer by the miss the data measured (:mod:`bayesfric.sizing.calibration`).
+
+:func:`heldout_predictive` keeps, per held-out point, thinned draws of the fold posterior's mean
+function (group offsets included, exactly as in the model) and the mean noise variance of the
+program's own observation distribution (:meth:`bayesfric.model.Program.observation`). Draws and
+points are thinned to :data:`MAX_DRAWS` × :data:`MAX_POINTS` (evenly spaced), so what is kept
+does not grow with the data; the covariance of the misses across points is estimated from
+those draws.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from bayesfric.model import Program
+
+__all__ = ["MAX_DRAWS", "MAX_POINTS", "HeldOut", "heldout_predictive"]
+
+#: Posterior draws of each fold kept per held-out point (evenly thinned).
+MAX_DRAWS = 400
+#: Held-out points kept per scheme (evenly spaced in data order).
+MAX_POINTS = 1000
+
+
+@dataclass(frozen=True)
+class HeldOut:
+    """Fold-posterior predictive at held-out points (kept points in data order).
+
+    Attributes
+    ----------
+    index : ndarray of int, shape (m,)
+        Row of each kept point in the data.
+    fold : ndarray of int, shape (m,)
+        Fold whose posterior predicted the point (draws of different folds are independent).
+    mu : ndarray, shape (S, m)
+        Thinned draws of the mean function (signed, group offsets included).
+    noise_var : ndarray, shape (m,)
+        Posterior mean of the observation variance (``inf`` where a draw has none: Student-t
+        with ``nu ≤ 2``).
+    """
+
+    index: np.ndarray
+    fold: np.ndarray
+    mu: np.ndarray
+    noise_var: np.ndarray
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """The fields as named arrays (what the run store keeps)."""
+        return {"heldout_index": self.index, "heldout_fold": self.fold, "heldout_mu": self.mu,
+                "heldout_noise_var": self.noise_var}
+
+    @classmethod
+    def from_arrays(cls, arrays) -> HeldOut | None:
+        """Inverse of :meth:`arrays`; None when the arrays were not kept."""
+        if "heldout_mu" not in arrays:
+            return None
+        return cls(np.asarray(arrays["heldout_index"], dtype=int), np.asarray(arrays["heldout_fold"], dtype=int),
+                   np.asarray(arrays["heldout_mu"], dtype=float), np.asarray(arrays["heldout_noise_var"], dtype=float))
+
+
+def _thin(n: int, keep: int) -> np.ndarray:
+    return np.unique(np.linspace(0, n - 1, min(n, keep)).round().astype(int))
+
+
+def _fold_draws(program: Program, samples: dict[str, np.ndarray], k: int) -> tuple[dict, dict, np.ndarray]:
+    """Thinned (law parameters, noise parameters, group offsets or None) of fold ``k``."""
+    first = next(iter(samples.values()))
+    s = first.shape[1] * first.shape[2]
+    pick = _thin(s, MAX_DRAWS)
+
+    def flat(name: str) -> np.ndarray:
+        v = np.asarray(samples[name][k])
+        return v.reshape((s,) + v.shape[2:])[pick]
+
+    params = {name: flat(name) for name in program.law.params}
+    noise = {name: flat(name) for name in program.noise.sites() if name != "group_sd"}
+    offsets = flat("group_offset") if program.noise.group is not None else None
+    return params, noise, offsets
+
+
+def heldout_predictive(program: Program, samples: dict[str, np.ndarray], heldout: np.ndarray) -> HeldOut:
+    """Mean-function draws and noise variance of each fold's posterior at the points it held out.
+
+    Parameters
+    ----------
+    program : Program
+        The law's program on the full data (the one its folds were fitted with).
+    samples : dict of str to ndarray
+        Fold draws shaped ``(fold, chain, draw, ...)`` (:class:`bayesfric.inference.engine.FoldFits`).
+    heldout : ndarray of bool, shape (fold, n_obs)
+        Points each fold held out (each at most once).
+    """
+    rows = np.flatnonzero(heldout.any(axis=0))
+    rows = rows[_thin(rows.size, MAX_POINTS)] if rows.size else rows
+    fold_of = np.argmax(heldout, axis=0)
+    inputs = {k: jnp.asarray(v) for k, v in program.inputs.items()}
+    mus, noise_vars = [], []
+    for k in range(heldout.shape[0]):
+        mine = rows[fold_of[rows] == k]
+        if mine.size == 0:
+            continue
+        params, noise, offsets = _fold_draws(program, samples, k)
+        mean = jax.vmap(lambda p: program.law.mean(inputs, p, program.constants))
+        mu = np.asarray(mean({n: jnp.asarray(v) for n, v in params.items()}), dtype=float)
+        mu = np.broadcast_to(mu, (mu.shape[0], program.n_obs))[:, mine]
+        if offsets is not None:
+            mu = mu * np.exp(offsets[:, program.group_index[mine]])
+        obs = program.observation(jnp.asarray(mu), {n: jnp.asarray(v)[:, None] for n, v in noise.items()})
+        var = np.asarray(jnp.broadcast_to(obs.variance, mu.shape), dtype=float)
+        var = np.where(np.isfinite(var), var, np.inf)
+        mus.append(mu)
+        noise_vars.append(var.mean(axis=0))
+    if not mus:
+        return HeldOut(rows, np.zeros(0, dtype=int), np.zeros((0, 0)), np.zeros(0))
+    order = np.argsort(np.concatenate([rows[fold_of[rows] == k] for k in range(heldout.shape[0])
+                                       if (fold_of[rows] == k).any()]), kind="stable")
+    s = min(m.shape[0] for m in mus)
+    mu = np.concatenate([m[:s] for m in mus], axis=1)[:, order]
+    return HeldOut(rows, fold_of[rows], mu, np.concatenate(noise_vars)[order])
