@@ -76,8 +76,9 @@ def _shown(ds, name: str, values) -> np.ndarray:
 
 
 def plot_penalty(outcome: StudyOutcome, path: Path) -> Path:
-    """Extrapolation penalty per law and blocked scheme: nats per held-out point lost outside
-    the tested envelope relative to inside it (0 = extrapolates as well as it interpolates)."""
+    """Extrapolation penalty per law and blocked scheme, ± 1 standard error: nats per held-out
+    point lost outside the tested envelope relative to inside it (0 = extrapolates as well as it
+    interpolates)."""
     table = outcome.table
     order = sc.ranking_order(table, [w.name for w in outcome.laws], sc.criteria(outcome)[0])
     fig = Figure(figsize=(8.5, 0.42 * len(order) + 1.6), layout="constrained")
@@ -93,13 +94,15 @@ def plot_penalty(outcome: StudyOutcome, path: Path) -> Path:
             yy = yi + 0.4 - step * (k + 0.5)
             ax.plot([0, row["estimate"]], [yy, yy], color=colour, lw=2)
             ok = bool(row["reliable"])
-            ax.plot(row["estimate"], yy, "o" if ok else "x", color=colour if ok else "crimson", ms=6, label=label)
+            se = row["se"] if math.isfinite(row["se"]) else 0.0  # ± 1 se of the paired differences
+            ax.errorbar(row["estimate"], yy, xerr=se, fmt="o" if ok else "x", color=colour if ok else "crimson", ms=6,
+                        capsize=3, label=label)
             label = None
     ax.axvline(0, color="k", lw=0.8)
     ax.set_yticks(y, order, fontsize=8)
     ax.set_xlabel("extrapolation penalty [nats per held-out point] (lower is better)")
     if ax.get_legend_handles_labels()[1]:
-        ax.legend(fontsize=7, loc="lower right")
+        ax.legend(fontsize=7, loc="best")
     banner(fig, outcome.data)
     return save(fig, path)
 
@@ -262,8 +265,8 @@ def draw(outcome: StudyOutcome, folder: Path) -> tuple[list[FigureRef], dict[int
         plot_penalty(outcome, fdir / "penalty.png")
         refs.append(FigureRef("extrapolation", "figures/penalty.png",
                               "Nats per held-out point each law loses outside the tested envelope compared with "
-                              "inside it. Read: a long bar means the law fits the tested range but should not be "
-                              "trusted beyond it.", "extrapolation penalty"))
+                              "inside it, ± 1 standard error. Read: a long bar means the law fits the tested range but "
+                              "should not be trusted beyond it.", "extrapolation penalty"))
     for axis, held in _band_axes(outcome):
         plot_bands(outcome, axis, fdir / f"bands_{axis}.png", held)
         refs.append(FigureRef("extrapolation", f"figures/bands_{axis}.png",
