@@ -3,7 +3,8 @@
 Every user error (bad data, unknown law, bad prior, bad study file, bad option — argparse's own
 errors included) prints one line ``bayesfric: error: ...`` to stderr, exits with status 2 and
 writes nothing. ``fit`` validates its sampler options against the study schema's ``[sampler]``
-table (:data:`bayesfric.study.config.SAMPLER`) and its ``--out`` path before sampling.
+table (:data:`bayesfric.study.config.SAMPLER`), the memory they imply (:mod:`bayesfric.limits`, as
+``--workers`` and ``--jobs``) and its ``--out`` path before sampling.
 """
 
 from __future__ import annotations
@@ -149,13 +150,32 @@ def _load_selected(data: str, items: list[str] | None):
         raise UserError(f"--select {' '.join(items or [])}: {exc}") from None
 
 
+def _checked_program(law, ds, priors: dict[str, Prior], noise, sampler: str, settings: dict[str, object]):
+    """Build the fit's program (data-scaled priors resolved) and check its walkers and the memory
+    its settings imply (:mod:`bayesfric.limits`), before anything is sampled; return it."""
+    from bayesfric.limits import program_size, sampler_problem
+    from bayesfric.model import build_program
+    from bayesfric.study.config import walkers_problem
+
+    try:
+        program = build_program(law, ds, priors=priors, noise=noise)  # data-scaled priors resolve here
+    except PriorError as exc:  # exc.key: priors.<parameter>.<key in its spec>
+        name, _, key = exc.key.removeprefix("priors.").partition(".")
+        where = f"--prior {name}" if name in priors else f"law {law.name!r}: prior of {name}"
+        raise UserError(f"{where}{': ' + key if key else ''}: {exc.problem}") from None
+    if sampler == "emcee" and (problem := walkers_problem(program, settings.get("walkers"))):
+        raise UserError(f"--walkers: {problem}")
+    if found := sampler_problem(sampler, settings, *program_size(program)):
+        raise UserError(f"--{found[0]}: {found[1]}")
+    return program
+
+
 def _cmd_fit(args: argparse.Namespace) -> None:
     from bayesfric.fsutil import PathError, check_output_file
     from bayesfric.inference import fit, save_fit
     from bayesfric.laws import get_law
     from bayesfric.laws.variants import for_data
-    from bayesfric.model import Noise, build_program
-    from bayesfric.study.config import walkers_problem
+    from bayesfric.model import Noise
 
     settings = _fit_settings(args)
     if args.out is not None:
@@ -174,14 +194,7 @@ def _cmd_fit(args: argparse.Namespace) -> None:
     if args.group is not None and args.group not in ds.coords:
         raise UserError(f"--group {args.group}: not a coordinate of the data ({', '.join(ds.coords)})")
     priors = _parse_priors(args.prior, list(law.params) + list(noise.sites()), law.name)
-    try:
-        program = build_program(law, ds, priors=priors, noise=noise)  # data-scaled priors resolve here
-    except PriorError as exc:  # exc.key: priors.<parameter>.<key in its spec>
-        name, _, key = exc.key.removeprefix("priors.").partition(".")
-        where = f"--prior {name}" if name in priors else f"law {law.name!r}: prior of {name}"
-        raise UserError(f"{where}{': ' + key if key else ''}: {exc.problem}") from None
-    if args.sampler == "emcee" and (problem := walkers_problem(program, settings.get("walkers"))):
-        raise UserError(f"--walkers: {problem}")
+    _checked_program(law, ds, priors, noise, args.sampler, settings)  # checked before sampling
     dt = fit(law, ds, sampler=args.sampler, priors=priors, noise=noise, seed=args.seed, progress=not args.quiet,
              **settings)
     from bayesfric.report.tables import fit_report  # after the fit: it imports arviz-stats (see diagnostics)
@@ -227,8 +240,12 @@ def _run_options(q: argparse.ArgumentParser) -> None:
 
 
 def _executor(args: argparse.Namespace) -> dict:
+    from bayesfric.limits import process_problem
+
     if args.workers < 0:
         raise UserError(f"--workers: must be 0 (serial) or a number of processes ≥ 1, got {args.workers}")
+    if problem := process_problem(args.workers, "worker processes"):
+        raise UserError(f"--workers: {problem}")
     if args.workers and args.scheduler:
         raise UserError("--workers and --scheduler: give one (a local cluster, or an existing one)")
     return dict(fresh=args.fresh, workers=args.workers, scheduler=args.scheduler)
@@ -322,11 +339,14 @@ def _cmd_size(args: argparse.Namespace) -> None:
 
 
 def _cmd_main(args: argparse.Namespace) -> None:
+    from bayesfric.limits import process_problem
     from bayesfric.study import run_flagship
 
     _check_reports_root(args.out)
     if args.jobs is not None and args.jobs < 1:
         raise UserError(f"--jobs: must be a number of studies ≥ 1, got {args.jobs}")
+    if args.jobs is not None and (problem := process_problem(args.jobs, "study processes")):
+        raise UserError(f"--jobs: {problem}")
     if args.jobs is not None and args.jobs > 1 and (args.workers or args.scheduler):
         raise UserError("--jobs and --workers/--scheduler: give one (studies side by side, or units on Dask)")
     if args.studies is not None and not Path(args.studies).is_dir():

@@ -32,34 +32,27 @@ import time
 from concurrent.futures import FIRST_EXCEPTION, Future, ProcessPoolExecutor, wait
 from pathlib import Path
 
+from bayesfric.limits import max_processes, physical_memory
 from bayesfric.study.config import Study, StudyError, load_study
 
 __all__ = ["run_flagship", "default_jobs", "study_order", "compile_threads_per_study"]
 
 
-#: Memory set aside per study process: the seed studies peaked at 1.3-1.7 GB resident each
-#: (``/usr/bin/time -v``), rounded up; and what is left to the rest of the machine.
-STUDY_PROCESS_BYTES = 2 * 1024**3
-RESERVED_BYTES = 2 * 1024**3
-
-
 def _memory_bytes() -> int | None:
-    try:
-        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
-    except (ValueError, OSError, AttributeError):  # not POSIX, or not reported
-        return None
+    return physical_memory()
 
 
 def default_jobs(studies: int) -> int:
     """Studies run at once by default: one per CPU core, as many as the memory holds
-    (:data:`STUDY_PROCESS_BYTES` each, :data:`RESERVED_BYTES` left), at most ``studies``; 1 on an
-    accelerator (each process would claim most of its memory)."""
+    (:func:`bayesfric.limits.max_processes`: 2 GiB each, 2 GiB left, the bound ``--jobs`` and
+    ``--workers`` are checked against too), at most ``studies``; 1 on an accelerator (each
+    process would claim most of its memory)."""
     import jax
 
     if jax.default_backend() != "cpu":
         return 1
     memory = _memory_bytes()
-    by_memory = studies if memory is None else (memory - RESERVED_BYTES) // STUDY_PROCESS_BYTES
+    by_memory = studies if memory is None else max_processes(memory)
     return int(max(1, min(studies, os.cpu_count() or 1, by_memory)))
 
 

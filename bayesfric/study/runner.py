@@ -28,7 +28,7 @@ import json
 import time
 from pathlib import Path
 
-from bayesfric import compare, fsutil, sizing
+from bayesfric import compare, fsutil, limits, sizing
 from bayesfric.datasets import DataError, load_dataset, resolve, select
 from bayesfric.fingerprint import package_fingerprint
 from bayesfric.laws.variants import for_data
@@ -63,7 +63,8 @@ def validate_against_data(study: Study, ds) -> None:
     Every key that names data must exist in it; every law must read inputs the data has and
     predict its response; every law's program must build (priors scaled by inputs the data
     has); random K-fold needs at most as many folds as points (or trajectories); emcee needs
-    at least 2 walkers per free parameter.
+    at least 2 walkers per free parameter; the sampler and SMC settings must fit in memory
+    (:mod:`bayesfric.limits`).
 
     Raises
     ------
@@ -110,9 +111,21 @@ def validate_against_data(study: Study, ds) -> None:
             raise StudyError(f"{where}: {key}: {exc.problem} (law {spec.name!r})") from None
         except DataError as exc:
             raise StudyError(f"{where}: laws[{i}] ({spec.name}): {exc}") from None
-        if study.sampler["name"] == "emcee" and (problem := walkers_problem(program, study.sampler["walkers"])):
-            raise StudyError(f"{where}: [sampler] walkers: {problem}")
+        _check_sizes(study, spec, program)
     sizing_questions(study, ds)
+
+
+def _check_sizes(study: Study, spec, program) -> None:
+    """emcee walkers against the free parameters of one law's ``program``, and the memory its
+    sampler and SMC settings imply (:mod:`bayesfric.limits`), as the study file gives them."""
+    where, sampler = study.path, study.sampler
+    if sampler["name"] == "emcee" and (problem := walkers_problem(program, sampler["walkers"])):
+        raise StudyError(f"{where}: [sampler] walkers: {problem}")
+    size = limits.program_size(program)
+    if found := limits.sampler_problem(sampler["name"], sampler, *size):
+        raise StudyError(f"{where}: [sampler] {found[0]}: {found[1]} (law {spec.name!r})")
+    if study.smc and (found := limits.smc_problem(study.smc_particles, study.smc_runs, *size)):
+        raise StudyError(f"{where}: [compare] {found[0]}: {found[1]} (law {spec.name!r})")
 
 
 def sizing_questions(study: Study, ds, questions: list[sizing.SizingQuestion] | None = None,
