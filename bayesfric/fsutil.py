@@ -5,6 +5,11 @@ Every path bayesfric writes goes through this module:
 * a study name becomes a folder name only if it is a plain *slug* (:func:`name_problem`);
 * an output file (``fit --out``) or output root (``study --out``) is checked before any work
   (:func:`check_output_file`, :func:`check_output_folder`), so a bad path costs no sampling time;
+  the user names these paths, so links on them are followed as on any path a user gives, but a
+  file written there replaces a link at the final name instead of writing through it;
+* below a reports root every folder bayesfric writes into is a real folder, never a symbolic link
+  (:func:`real_folders`): a link planted there (``reports/.store`` pointing elsewhere) could lead
+  writes out of the root, so the report folder and the run store refuse one;
 * a report folder is built in a hidden *work folder* ``<root>/.<name>.<token>`` that carries a
   marker file (:data:`MARKER`: tool, study, PID, host, start time) and is then swapped in
   atomically (:func:`install_folder`: the old report is renamed aside, the new one renamed in,
@@ -37,7 +42,7 @@ from bayesfric.errors import UserError
 __all__ = [
     "PathError", "MARKER", "NAME_MAX", "STALE_AGE_S", "name_problem", "current_umask", "apply_umask",
     "check_output_file", "check_output_folder", "report_folder", "create_work_folder", "install_folder",
-    "remove_work_folder", "clean_stale_work", "is_marked",
+    "remove_work_folder", "clean_stale_work", "is_marked", "real_folders", "lexically_inside",
 ]
 
 #: Marker file of every folder bayesfric creates under a reports root.
@@ -154,6 +159,36 @@ def check_output_folder(path: str | Path) -> Path:
     if not exists:
         _check_creatable(path, str(path))
     return path
+
+
+def real_folders(root: str | Path, *parts: str) -> Path:
+    """``root/parts...``, checked before anything is written there: every component below ``root``
+    that exists is a real folder, not a symbolic link (which could lead writes out of ``root``) nor
+    a file. ``root`` itself is the user's to name (a link there is followed).
+
+    Raises
+    ------
+    PathError
+        A component is a symbolic link or not a folder.
+    """
+    path = Path(root)
+    for part in parts:
+        path = path / part
+        if path.is_symlink():
+            raise PathError(f"{path}: is a symbolic link; below {root} bayesfric writes only into real folders "
+                            "(links there could lead its files elsewhere): remove the link")
+        if path.exists() and not path.is_dir():
+            raise PathError(f"{path}: exists and is not a folder")
+    return path
+
+
+def lexically_inside(path: str | Path, root: str | Path) -> tuple[str, ...] | None:
+    """The components of ``path`` below ``root``, compared as written (both made absolute and
+    normalised without following links), or None when ``path`` does not lie below ``root``."""
+    rel = os.path.relpath(os.path.abspath(path), os.path.abspath(root))
+    if rel == os.pardir or rel.startswith(os.pardir + os.sep):
+        return None
+    return () if rel == os.curdir else Path(rel).parts
 
 
 def _read_marker(folder: Path) -> dict | None:

@@ -366,6 +366,10 @@ def _prepare(path: str | Path, out_root: str | Path, quick: bool):
         final = fsutil.report_folder(out_root, study.name)
     except fsutil.PathError as exc:
         raise StudyError(f"{study.path}: [study] name: {exc}") from None
+    try:  # its folders below the reports root are real folders, as the report folder's are
+        store_folder(out_root, study.name)
+    except fsutil.PathError as exc:
+        raise StudyError(f"{study.path}: run store: {exc}") from None
     ds = load_study_data(study)
     validate_against_data(study, ds)
     settings, kfold = _run_settings(study, quick)

@@ -10,7 +10,8 @@ A unit whose key is in the store is read back instead of computed.
 
 Layout: ``<root>/<key>.nc`` (a full fit, NetCDF) or ``<root>/<key>.npz`` (every other unit: its
 arrays plus one JSON record). ``root`` is :func:`store_folder`: ``$BAYESFRIC_STORE_DIR/<study>``
-if that variable is set, else ``<reports root>/.store/<study>``. Each entry is one file written
+if that variable is set, else ``<reports root>/.store/<study>``; below the reports root it is
+reached through real folders only, never a symbolic link. Each entry is one file written
 atomically (temporary file in the same folder, then ``os.replace``), so a run killed at any moment
 leaves either the whole entry or none. An entry that cannot be read back (truncated by a full
 disk, edited, another format) counts as a miss and is computed again. The store may be deleted at
@@ -33,6 +34,8 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
+from bayesfric.fsutil import PathError, check_output_folder, lexically_inside, real_folders
+
 __all__ = ["RunStore", "store_folder", "STORE_ENV"]
 
 #: Environment variable that moves the store out of the reports folder.
@@ -40,9 +43,31 @@ STORE_ENV = "BAYESFRIC_STORE_DIR"
 
 
 def store_folder(out_root: str | Path, study: str) -> Path:
-    """The store folder of ``study``: ``$BAYESFRIC_STORE_DIR/<study>`` or ``<out_root>/.store/<study>``."""
+    """The store folder of ``study``: ``$BAYESFRIC_STORE_DIR/<study>`` or ``<out_root>/.store/<study>``,
+    checked before anything is written there.
+
+    Below the reports root ``out_root`` (``.store`` and ``<study>``, or the path of
+    ``$BAYESFRIC_STORE_DIR`` where it lies below the root) every existing component must be a real
+    folder, as report folders must (:func:`bayesfric.fsutil.real_folders`): a link planted there
+    would lead the store's writes out of the root. ``$BAYESFRIC_STORE_DIR`` itself is the folder the
+    user named: it must be, or be creatable as, a writable folder, and ``<study>`` inside it a real
+    folder.
+
+    Raises
+    ------
+    bayesfric.fsutil.PathError
+        One line starting with the path (or ``$BAYESFRIC_STORE_DIR=...``).
+    """
     base = os.environ.get(STORE_ENV, "").strip()
-    return (Path(base).expanduser() if base else Path(out_root) / ".store") / study
+    if not base:
+        return real_folders(out_root, ".store", study)
+    named = Path(base).expanduser()
+    try:
+        check_output_folder(named)
+    except PathError as exc:
+        raise PathError(f"${STORE_ENV}={base}: {exc}") from None
+    below = lexically_inside(named, out_root)
+    return real_folders(out_root, *below, study) if below is not None else real_folders(named, study)
 
 
 def _tmp_name(path: Path) -> Path:
