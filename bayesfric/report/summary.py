@@ -5,7 +5,9 @@ Both documents render one content model (:func:`bayesfric.report.content.build`)
 jinja2 templates in ``bayesfric/report/templates``: they show the same sections and cannot drift.
 Every string that comes from the user, the data or a law (titles, questions, labels, findings,
 names, units, sources, claims) is written as literal text: Markdown-escaped in ``summary.md``
-(:func:`md_text`, :func:`md_code`) and HTML-escaped in ``report.html`` (jinja2 autoescape).
+(:func:`md_text`, :func:`md_code`: a ``|`` or a line break in a table cell cannot break the table),
+HTML-escaped in ``report.html`` (jinja2 autoescape), and neutralised in every CSV file
+(:func:`bayesfric.csvout.write_csv`: a cell starting with ``=``, ``+``, ``-``, ``@`` is not a formula).
 Findings are structured (:class:`bayesfric.report.findings.Finding`): their emphasis is rendered
 as ``**…**`` in Markdown and ``<b>`` in HTML, never parsed back from text.
 """
@@ -13,7 +15,6 @@ as ``**…**`` in Markdown and ``<b>`` in HTML, never parsed back from text.
 from __future__ import annotations
 
 import base64
-import csv
 import re
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -22,6 +23,7 @@ from urllib.parse import quote
 import jinja2
 from markupsafe import Markup, escape
 
+from bayesfric.csvout import write_csv
 from bayesfric.report import sizing as sizing_report
 from bayesfric.report.content import Table, build, ranking_records
 from bayesfric.report.findings import Finding
@@ -122,17 +124,6 @@ def _parameter_records(out: StudyOutcome) -> list[dict]:
     return records
 
 
-def _write_csv(path: Path, records: list[dict]) -> None:
-    if not records:
-        path.write_text("")
-        return
-    fields = list(dict.fromkeys(k for r in records for k in r))
-    with path.open("w", newline="") as fh:
-        writer = csv.DictWriter(fh, fieldnames=fields)
-        writer.writeheader()
-        writer.writerows(records)
-
-
 def _claim_records(out: StudyOutcome) -> list[dict]:
     return [{"claim": r.claim.text, "source": r.claim.source, "basis": r.claim.basis or "evidence",
              "evidence": not r.claim.pipeline_check, "kind": r.claim.kind, "law": r.claim.law,
@@ -149,10 +140,10 @@ def write_reports(out: StudyOutcome, folder: Path) -> None:
     content = build(out, figures, {i: f"figures/{p.name}" for i, p in fans.items()})
     (folder / "summary.md").write_text(render(content, folder, markdown=True), encoding="utf-8")
     (folder / "report.html").write_text(render(content, folder, markdown=False), encoding="utf-8")
-    _write_csv(folder / "ranking.csv", ranking_records(out))
-    out.table.to_csv(folder / "scores.csv", index=False)
-    _write_csv(folder / "parameters.csv", _parameter_records(out))
+    write_csv(folder / "ranking.csv", ranking_records(out))
+    write_csv(folder / "scores.csv", out.table)  # every CSV: text cells neutralised (bayesfric.csvout)
+    write_csv(folder / "parameters.csv", _parameter_records(out))
     if out.claims:
-        _write_csv(folder / "claims.csv", _claim_records(out))
+        write_csv(folder / "claims.csv", _claim_records(out))
     if out.sizing is not None:
-        _write_csv(folder / "sizing.csv", sizing_report.records(out.sizing))
+        write_csv(folder / "sizing.csv", sizing_report.records(out.sizing))

@@ -20,8 +20,6 @@ per-stage summary and :func:`write_timings` the rows as CSV.
 from __future__ import annotations
 
 import contextlib
-import csv
-import io
 import logging
 import sys
 import time
@@ -33,6 +31,7 @@ from pathlib import Path
 from tqdm import tqdm
 
 from bayesfric.compare import verdict_of
+from bayesfric.csvout import write_csv
 from bayesfric.errors import UserError
 from bayesfric.study.store import RunStore, load_fit_bytes
 from bayesfric.study.units import COSTLY, LawJob, Unit, compute, compute_seconds
@@ -235,11 +234,6 @@ def timing_table(rows: list[Timing], title: str = "time per stage") -> str:
 
 
 def write_timings(rows: list[Timing], path: Path) -> Path:
-    """Write ``rows`` as CSV (one row per unit) to ``path``."""
-    buffer = io.StringIO()
-    writer = csv.writer(buffer, lineterminator="\n")
-    writer.writerow([f.name for f in fields(Timing)])
-    for r in rows:
-        writer.writerow([f"{v:.3f}" if isinstance(v, float) else v for v in astuple(r)])
-    path.write_text(buffer.getvalue())
-    return path
+    """Write ``rows`` as CSV (one row per unit) to ``path`` (labels neutralised: :mod:`bayesfric.csvout`)."""
+    return write_csv(path, [[f"{v:.3f}" if isinstance(v, float) else v for v in astuple(r)] for r in rows],
+                     header=[f.name for f in fields(Timing)])
