@@ -309,6 +309,7 @@ def predict(fit: xr.DataTree, grid: Mapping[str, np.ndarray], seed: int = 0) -> 
     inputs = {k: jnp.asarray(v) for k, v in program.inputs.items()}
     mu = np.asarray(jax.vmap(lambda p: law.mean(inputs, p, program.constants))(params), dtype=float)
     mu = np.broadcast_to(mu, (s, n)).copy()
+    _check_magnitude(law, grid, mu)
     rng = np.random.default_rng([seed, zlib.crc32(law.name.encode())])
     if noise.get("group"):
         mu *= np.exp(rng.normal(0.0, 1.0, (s, 1)) * flat("group_sd")[:, None])
@@ -327,6 +328,23 @@ def predict(fit: xr.DataTree, grid: Mapping[str, np.ndarray], seed: int = 0) -> 
     var = np.where(np.isfinite(var), var, np.inf)
     shape = (chains, draws, n)
     return Draws(mu.reshape(shape), y.reshape(shape), np.asarray(var, dtype=float).reshape(shape))
+
+
+def _check_magnitude(law, grid: Mapping[str, np.ndarray], mu: np.ndarray) -> None:
+    """The law's mean function at every asked point is finite and within the largest magnitude of
+    an operating value (:data:`bayesfric.quantities.SCALE_RANGE`), so noise, quantiles and energies
+    computed from it stay finite; else a :class:`SizingError` naming the point."""
+    from bayesfric.quantities import QUANTITIES, SCALE_RANGE
+
+    peak = np.max(np.where(np.isnan(mu), np.inf, np.abs(mu)), axis=0)
+    if np.all(peak <= SCALE_RANGE[1]):
+        return
+    j = int(np.argmax(peak))
+    point = ", ".join(f"{k} = {grid[k][j]:.4g}" for k in law.operating_inputs)
+    unit = QUANTITIES[law.response].unit
+    raise SizingError("", f"at the asked point {point} (SI) law {law.name!r} predicts |{law.response}| up to "
+                          f"{peak[j]:.3g} {unit}, beyond the {SCALE_RANGE[1]:g} {unit} any friction stays below: "
+                          "the point lies where the law cannot be used")
 
 
 def _spread(values: np.ndarray, levels: Sequence[float]) -> Spread:

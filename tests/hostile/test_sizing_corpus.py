@@ -54,7 +54,7 @@ def tree(tmp_path: Path) -> Path:
     save_fit(hand_fit("coulomb_viscous", draws_cv, {"velocity": v}), stale / "fits" / "coulomb_viscous.nc")
     entry = {"law": "coulomb_viscous", "fit": "fits/coulomb_viscous.nc", "diagnostics_passed": True,
              "evidence_agree": True, "weights": {"stacking LOO": 1.0}}
-    (stale / "weights.json").write_text(json.dumps({"format": 1, "average_by": "stacking LOO", "laws": [entry]}))
+    (stale / "weights.json").write_text(json.dumps({"format": 2, "schemes": [], "laws": [entry]}))
     (tmp_path / "two.toml").write_text(STUDY.replace('[[laws]]', '[[laws]]\nname = "coulomb"\n[[laws]]', 1)
                                        + QUESTION)
     return tmp_path
@@ -116,6 +116,10 @@ CASES = [
      ("--at temperature", "physical bound", "> 0 K")),
     ("fit-absolute-zero-degC", ("size", "fit.nc", "--at", "velocity=1 rad/s, temperature=-273.15 degC"),
      ("--at temperature", "> 0 K")),
+    ("fit-prediction-beyond-1e12", ("size", "fit.nc", "--at", "velocity=9e11 rad/s"),
+     ("asked point velocity = 9e+11", "coulomb_viscous", "1.8e+12", "beyond the 1e+12")),
+    ("fit-range-prediction-beyond-1e12", ("size", "fit.nc", "--at", "velocity=1..9e11 rad/s", "--energy-rotation",
+                                          "1e12 rad"), ("asked point", "beyond the 1e+12")),
 ]
 
 #: ``[[sizing]]`` entries of a study file that must fail, through ``size`` and through ``study``.
