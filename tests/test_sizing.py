@@ -58,7 +58,8 @@ def test_exclusion_reasons_come_from_the_records_booleans():
     failed = sizing.exclusion({"diagnostics_passed": False, "diagnostics_problems": ["R-hat 1.02 > 1.01"]})
     assert failed == "failed the diagnostics gate (R-hat 1.02 > 1.01)"
     # an unreliable evidence estimate is no reason about a law's predictions: never an exclusion (issue #28)
-    assert sizing.exclusion({"diagnostics_passed": True, "evidence_agree": False, "evidence_disagreement": -0.12}) is None
+    unreliable_evidence = {"diagnostics_passed": True, "evidence_agree": False, "evidence_disagreement": -0.12}
+    assert sizing.exclusion(unreliable_evidence) is None
     both = sizing.exclusion({"diagnostics_passed": False, "evidence_agree": False, "evidence_disagreement": -0.09})
     assert both == "failed the diagnostics gate"
 
@@ -165,6 +166,18 @@ def test_noise_models_and_a_new_units_group_offset():
     mu = sizing.predict(fit, x).mu
     assert np.log(mu[..., 0]).std() == pytest.approx(0.2, rel=0.08)  # a new unit: offset ~ N(0, group_sd)
     np.testing.assert_allclose(mu[..., 0], mu[..., 1])  # the same unit at every point
+
+
+def test_ar1_noise_sizes_through_the_programs_own_observation_model():
+    """Issue #28: sizing draws noise from the fit's Program (the likelihood's distribution), not a
+    restatement: ar1 is sized at its stationary marginal sd σ / sqrt(1 − ρ²) (it raised
+    KeyError('sigma_rel') when it fell into a proportional branch)."""
+    fit = hand_fit("coulomb", {"T_C": const(10), "sigma": const(0.6)}, TESTED)
+    fit.attrs["noise"] = '{"kind": "ar1", "group": null, "sigma": null}'  # hand_fit's data have no trajectories
+    fit["posterior"] = fit["posterior"].to_dataset().assign(rho=fit["posterior"]["sigma"] * 0 + 0.8)
+    draws = sizing.predict(fit, {"velocity": np.array([1.0, 3.0])})
+    np.testing.assert_allclose(draws.noise_var, 0.6**2 / (1 - 0.8**2))
+    assert np.std(draws.y[..., 0] - draws.mu[..., 0]) == pytest.approx(0.6 / math.sqrt(1 - 0.64), rel=0.05)
 
 
 def test_student_t_with_infinite_variance_is_reported():
@@ -289,7 +302,8 @@ def test_tiny_study_end_to_end_and_size_without_refitting(bench, monkeypatch, ca
     cal = {k: float(top[0][k]) for k in ("calibrated_q5", "calibrated_q50", "calibrated_q95", "calibrated_required")}
     assert cal["calibrated_q5"] <= float(top[0]["mean_fn_q5"]) + 1e-9  # widened, never narrowed
     assert cal["calibrated_q95"] >= float(top[0]["mean_fn_q95"]) - 1e-9
-    assert cal["calibrated_required"] >= float(top[0]["required"]) - 1e-9 and 0 <= float(top[0]["calibrated_p_exceed"]) <= 1
+    assert cal["calibrated_required"] >= float(top[0]["required"]) - 1e-9
+    assert 0 <= float(top[0]["calibrated_p_exceed"]) <= 1
     assert (folder / "figures" / "sizing_1.png").stat().st_size > 10_000
     summary = (folder / "summary.md").read_text()
     assert "## Sizing" in summary and "MODEL AVERAGE" in summary and "between-law disagreement" in summary
@@ -313,6 +327,6 @@ def test_tiny_study_end_to_end_and_size_without_refitting(bench, monkeypatch, ca
     fit = folder / "fits" / "coulomb_viscous.nc"
     assert main(["size", str(fit), "--at", "velocity=3 rad/s", "--capacity", "12 N*m", "--confidence", "0.95"]) == 0
     out = capsys.readouterr().out
-    assert "coulomb_viscous" in out and "MODEL AVERAGE" not in out and "P(|torque| > 12 N*m)" in out
+    assert "coulomb_viscous" in out and "MODEL AVERAGE" not in out and "P(|torque| > 12 N·m)" in out
     assert "weight" not in out.split("coulomb_viscous", 1)[1].split("\n")[0]  # one fit: no weight columns
     assert "no calibrated numbers" in out

@@ -44,8 +44,8 @@ class HeldOut:
     mu : ndarray, shape (S, m)
         Thinned draws of the mean function (signed, group offsets included).
     noise_var : ndarray, shape (m,)
-        Posterior mean of the observation variance (``inf`` where a draw has none: Student-t
-        with ``nu ≤ 2``).
+        Posterior mean of the observation variance (a Student-t draw with ``nu ≤ 2``, which
+        has none, counts with its squared scale).
     """
 
     index: np.ndarray
@@ -116,7 +116,9 @@ def heldout_predictive(program: Program, samples: dict[str, np.ndarray], heldout
             mu = mu * np.exp(offsets[:, program.group_index[mine]])
         obs = program.observation(jnp.asarray(mu), {n: jnp.asarray(v)[:, None] for n, v in noise.items()})
         var = np.asarray(jnp.broadcast_to(obs.variance, mu.shape), dtype=float)
-        var = np.where(np.isfinite(var), var, np.inf)
+        # a Student-t draw with nu <= 2 has no variance: its squared scale stands in (a weight
+        # for the misses, not a claim about the noise)
+        var = np.where(np.isfinite(var), var, np.asarray(jnp.broadcast_to(obs.scale, mu.shape), dtype=float) ** 2)
         mus.append(mu)
         noise_vars.append(var.mean(axis=0))
     if not mus:

@@ -14,6 +14,8 @@ import numpy as np
 import xarray as xr
 from matplotlib.figure import Figure
 
+from bayesfric.report.typeset import unit as unit_text
+
 __all__ = ["plot_sizing_fan", "provenance_label", "banner", "save"]
 
 
@@ -112,8 +114,8 @@ def plot_sizing_fan(result, answer, path: Path, *, title: str = "") -> Path:
     else:
         ax.axvline(asked[0], color="tab:orange", lw=1.2, ls=":", label="asked point")
     others = ", ".join(f"{k} = {v.text}" for k, v in question.at.items() if k != fan.axis)
-    ax.set_xlabel(f"{fan.axis} [{value.unit}]" + (f"   ({others})" if others else ""))
-    ax.set_ylabel(f"|{result.response}| [{result.response_unit}]")
+    ax.set_xlabel(f"{fan.axis} [{unit_text(value.unit)}]" + (f"   ({others})" if others else ""))
+    ax.set_ylabel(f"|{result.response}| [{unit_text(result.response_unit)}]")
     ax.set_ylim(bottom=0)
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     head = f"sizing: {question.label}"

@@ -15,6 +15,7 @@ import numpy as np
 from bayesfric.quantities import QUANTITIES
 from bayesfric.report.findings import Finding, plain
 from bayesfric.report.tables import format_table
+from bayesfric.report.typeset import fmt, unit
 from bayesfric.sizing import EXTRAPOLATION_WARN, LEVELS, RANGE_POINTS, Answer, SizingResult
 
 __all__ = ["Section", "sections", "records", "text_report", "headlines", "RANGE_ROWS"]
@@ -38,11 +39,22 @@ class Section:
 
 
 def _g(x: float, digits: int = 4) -> str:
-    return f"{x:.{digits}g}" if isinstance(x, float | int | np.floating) and math.isfinite(x) else "–"
+    """A number with ``digits`` significant digits (:func:`bayesfric.report.typeset.fmt`: no
+    ``5.505e-10``; powers of ten written out)."""
+    return fmt(float(x), digits=digits) if isinstance(x, float | int | np.floating) and math.isfinite(x) else "–"
+
+
+def _qty(text: str) -> str:
+    """A value with its unit as the user wrote it (``"85 kN*m"``), the unit typeset (85 kN·m)."""
+    number, _, rest = str(text).partition(" ")
+    return f"{number} {unit(rest)}" if rest else unit(number)
 
 
 def _w(x: float) -> str:
-    return f"{x:.3f}" if isinstance(x, float | int) and math.isfinite(x) else "–"
+    """A weight: two decimals, ``0`` for none."""
+    if not (isinstance(x, float | int) and math.isfinite(x)):
+        return "–"
+    return "0" if abs(x) < 0.005 else f"{x:.2f}"
 
 
 def _pct(level: float) -> str:
@@ -50,14 +62,15 @@ def _pct(level: float) -> str:
 
 
 def _energy_unit(joules: float) -> tuple[str, float]:
-    for unit, scale in (("MJ", 1e6), ("kJ", 1e3)):
+    for name, scale in (("MJ", 1e6), ("kJ", 1e3)):
         if abs(joules) >= scale:
-            return unit, scale
+            return name, scale
     return "J", 1.0
 
 
 def _point_text(answer: Answer, j: int) -> str:
-    return ", ".join(f"{k} = {_g(float(v.display(answer.grid[k][j])))} {v.unit}" for k, v in answer.question.at.items())
+    return ", ".join(f"{k} = {_g(float(v.display(answer.grid[k][j])))} {unit(v.unit)}"
+                     for k, v in answer.question.at.items())
 
 
 def _distance_text(answer: Answer, j: int) -> str:
@@ -68,7 +81,7 @@ def _distance_text(answer: Answer, j: int) -> str:
         lo, hi = (float(x) for x in v.display(np.array(answer.tested[k])))
         d = float(answer.distance[k][j])
         where = "inside" if d == 0 else ("above" if answer.grid[k][j] > answer.tested[k][1] else "below")
-        parts.append(f"{k} {_g(d, 3)} ({where} the tested {_g(min(lo, hi))}–{_g(max(lo, hi))} {v.unit})")
+        parts.append(f"{k} {_g(d, 3)} ({where} the tested {_g(min(lo, hi))}–{_g(max(lo, hi))} {unit(v.unit)})")
     return "; ".join(parts)
 
 
@@ -92,7 +105,7 @@ def _cal_cells(a, j: int, scale: float, capacity) -> list[str]:
 
 
 def _law_table(result: SizingResult, answer: Answer, j: int) -> tuple[str, list[str], list[list[str]]]:
-    scale, unit, c = result.response_scale, result.response_unit, answer.question.confidence
+    scale, shown, c = result.response_scale, unit(result.response_unit), answer.question.confidence
     single = answer.basis is None
     capacity = answer.question.capacity
     within = not (answer.basis is not None and answer.basis.no_extrapolation)
@@ -100,10 +113,10 @@ def _law_table(result: SizingResult, answer: Answer, j: int) -> tuple[str, list[
     header = ["law"] + ([] if single else ["weight (basis)", "used", "weight (LOO)"])
     if within:
         header += [*(f"mean fn {_pct(q)}" for q in LEVELS), *(f"with noise {_pct(q)}" for q in LEVELS),
-                   f"required @ {c:g}"] + ([f"P(|{result.response}| > {capacity.text})"] if capacity else [])
+                   f"required @ {c:g}"] + ([f"P(|{result.response}| > {_qty(capacity.text)})"] if capacity else [])
     if calibrated:
         header += [*(f"calibrated curve {_pct(q)}" for q in LEVELS), f"calibrated required @ {c:g}"]
-        header += [f"calibrated P(> {capacity.text})"] if capacity else []
+        header += [f"calibrated P(> {_qty(capacity.text)})"] if capacity else []
 
     def row(name, a, weights=(math.nan, math.nan, math.nan)):
         cells = [name] + ([] if single else [_w(w) for w in weights])
@@ -121,7 +134,7 @@ def _law_table(result: SizingResult, answer: Answer, j: int) -> tuple[str, list[
     for mix, name in ((answer.average, "MODEL AVERAGE"), (answer.average_loo, "average by LOO weights")):
         if mix is not None and not single:
             rows.append(row(name, mix, (math.nan, 1.0 if name == "MODEL AVERAGE" else math.nan, math.nan)))
-    caption = (f"|{result.response}| [{unit}] at {_point_text(answer, j)}: quantiles of the {_MEAN_FN} and "
+    caption = (f"|{result.response}| [{shown}] at {_point_text(answer, j)}: quantiles of the {_MEAN_FN} and "
                f"{_NOISY}; required capacity = the {c:g} quantile with noise")
     if calibrated:
         caption += ("; calibrated = with the model-form error the blocked folds measured (the friction curve's "
@@ -131,9 +144,9 @@ def _law_table(result: SizingResult, answer: Answer, j: int) -> tuple[str, list[
 
 def _split_table(result: SizingResult, answer: Answer, j: int) -> tuple[str, list[str], list[list[str]]] | None:
     mix = answer.average
-    if mix is None:
+    if mix is None or answer.basis is None:  # one fit: no average to split
         return None
-    scale, unit = result.response_scale, result.response_unit
+    scale, shown = result.response_scale, unit(result.response_unit)
     total = float(mix.var_total[j])
     rows = []
     for name, var in (("parameter (within-law)", mix.var_param), ("observation noise", mix.var_noise),
@@ -144,7 +157,7 @@ def _split_table(result: SizingResult, answer: Answer, j: int) -> tuple[str, lis
     rows.append(["total", _g(total / scale**2), _g(math.sqrt(total) / scale if total >= 0 else math.nan), "100 %"])
     caption = (f"variance split of the model average at {_point_text(answer, j)} (law of total variance, weights "
                f"as used)")
-    return caption, ["component", f"variance [{unit}²]", f"sd [{unit}]", "share"], rows
+    return caption, ["component", f"variance [({shown})²]", f"sd [{shown}]", "share"], rows
 
 
 def _energy_table(result: SizingResult, answer: Answer, j: int) -> tuple[str, list[str], list[list[str]]] | None:
@@ -153,17 +166,17 @@ def _energy_table(result: SizingResult, answer: Answer, j: int) -> tuple[str, li
         return None
     c = answer.question.confidence
     spreads = [(a.name, a.mean_fn, a.noisy) for a in answer.used]
-    if answer.average is not None and len(answer.laws) > 1:
+    if answer.average is not None and answer.basis is not None:
         spreads.append(("MODEL AVERAGE", answer.average.mean_fn, answer.average.noisy))
     spreads += [(f"{a.name} (EXCLUDED)", a.mean_fn, a.noisy) for a in answer.laws if a.excluded is not None]
     top = max((float(answer.energy(n, c)[j]) for _, _, n in spreads), default=1.0)
-    unit, scale = _energy_unit(top)
+    e_unit, scale = _energy_unit(top)
     header = ["law", *(f"mean fn {_pct(q)}" for q in LEVELS), *(f"with noise {_pct(q)}" for q in LEVELS),
               f"required @ {c:g}"]
     rows = [[name, *(_g(float(answer.energy(m, q)[j]) / scale) for q in LEVELS),
              *(_g(float(answer.energy(n, q)[j]) / scale) for q in LEVELS), _g(float(answer.energy(n, c)[j]) / scale)]
             for name, m, n in spreads]
-    caption = (f"friction energy of one {rotation.text} rotation [{unit}] at {_point_text(answer, j)}: "
+    caption = (f"friction energy of one {_qty(rotation.text)} rotation [{e_unit}] at {_point_text(answer, j)}: "
                f"E = |{result.response}| · θ per draw (torque assumed independent of the angle; with noise, the "
                "scatter is taken to last the whole rotation)")
     return caption, header, rows
@@ -177,21 +190,29 @@ def _range_table(result: SizingResult, answer: Answer) -> tuple[str, list[str], 
     value = answer.question.at[axis]
     scale, c = result.response_scale, answer.question.confidence
     picks = sorted(set(np.linspace(0, answer.n_points - 1, RANGE_ROWS).round().astype(int)) | {answer.governing})
-    header = [f"{axis} [{value.unit}]", "extrapolation distance", "median with noise", f"required @ {c:g}"]
+    cal = mix.calibrated
+    header = [f"{axis} [{unit(value.unit)}]", "extrapolation distance", "median with noise", f"required @ {c:g}"]
     capacity = answer.question.capacity
     if capacity is not None:
-        header.append(f"P(|{result.response}| > {capacity.text})")
+        header.append(f"P(|{result.response}| > {_qty(capacity.text)})")
+    if cal is not None:
+        header += ["calibrated curve 5–95 %", f"calibrated required @ {c:g}"]
+        header += [f"calibrated P(> {_qty(capacity.text)})"] if capacity is not None else []
     rows = []
     for j in picks:
         med, req = float(mix.noisy.q(0.5)[j]), float(mix.required[j])
-        p = _p_text(float(mix.p_exceed[j]), float(mix.p_se[j]), float(mix.p_bound[j]))
         cells = [_g(float(value.display(answer.grid[axis][j]))), _g(float(answer.distance[axis][j]), 3),
                  _g(med / scale), _g(req / scale)]
         if capacity is not None:
-            cells.append(p)
+            cells.append(_p_text(float(mix.p_exceed[j]), float(mix.p_se[j]), float(mix.p_bound[j])))
+        if cal is not None:
+            cells += [f"{_g(float(cal.mean_fn.q(0.05)[j]) / scale)}–{_g(float(cal.mean_fn.q(0.95)[j]) / scale)}",
+                      _g(float(cal.required[j]) / scale)]
+            if capacity is not None:
+                cells.append(_p_text(float(cal.p_exceed[j]), float(cal.p_se[j]), float(cal.p_bound[j])))
         rows.append(cells)
-    caption = (f"model average along {axis} {value.text} [{result.response_unit}] ({RANGE_POINTS} points sized; "
-               "every point in sizing.csv)")
+    caption = (f"model average along {axis} {_qty(value.text)} [{unit(result.response_unit)}] ({RANGE_POINTS} "
+               "points sized; every point in sizing.csv)")
     return caption, header, rows
 
 
@@ -202,7 +223,7 @@ def sections(result: SizingResult, figures: dict[int, str] | None = None) -> lis
         q = answer.question
         j = answer.governing
         sec = Section(f"Sizing {i + 1}: {q.label}", figure=(figures or {}).get(i))
-        extra = f"; available capacity {q.capacity.text}" if q.capacity is not None else ""
+        extra = f"; available capacity {_qty(q.capacity.text)}" if q.capacity is not None else ""
         sec.lines.append(f"Asked: {q.describe()}; confidence {q.confidence:g}{extra}.")
         if q.axis and answer.used:
             sec.lines.append(f"The range of {q.axis} is sized at {answer.n_points} points; the tables give the "
@@ -259,7 +280,7 @@ def headlines(result: SizingResult) -> list[Finding]:
     lines = []
     for answer in result.answers:
         q, j = answer.question, answer.governing
-        unit, scale = result.response_unit, result.response_scale
+        shown, scale = unit(result.response_unit), result.response_scale
         first = _first_warnings(answer)
         if answer.average is None:
             lines.append(plain(f"Sizing '{q.label}': no model average ({answer.no_average}).", warning=True))
@@ -268,21 +289,21 @@ def headlines(result: SizingResult) -> list[Finding]:
         what = "calibrated for model-form error" if answer.average.calibrated is not None else "within-model"
         tail = f" at confidence {q.confidence:g} ({what}, model average, {_point_text(answer, j)}"
         if answer.average.calibrated is not None and not (answer.basis and answer.basis.no_extrapolation):
-            tail += f"; within-model {_g(float(answer.average.required[j]) / scale)} {unit}"
+            tail += f"; within-model {_g(float(answer.average.required[j]) / scale)} {shown}"
         if q.capacity is not None:
             p = _p_text(float(mix.p_exceed[j]), float(mix.p_se[j]), float(mix.p_bound[j]))
-            tail += f"; P(> {q.capacity.text}) {p}"
+            tail += f"; P(> {_qty(q.capacity.text)}) {p}"
         tail += ")"
         if q.energy_rotation is not None:
             energy = float(answer.energy(mix.noisy, q.confidence)[j])
             e_unit, e_scale = _energy_unit(energy)
-            tail += f"; friction energy of one {q.energy_rotation.text} rotation {_g(energy / e_scale)} {e_unit}"
+            tail += f"; friction energy of one {_qty(q.energy_rotation.text)} rotation {_g(energy / e_scale)} {e_unit}"
         if first:
             tail += " — " + "; ".join(first)
         if answer.warnings:
             tail += f" — {len(answer.warnings)} warning(s), see Sizing"
         lines.append(Finding(((f"Sizing '{q.label}': required |{result.response}| ", False),
-                              (f"{_g(float(mix.required[j]) / scale)} {unit}", True), (tail + ".", False)),
+                              (f"{_g(float(mix.required[j]) / scale)} {shown}", True), (tail + ".", False)),
                              warning=bool(first)))
     return lines
 

@@ -20,6 +20,7 @@ import numpy as np
 import xarray as xr
 
 from bayesfric.quantities import QUANTITIES, conversion
+from bayesfric.sizing.answer import answer, answer_question
 from bayesfric.sizing.basis import LOO, NO_EXTRAPOLATION, Basis, choose_basis
 from bayesfric.sizing.calibration import Miss, Scheme, measure_miss
 from bayesfric.sizing.compute import (
@@ -30,8 +31,6 @@ from bayesfric.sizing.compute import (
     LawSource,
     Mixture,
     SizingResult,
-    answer,
-    answer_question,
     extrapolation_distance,
     predict,
     tested_ranges,

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bayesfric.sizing.calibration import Miss, Scheme, matching
+from bayesfric.sizing.calibration import Miss, Scheme, matching, per_range
 
 __all__ = ["LOO", "NO_EXTRAPOLATION", "Basis", "choose_basis"]
 
@@ -37,7 +37,8 @@ class Basis:
 
     ``weights``: law -> weight (renormalised later over the laws used); ``schemes``: matched
     blocked schemes; ``uncovered``: sides beyond the data no scheme tests; ``fallback_rate``: the
-    largest measured miss rate (NaN: none measured); ``no_extrapolation``: why no law
+    largest measured miss rate, unit-free
+    (:func:`~bayesfric.sizing.calibration.per_range`; NaN: none measured); ``no_extrapolation``: why no law
     extrapolates here ("" when some law does); ``note``: the basis in words.
     """
 
@@ -91,7 +92,8 @@ def choose_basis(grid: Mapping[str, np.ndarray], data: Mapping[str, np.ndarray],
     ``penalties``: law -> {blocked label -> nats per held-out point}.
     """
     matched, uncovered = matching(grid, data, schemes)
-    rates = [m.rate for law in misses.values() for m in law.values()]
+    by_label = {s.label: s for s in schemes if s.axis in data}
+    rates = [per_range(m, by_label[k], data) for law in misses.values() for k, m in law.items() if k in by_label]
     fallback = max(rates) if rates else math.nan
     chosen = _mean_weights(names, weights, [s.label for s in matched]) if matched else None
     notes = []
@@ -107,9 +109,9 @@ def choose_basis(grid: Mapping[str, np.ndarray], data: Mapping[str, np.ndarray],
             notes.append("every point lies inside the tested envelope: LOO stacking weights")
     if uncovered:
         sides = ", ".join(_side(s) for s in uncovered)
-        widen = (f"widened by the largest miss any law showed on any blocked fold (κ = {fallback:.2g} per tested "
-                 "range)" if math.isfinite(fallback) else "and no blocked fold measured any law's miss: the "
-                 "model-form error there is UNMEASURED")
+        widen = (f"widened by the largest miss any law showed on any blocked fold ({fallback:.2g} relative per "
+                 "tested range squared)" if math.isfinite(fallback) else
+                 "and no blocked fold measured any law's miss: the model-form error there is UNMEASURED")
         notes.insert(0, f"NO blocked fold tests {sides}: {widen}")
     return Basis(key, dict(chosen), tuple(matched), tuple(uncovered), fallback,
                  _no_extrapolation(names, penalties, matched), "; ".join(notes))

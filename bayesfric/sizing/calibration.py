@@ -11,41 +11,54 @@ Why
 The miss of one law on one blocked scheme (:func:`measure_miss`)
     At each held-out point ``i`` the fold posterior gives draws of the mean function (thinned,
     :mod:`bayesfric.compare.heldout`); ``m_i`` is their mean and ``e_i = y_i − m_i`` the miss.
-    The miss is modelled as a relative error growing linearly with the extrapolation distance
-    ``d_i`` (in tested ranges of the fold's training data, along the scheme's axis, on ``|x|``
-    where the input has both signs), from an offset :data:`OFFSET` at the envelope's edge::
+    The miss is modelled as a relative error that grows with the distance beyond the envelope
+    the fold was trained on, measured in the input's own units::
 
-        e_i = β · g_i + η_i,   g_i = |m_i| · (d_i + OFFSET),   η ~ N(0, Σ)
+        e_i = β · g_i + η_i,   g_i = |m_i| · (L · (d_i + OFFSET))^GROWTH,   η ~ N(0, Σ)
 
-    with ``Σ`` the fold posterior's covariance of the mean function across the held-out points
-    plus the observation noise variance (the fold's own parameter error is shared by all its
-    held-out points; ignoring that correlation overstates what the points say). ``β̂`` is the
-    generalised-least-squares slope, ``se² = 1 / (gᵀ Σ⁻¹ g)``, and the squared miss rate is the
-    positive-part moment estimate ``κ² = max(0, β̂² − se²)``: the part of the miss that the
-    fold's own uncertainty does not explain (DerSimonian & Laird 1986 estimate between-study
-    variance the same way). κ is a relative miss per tested range, unit-free.
+    ``d_i``: tested ranges beyond the fold's training data along the scheme's axis (on ``|x|``
+    where the input has both signs), ``L``: the width of that training range, OFFSET: the miss
+    a law already has at the envelope's edge. GROWTH = 2 because the generic form error of a
+    smooth law is a missing curvature: extrapolating a fit that lacks a term ``k x²`` (or any
+    smooth curvature) misses by ``k (L (d + c))²`` to first order. Measuring the distance in the
+    input's units (``L d``) rather than in tested ranges makes the fold's miss carry over to the
+    full fit, whose tested range is wider (on simulated data, tested ranges under-covered a
+    quadratic drag term by a factor of two). ``Σ``: the fold posterior's covariance of the mean
+    function across the held-out points plus the observation noise variance (the fold's own
+    parameter error is shared by all its held-out points; ignoring that correlation overstates
+    what the points say). ``β̂`` is the generalised-least-squares slope, ``se² = 1/(gᵀ Σ⁻¹ g)``.
+
+    The rate used is ``κ = sqrt(max(0, β̂² − LAMBDA · se²))`` with LAMBDA = 0.5: between the plug-in
+    ``β̂²`` (LAMBDA = 0), which widens every answer by noise when the law is right (median width
+    2.7× the within-model band on simulated data), and the unbiased positive-part moment estimate
+    ``β̂² − se²`` (LAMBDA = 1, as DerSimonian & Laird 1986 estimate a between-study variance),
+    which sets κ = 0 whenever the miss is within one standard error and so misses the mild form
+    errors sizing must not under-state. Half the sampling variance is subtracted: a deliberate
+    lean toward covering, because under-sizing a drive costs more than over-sizing it.
+    The figures behind this choice are in ``tests/test_sizing_calibration.py`` and the README.
 
 The band (:func:`relative_sd`, :func:`widen`)
-    At a sizing point at distance ``d`` beyond the *full* data's tested range along the scheme's
-    axis, the law's mean curve gets a Gaussian discrepancy of relative sd ``κ (d + OFFSET)``
-    (zero inside the envelope): one standard-normal draw per posterior draw, shared by every
-    point of a question (a form error is systematic along the curve, not scatter). The
-    calibrated answer is the within-model predictive with that discrepancy added to each draw;
-    quantiles, required capacity and ``P(exceed)`` are computed from those draws exactly as the
-    within-model ones. This follows the discrepancy term of Kennedy & O'Hagan (2001, *J. R. Stat.
-    Soc. B* 63:425) with its scale learned from blocked cross-validation (Roberts et al. 2017,
-    *Ecography* 40:913, on blocked CV for extrapolation), in the spirit of normalised split
-    conformal prediction (Lei et al. 2018, *JASA* 113:1094) whose score is scaled by a local
-    difficulty, here the distance.
+    At a sizing point at distance ``d`` beyond the *full* data's tested range (width ``L``) along
+    a matched scheme's axis, the law's mean curve gets a Gaussian discrepancy of relative sd
+    ``κ (L (d + OFFSET))^GROWTH``, and no point (inside the envelope included) less than the
+    largest miss the law showed at the edge of any scheme's envelope. One standard-normal draw
+    per posterior draw is shared by every point of a question (a form error is systematic along
+    the curve, not scatter). The calibrated answer is the within-model predictive with that
+    discrepancy added to each draw; quantiles, required capacity and ``P(exceed)`` are computed
+    from those draws exactly as the within-model ones. This is the discrepancy term of Kennedy &
+    O'Hagan (2001, *J. R. Stat. Soc. B* 63:425) with its scale learned from blocked
+    cross-validation (Roberts et al. 2017, *Ecography* 40:913, on blocked CV for extrapolation),
+    in the spirit of normalised split-conformal prediction (Lei et al. 2018, *JASA* 113:1094),
+    whose score is scaled by a local difficulty, here the distance. It is an approximation:
+    Gaussian, one rate per law and scheme, the growth law assumed.
 
 What it assumes, and where it fails (measured, ``tests/test_sizing_calibration.py``)
-    That the relative miss per tested range seen by the fold carries over to the full fit at the
-    sizing point's distance. It holds when the form error shows in the held-out points (a law
-    missing a regime, e.g. a gear power-law term): coverage of the true mean curve then reaches
-    the nominal level. A *mild* form error hidden in the noise of a few held-out points (a
-    sub-linear viscous term fitted by a linear law) is partly estimated as zero and its
-    calibrated coverage stays below nominal: the figures are in the README's sizing section.
-    Where the law is a candidate's true form, κ is usually 0 and the band is the within-model one.
+    That the miss the fold shows carries over to the full fit at the sizing point's distance
+    with the assumed growth. It holds when the form error shows in the held-out points. A form
+    error hidden in the noise of the held-out points (a fold of ten points that cannot tell the
+    law's miss from its own parameter error) is often estimated as zero, and the calibrated
+    coverage then stays below nominal: the figures per case are in the README's sizing section.
+    Where the law is the true form, κ is usually 0 and the band is the within-model one.
 
 Direction
     A point is weighed and widened only by schemes that extrapolate in its direction along an
@@ -63,13 +76,15 @@ from dataclasses import dataclass
 import numpy as np
 import xarray as xr
 
-__all__ = ["OFFSET", "Scheme", "Miss", "measure_miss", "natural", "matching", "relative_sd", "widen"]
+__all__ = ["OFFSET", "GROWTH", "LAMBDA", "Scheme", "Miss", "measure_miss", "natural", "matching", "relative_sd",
+           "per_range", "widen"]
 
 #: Extrapolation distance (tested ranges) the miss is taken to have at the envelope's edge.
 OFFSET = 0.2
 #: Power of the miss's growth with distance (2: a missing curvature term, see the module).
 GROWTH = 2.0
-LAMBDA = -0.25
+#: Share of the sampling variance ``se²`` subtracted from ``β̂²`` (see the module).
+LAMBDA = 0.5
 
 
 
@@ -112,8 +127,9 @@ class Scheme:
 class Miss:
     """How far one law's mean curve missed beyond the envelope of one blocked fold.
 
-    ``rate`` (κ): relative miss per tested range, ≥ 0; ``beta``, ``se``: the GLS slope and its
-    standard error; ``n``: held-out points used; ``reach``: the largest held-out distance.
+    ``rate`` (κ ≥ 0): relative miss per (input unit)^GROWTH; ``beta``, ``se``: the GLS slope and
+    its standard error; ``n``: held-out points used; ``reach``: the largest held-out distance
+    (tested ranges of the fold's training data).
     """
 
     scheme: str
@@ -163,7 +179,7 @@ def measure_miss(cv, ds: xr.Dataset, scheme: Scheme) -> Miss | None:
         return None
     beta = float(e @ solve_g) / info
     se = 1.0 / math.sqrt(info)
-    return Miss(scheme.label, math.sqrt(max(0.0, beta**2 + LAMBDA * se**2)), beta, se, int(index.size),
+    return Miss(scheme.label, math.sqrt(max(0.0, beta**2 - LAMBDA * se**2)), beta, se, int(index.size),
                 float(np.max(d)) if d.size else 0.0)
 
 
@@ -196,33 +212,38 @@ def matching(grid: Mapping[str, np.ndarray], data: Mapping[str, np.ndarray],
     return matched, uncovered
 
 
+def per_range(miss: Miss, scheme: Scheme, data: Mapping[str, np.ndarray]) -> float:
+    """A miss rate in unit-free terms, per (tested range of the full data)^GROWTH along the
+    scheme's axis: comparable across laws, schemes and inputs (the fallback is their maximum)."""
+    lo, hi = scheme.tested(data[scheme.axis])
+    return miss.rate * float(hi - lo) ** GROWTH
+
+
 def relative_sd(grid: Mapping[str, np.ndarray], data: Mapping[str, np.ndarray], misses: Mapping[str, Miss],
-                schemes: Sequence[Scheme], matched: Sequence[Scheme], fallback_rate: float,
+                schemes: Sequence[Scheme], matched: Sequence[Scheme], fallback: float,
                 uncovered: Sequence[Scheme]) -> np.ndarray:
     """Relative sd of a law's discrepancy at every point (see the module).
 
     Along the matched schemes the miss grows as ``κ_j (L_j (d_j + OFFSET))^GROWTH`` (their
-    variances add; κ of a matched scheme without a measured miss for this law:
-    ``fallback_rate``), along every uncovered side (:func:`matching`) likewise with
-    ``fallback_rate`` where a point lies beyond it. No point, inside the envelope included, gets
-    less than the largest miss the law showed at the edge of any scheme's envelope
+    variances add); a matched scheme without a measured miss for this law (its fold failed the
+    gate) and every uncovered side (:func:`matching`, where a point lies beyond it) take the
+    unit-free ``fallback`` (:func:`per_range`: the largest miss any law showed on any scheme)
+    as ``fallback · (d + OFFSET)^GROWTH``. No point, inside the envelope included, gets less
+    than the largest miss the law showed at the edge of any scheme's envelope
     (``κ_j (L_j OFFSET)^GROWTH``): a form error seen at the edge is there inside too.
     """
     n = len(next(iter(grid.values())))
-    edge = 0.0
-    for s in schemes:
-        if s.label in misses and s.axis in data:
-            lo, hi = s.tested(data[s.axis])
-            edge = max(edge, misses[s.label].rate * float(_reach(0.0, hi - lo)))
+    edge = max([per_range(misses[s.label], s, data) * OFFSET**GROWTH for s in schemes
+                if s.label in misses and s.axis in data], default=0.0)
     var = np.zeros(n)
     for s in matched:
         lo, hi = s.tested(data[s.axis])
-        rate = misses[s.label].rate if s.label in misses else fallback_rate
-        var += (rate * _reach(s.distance(grid[s.axis], lo, hi), hi - lo)) ** 2
-    for s in uncovered:
-        lo, hi = s.tested(data[s.axis])
         d = s.distance(grid[s.axis], lo, hi)
-        var += np.where(d > 0, (fallback_rate * _reach(d, hi - lo)) ** 2, 0.0)
+        rate = misses[s.label].rate * _reach(d, hi - lo) if s.label in misses else fallback * _reach(d, 1.0)
+        var += rate**2
+    for s in uncovered:
+        d = s.distance(grid[s.axis], *s.tested(data[s.axis]))
+        var += np.where(d > 0, (fallback * _reach(d, 1.0)) ** 2, 0.0)
     return np.sqrt(np.maximum(var, edge**2))
 
 

@@ -9,9 +9,9 @@ Per law and point
     (``jax.vmap``): its spread is *parameter uncertainty*. With partial-pooled group offsets a
     new, unseen unit (series, blade, run) is sized: one offset per draw from N(0, group_sd),
     multiplying the mean function at every point of the question (``mu · exp(b)``, as in the
-    model). **With noise** adds one draw of the fit's observation noise per posterior draw:
-    normal ``sigma``; student_t ``sigma``, ``nu``; proportional
-    ``sqrt((sigma_rel · mu)² + sigma_floor²)``.
+    model). **With noise** adds one draw of the fit's observation noise per posterior draw, from
+    the fit's own program (:meth:`bayesfric.model.Program.observation`: the likelihood's
+    distribution; ar1 at its stationary marginal ``σ / sqrt(1 − ρ²)``).
 
 Magnitudes
     Friction opposes motion, so the drive must overcome ``|T|`` whichever the direction: every
@@ -23,18 +23,24 @@ Magnitudes
     ``3 / S`` (rule of three) is given instead.
 
 Model average
-    Laws are mixed by the stacking weights of the first *blocked extrapolation* scheme (the
-    question a sizing asks is an extrapolation), renormalised over the laws sizing may use;
-    LOO stacking weights are shown beside them and give a second average for comparison.
-    Laws that failed the diagnostics gate or whose evidence estimators disagree are
-    *excluded* and listed with the reason, never mixed in. The mixture is evaluated exactly
-    rather than by resampling: its quantiles invert the weighted empirical CDF of all laws'
-    draws (each draw of law k weighs ``w_k / S_k``), ``P`` is ``Σ w_k p_k`` with error
+    Laws are mixed by the weights of the question's basis (:mod:`bayesfric.sizing.basis`:
+    stacking on the blocked folds that extrapolate in its direction, else LOO stacking),
+    renormalised over the laws sizing may use; LOO stacking weights give a second average for
+    comparison. A law whose full fit failed the diagnostics gate is *excluded* (its predictions
+    may not be used) and listed with the reason, never mixed in; nothing else excludes a law (an
+    unreliable evidence estimate is no reason about its predictions). The mixture is evaluated
+    exactly rather than by resampling: its quantiles invert the weighted empirical CDF of all
+    laws' draws (each draw of law k weighs ``w_k / S_k``), ``P`` is ``Σ w_k p_k`` with error
     ``sqrt(Σ w_k² se_k²)``. The variance of ``|T|`` splits by the law of total variance into
     *parameter* ``Σ w_k Var_k(|mu|)``, *noise* ``Σ w_k E_k[noise variance]`` and *between-law*
     ``Σ w_k (E_k|mu| − Σ_j w_j E_j|mu|)²``. The noise variance is the noise model's (exact for
     ``T`` away from zero); a Student-t draw with ``nu ≤ 2`` has infinite variance: such draws
     are left out of the noise term and the result says what fraction that was.
+
+Calibrated answers
+    Every law's answer and the average exist twice: within-model (parameter and noise
+    uncertainty of the law as fitted) and *calibrated*, with the model-form error the blocked
+    folds measured added to each draw (:mod:`bayesfric.sizing.calibration`).
 
 Extrapolation distance
     Per input: 0 inside the tested ``[lo, hi]``, ``(x − hi) / (hi − lo)`` above and
@@ -63,16 +69,16 @@ import numpy as np
 import xarray as xr
 
 from bayesfric.datasets.synthetic import make_dataset
-from bayesfric.inference.diagnostics import import_statistics, verdict_of
+from bayesfric.inference.diagnostics import import_statistics
 from bayesfric.laws.variants import law_of_fit
-from bayesfric.sizing.basis import LOO, Basis, choose_basis
-from bayesfric.sizing.calibration import Miss, Scheme, natural, relative_sd, widen
+from bayesfric.sizing.basis import LOO, Basis
+from bayesfric.sizing.calibration import Miss
 from bayesfric.sizing.points import SizingError, SizingQuestion
 
 __all__ = [
     "EXTRAPOLATION_WARN", "FAN_POINTS", "LEVELS", "LawSource", "Draws", "Spread", "LawAnswer", "Mixture",
     "Fan", "Answer", "SizingResult", "extrapolation_distance", "tested_ranges", "predict", "weighted_quantiles",
-    "mixture", "variance_split", "answer_question", "answer",
+    "mixture", "variance_split", "law_answer", "levels",
 ]
 
 #: A point more than this many tested ranges beyond the data (along any input) carries a warning.
@@ -269,7 +275,7 @@ def variance_split(weights: Sequence[float], means: np.ndarray, var_param: np.nd
     return (w * var_param).sum(axis=0), (w * var_noise).sum(axis=0), (w * (means - grand) ** 2).sum(axis=0)
 
 
-def _levels(confidence: float) -> tuple[float, ...]:
+def levels(confidence: float) -> tuple[float, ...]:
     return tuple(sorted(set(LEVELS) | {confidence}))
 
 
@@ -293,9 +299,13 @@ def predict(fit: xr.DataTree, grid: Mapping[str, np.ndarray], seed: int = 0) -> 
         raise SizingError("", f"law {law.name!r} reads {', '.join(missing)}, which the point does not give")
     n = len(next(iter(grid.values())))
     noise = json.loads(fit.attrs["noise"])
-    groups = {noise["group"]: np.array(["new unit"] * n)} if noise.get("group") else None
+    groups = {noise["group"]: np.array(["new unit"] * n)} if noise.get("group") else {}
+    trajectory = None
+    if noise["kind"] == "ar1":  # every point its own trajectory: sized at the stationary marginal
+        trajectory, groups = "sizing_point", groups | {"sizing_point": np.arange(n)}
     query = make_dataset({k: np.asarray(grid[k], dtype=float) for k in law.operating_inputs}, np.zeros(n),
-                         response_quantity=law.response, groups=groups, name="sizing points")
+                         response_quantity=law.response, groups=groups or None, trajectory=trajectory,
+                         name="sizing points")
     program = program_from_fit(fit, query)
     post = fit["posterior"].to_dataset()
     chains, draws = post.sizes["chain"], post.sizes["draw"]
@@ -374,7 +384,7 @@ def _exceedance(y_abs: np.ndarray, capacity: float | None) -> tuple[np.ndarray, 
     return p, se, bound, ess
 
 
-def _law_answer(source: LawSource, draws: Draws, question: SizingQuestion, levels,
+def law_answer(source: LawSource, draws: Draws, question: SizingQuestion, levels,
                 exceedance: bool = True) -> LawAnswer:
     mu_abs, y_abs = np.abs(draws.mu), np.abs(draws.y)
     mean_fn, noisy = _spread(mu_abs, levels), _spread(y_abs, levels)
@@ -414,154 +424,3 @@ def mixture(answers: Sequence[LawAnswer], draws: Mapping[str, Draws], weights: M
                                            np.array([a.var_param for a in picked]),
                                            np.array([a.var_noise for a in picked]))
     return Mixture(basis, w, mean_fn, noisy, noisy.q(confidence), p, se, bound, param, noise, between)
-
-
-# -- one question --------------------------------------------------------------------------------
-def _fan_axis(question: SizingQuestion, distance: Mapping[str, np.ndarray],
-              tested: Mapping[str, tuple[float, float]]) -> str | None:
-    if question.axis:
-        return question.axis
-    spans = [k for k in question.at if k in tested and tested[k][1] > tested[k][0]]
-    if not spans:
-        return None
-    return max(spans, key=lambda k: float(np.max(distance[k])))
-
-
-def _warnings(distance: Mapping[str, np.ndarray], sources: Sequence[LawSource], used: Sequence[LawAnswer]) -> list[str]:
-    warnings = []
-    for k, d in distance.items():
-        worst = float(np.max(d))
-        if worst > EXTRAPOLATION_WARN:
-            warnings.append(f"{k}: up to {worst:.2g} tested ranges beyond the data (more than "
-                            f"{EXTRAPOLATION_WARN:g}): the answer rests on extrapolation")
-    if len(sources) == 1 and "diagnostics" in sources[0].fit.attrs and not verdict_of(sources[0].fit).passed:
-        problems = "; ".join(verdict_of(sources[0].fit).problems)
-        warnings.append(f"the fit of {sources[0].name} FAILED the diagnostics gate ({problems}): "
-                        "its answer is not reliable")
-    for a in used:
-        if a.infinite_noise > 0:
-            warnings.append(f"{a.name}: {a.infinite_noise:.1%} of draws have Student-t nu ≤ 2 (infinite noise "
-                            "variance), left out of its noise variance term")
-    return warnings
-
-
-def _calibrate(answers: Sequence[LawAnswer], draws: Mapping[str, Draws], sources: Sequence[LawSource],
-               basis: Basis, schemes: Sequence[Scheme], grid, data, question: SizingQuestion, levels,
-               seed: int) -> dict[str, Draws]:
-    """Each law's answer with its measured model-form error added (``LawAnswer.calibrated``)."""
-    out = {}
-    for a, src in zip(answers, sources, strict=True):
-        rel = relative_sd(grid, data, src.misses, schemes, basis.schemes, basis.fallback_rate, basis.uncovered)
-        rng = np.random.default_rng([seed, zlib.crc32(("calibrated " + src.name).encode())])
-        d = draws[src.name]
-        mu, y, var = widen(d.mu, d.y, rel, rng)
-        out[src.name] = Draws(mu, y, d.noise_var)
-        a.rel_sd = rel
-        a.calibrated = _law_answer(src, out[src.name], question, levels)
-    return out
-
-
-def _averages(used, draws, weights, question, levels, key) -> Mixture | None:
-    good = {k: v for k, v in weights.items() if math.isfinite(v) and v > 0 and k in {a.name for a in used}}
-    return mixture(used, draws, good, question.confidence, levels, key) if good else None
-
-
-def answer_question(question: SizingQuestion, sources: Sequence[LawSource], data: Mapping[str, np.ndarray], *,
-                    schemes: Sequence[Scheme] = (), seed: int = 0, fan: bool = True) -> Answer:
-    """Answer one question from the laws' fits, weights and measured misses (see the module).
-
-    ``data`` gives the data's SI values of every input of the question (the tested envelope);
-    ``schemes`` the study's blocked extrapolation schemes. With one source and no scheme (one
-    fit), the law's answer is the only one: no average, no weights, no calibrated numbers.
-    """
-    levels = _levels(question.confidence)
-    grid = question.grid()
-    tested = {k: (float(np.min(v)), float(np.max(v))) for k, v in data.items() if k in grid}
-    distance = {k: sum(natural(k, data[k], side).distance(grid[k], *natural(k, data[k], side).tested(data[k]))
-                       for side in ("upper", "lower")) for k in grid if k in data}
-    draws = {s.name: predict(s.fit, grid, seed) for s in sources}
-    answers = [_law_answer(s, draws[s.name], question, levels) for s in sources]
-    used = [a for a in answers if a.excluded is None]
-    warnings = _warnings(distance, sources, used)
-    single = len(sources) == 1 and not schemes
-    basis = None if single else choose_basis(
-        grid, data, schemes, [a.name for a in used], {s.name: dict(s.weights) for s in sources},
-        {s.name: dict(s.misses) for s in sources}, {s.name: dict(s.penalties) for s in sources})
-    weights = {used[0].name: 1.0} if single and used else (basis.weights if basis else {})
-    average = _averages(used, draws, weights, question, levels, basis.key if basis else "single fit")
-    if average is not None and basis is not None and basis.calibrated:
-        calibrated = _calibrate(answers, draws, sources, basis, schemes, grid, data, question, levels, seed)
-        average.calibrated = mixture([a.calibrated for a in used], calibrated, average.weights, question.confidence,
-                                     levels, basis.key)
-    for a in answers:
-        a.weight = average.weights.get(a.name, 0.0) if average is not None else 0.0
-        a.weight_raw = weights.get(a.name, math.nan)
-    no_average = "" if average is not None else (
-        "every law is excluded" if not used else f"no law sizing may use has a positive weight ({basis.key})")
-    loo = {s.name: s.weights.get(LOO, math.nan) for s in sources if s.excluded is None}
-    average_loo = _averages(used, draws, loo, question, levels, f"stacking {LOO}") if len(used) > 1 else None
-    if average is not None:
-        governing = int(np.argmax((average.calibrated or average).required))
-    elif used:
-        governing = int(np.argmax(np.max([a.required for a in used], axis=0)))
-    else:
-        governing = 0
-    out = Answer(question, grid, tested, distance, answers, average, average_loo, no_average, governing,
-                 levels, warnings, basis=basis)
-    if fan:
-        out.fan = _fan(out, sources, data, seed, schemes=schemes)
-    return out
-
-
-def _fan(out: Answer, sources: Sequence[LawSource], data: Mapping[str, np.ndarray], seed: int,
-         measured: tuple[np.ndarray, np.ndarray] | None = None, schemes: Sequence[Scheme] = ()) -> Fan | None:
-    question = out.question
-    axis = _fan_axis(question, out.distance, out.tested)
-    if axis is None:
-        return None
-    lo, hi = out.tested[axis]
-    x = np.linspace(min(lo, question.at[axis].lo), max(hi, question.at[axis].hi), FAN_POINTS)
-    grid = {k: (x if k == axis else np.full(FAN_POINTS, v.lo)) for k, v in question.at.items()}
-    levels = _levels(question.confidence)
-    draws = {s.name: predict(s.fit, grid, seed) for s in sources}
-    bands = {}
-    for s in sources:
-        y = np.abs(draws[s.name].y).reshape(-1, FAN_POINTS)
-        mu = np.abs(draws[s.name].mu).reshape(-1, FAN_POINTS)
-        bands[s.name] = {"curve": np.median(mu, axis=0), "lo": np.quantile(y, LEVELS[0], axis=0),
-                         "hi": np.quantile(y, LEVELS[-1], axis=0)}
-    average = None
-    if out.average is not None:
-        stub = [_law_answer(s, draws[s.name], question, levels, exceedance=False)
-                for s in sources if s.name in out.average.weights]
-        mix = mixture(stub, draws, out.average.weights, question.confidence, levels, out.average.basis)
-        average = {"curve": mix.mean_fn.q(0.5), "lo": mix.noisy.q(LEVELS[0]), "hi": mix.noisy.q(LEVELS[-1]),
-                   "required": mix.required}
-        if out.average.calibrated is not None:
-            picked = [s for s in sources if s.name in out.average.weights]
-            cal = {s.name: Draws(*widen(draws[s.name].mu, draws[s.name].y, relative_sd(
-                grid, data, s.misses, schemes, out.basis.schemes, out.basis.fallback_rate, out.basis.uncovered),
-                np.random.default_rng([seed, zlib.crc32(("calibrated " + s.name).encode())]))) for s in picked}
-            stub = [_law_answer(s, cal[s.name], question, levels, exceedance=False) for s in picked]
-            cmix = mixture(stub, cal, out.average.weights, question.confidence, levels, out.average.basis)
-            average |= {"cal_lo": cmix.mean_fn.q(LEVELS[0]), "cal_hi": cmix.mean_fn.q(LEVELS[-1]),
-                        "cal_required": cmix.required}
-    return Fan(axis, x, (lo, hi), bands, [s.name for s in sources if s.excluded is not None], average,
-               measured=measured)
-
-
-def answer(questions: Sequence[SizingQuestion], sources: Sequence[LawSource], data: Mapping[str, np.ndarray], *,
-           response: str, response_unit: str, response_scale: float, provenance: str, source: str,
-           schemes: Sequence[Scheme] = (), measured: np.ndarray | None = None, seed: int = 0,
-           fan: bool = True) -> SizingResult:
-    """Answer every question (see :func:`answer_question`); ``fan``: also the fan figures' bands
-    (with the ``measured`` response, SI, drawn against the fan's axis when given)."""
-    answers = []
-    for q in questions:
-        out = answer_question(q, sources, data, schemes=schemes, seed=seed, fan=False)
-        if fan:
-            axis = _fan_axis(q, out.distance, out.tested)
-            points = (np.asarray(data[axis]), np.abs(np.asarray(measured))) if axis and measured is not None else None
-            out.fan = _fan(out, sources, data, seed, points, schemes)
-        answers.append(out)
-    return SizingResult(answers, response, response_unit, response_scale, provenance, source)

@@ -1,0 +1,186 @@
+"""Answering sizing questions: per law and point the within-model answer, the basis (weights and
+measured misses chosen from the question's direction, :mod:`bayesfric.sizing.basis`), the model
+average, every answer again with the measured model-form error (:mod:`bayesfric.sizing.calibration`),
+and the fan figure's bands. The numbers themselves come from :mod:`bayesfric.sizing.compute`.
+"""
+
+from __future__ import annotations
+
+import math
+import zlib
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from bayesfric.inference.diagnostics import verdict_of
+from bayesfric.sizing.basis import LOO, Basis, choose_basis
+from bayesfric.sizing.calibration import Scheme, natural, relative_sd, widen
+from bayesfric.sizing.compute import (
+    EXTRAPOLATION_WARN,
+    FAN_POINTS,
+    LEVELS,
+    Answer,
+    Draws,
+    Fan,
+    LawAnswer,
+    LawSource,
+    Mixture,
+    SizingResult,
+    law_answer,
+    mixture,
+    predict,
+)
+from bayesfric.sizing.compute import levels as quantile_levels
+from bayesfric.sizing.points import SizingQuestion
+
+__all__ = ["answer_question", "answer"]
+
+
+def _fan_axis(question: SizingQuestion, distance: Mapping[str, np.ndarray],
+              tested: Mapping[str, tuple[float, float]]) -> str | None:
+    if question.axis:
+        return question.axis
+    spans = [k for k in question.at if k in tested and tested[k][1] > tested[k][0]]
+    if not spans:
+        return None
+    return max(spans, key=lambda k: float(np.max(distance[k])))
+
+
+def _warnings(distance: Mapping[str, np.ndarray], sources: Sequence[LawSource], used: Sequence[LawAnswer]) -> list[str]:
+    warnings = []
+    for k, d in distance.items():
+        worst = float(np.max(d))
+        if worst > EXTRAPOLATION_WARN:
+            warnings.append(f"{k}: up to {worst:.2g} tested ranges beyond the data (more than "
+                            f"{EXTRAPOLATION_WARN:g}): the answer rests on extrapolation")
+    if len(sources) == 1 and "diagnostics" in sources[0].fit.attrs and not verdict_of(sources[0].fit).passed:
+        problems = "; ".join(verdict_of(sources[0].fit).problems)
+        warnings.append(f"the fit of {sources[0].name} FAILED the diagnostics gate ({problems}): "
+                        "its answer is not reliable")
+    for a in used:
+        if a.infinite_noise > 0:
+            warnings.append(f"{a.name}: {a.infinite_noise:.1%} of draws have Student-t nu ≤ 2 (infinite noise "
+                            "variance), left out of its noise variance term")
+    return warnings
+
+
+def _calibrate(answers: Sequence[LawAnswer], draws: Mapping[str, Draws], sources: Sequence[LawSource],
+               basis: Basis, schemes: Sequence[Scheme], grid, data, question: SizingQuestion, qs,
+               seed: int) -> dict[str, Draws]:
+    """Each law's answer with its measured model-form error added (``LawAnswer.calibrated``)."""
+    out = {}
+    for a, src in zip(answers, sources, strict=True):
+        rel = relative_sd(grid, data, src.misses, schemes, basis.schemes, basis.fallback_rate, basis.uncovered)
+        rng = np.random.default_rng([seed, zlib.crc32(("calibrated " + src.name).encode())])
+        d = draws[src.name]
+        mu, y, var = widen(d.mu, d.y, rel, rng)
+        out[src.name] = Draws(mu, y, d.noise_var)
+        a.rel_sd = rel
+        a.calibrated = law_answer(src, out[src.name], question, qs)
+    return out
+
+
+def _averages(used, draws, weights, question, qs, key) -> Mixture | None:
+    good = {k: v for k, v in weights.items() if math.isfinite(v) and v > 0 and k in {a.name for a in used}}
+    return mixture(used, draws, good, question.confidence, qs, key) if good else None
+
+
+def answer_question(question: SizingQuestion, sources: Sequence[LawSource], data: Mapping[str, np.ndarray], *,
+                    schemes: Sequence[Scheme] = (), seed: int = 0, fan: bool = True) -> Answer:
+    """Answer one question from the laws' fits, weights and measured misses (see the module).
+
+    ``data`` gives the data's SI values of every input of the question (the tested envelope);
+    ``schemes`` the study's blocked extrapolation schemes. With one source and no scheme (one
+    fit), the law's answer is the only one: no average, no weights, no calibrated numbers.
+    """
+    qs = quantile_levels(question.confidence)
+    grid = question.grid()
+    tested = {k: (float(np.min(v)), float(np.max(v))) for k, v in data.items() if k in grid}
+    distance = {k: sum(natural(k, data[k], side).distance(grid[k], *natural(k, data[k], side).tested(data[k]))
+                       for side in ("upper", "lower")) for k in grid if k in data}
+    draws = {s.name: predict(s.fit, grid, seed) for s in sources}
+    answers = [law_answer(s, draws[s.name], question, qs) for s in sources]
+    used = [a for a in answers if a.excluded is None]
+    warnings = _warnings(distance, sources, used)
+    single = len(sources) == 1 and not schemes
+    basis = None if single else choose_basis(
+        grid, data, schemes, [a.name for a in used], {s.name: dict(s.weights) for s in sources},
+        {s.name: dict(s.misses) for s in sources}, {s.name: dict(s.penalties) for s in sources})
+    weights = {used[0].name: 1.0} if single and used else (basis.weights if basis else {})
+    average = _averages(used, draws, weights, question, qs, basis.key if basis else "single fit")
+    if average is not None and basis is not None and basis.calibrated:
+        calibrated = _calibrate(answers, draws, sources, basis, schemes, grid, data, question, qs, seed)
+        average.calibrated = mixture([a.calibrated for a in used], calibrated, average.weights, question.confidence,
+                                     qs, basis.key)
+    for a in answers:
+        a.weight = average.weights.get(a.name, 0.0) if average is not None else 0.0
+        a.weight_raw = weights.get(a.name, math.nan)
+    no_average = "" if average is not None else (
+        "every law is excluded" if not used else f"no law sizing may use has a positive weight ({basis.key})")
+    loo = {s.name: s.weights.get(LOO, math.nan) for s in sources if s.excluded is None}
+    average_loo = _averages(used, draws, loo, question, qs, f"stacking {LOO}") if len(used) > 1 else None
+    if average is not None:
+        governing = int(np.argmax((average.calibrated or average).required))
+    elif used:
+        governing = int(np.argmax(np.max([a.required for a in used], axis=0)))
+    else:
+        governing = 0
+    out = Answer(question, grid, tested, distance, answers, average, average_loo, no_average, governing,
+                 qs, warnings, basis=basis)
+    if fan:
+        out.fan = _fan(out, sources, data, seed, schemes=schemes)
+    return out
+
+
+def _fan(out: Answer, sources: Sequence[LawSource], data: Mapping[str, np.ndarray], seed: int,
+         measured: tuple[np.ndarray, np.ndarray] | None = None, schemes: Sequence[Scheme] = ()) -> Fan | None:
+    question = out.question
+    axis = _fan_axis(question, out.distance, out.tested)
+    if axis is None:
+        return None
+    lo, hi = out.tested[axis]
+    x = np.linspace(min(lo, question.at[axis].lo), max(hi, question.at[axis].hi), FAN_POINTS)
+    grid = {k: (x if k == axis else np.full(FAN_POINTS, v.lo)) for k, v in question.at.items()}
+    qs = quantile_levels(question.confidence)
+    draws = {s.name: predict(s.fit, grid, seed) for s in sources}
+    bands = {}
+    for s in sources:
+        y = np.abs(draws[s.name].y).reshape(-1, FAN_POINTS)
+        mu = np.abs(draws[s.name].mu).reshape(-1, FAN_POINTS)
+        bands[s.name] = {"curve": np.median(mu, axis=0), "lo": np.quantile(y, LEVELS[0], axis=0),
+                         "hi": np.quantile(y, LEVELS[-1], axis=0)}
+    average = None
+    if out.average is not None:
+        stub = [law_answer(s, draws[s.name], question, qs, exceedance=False)
+                for s in sources if s.name in out.average.weights]
+        mix = mixture(stub, draws, out.average.weights, question.confidence, qs, out.average.basis)
+        average = {"curve": mix.mean_fn.q(0.5), "lo": mix.noisy.q(LEVELS[0]), "hi": mix.noisy.q(LEVELS[-1]),
+                   "required": mix.required}
+        if out.average.calibrated is not None:
+            picked = [s for s in sources if s.name in out.average.weights]
+            cal = {s.name: Draws(*widen(draws[s.name].mu, draws[s.name].y, relative_sd(
+                grid, data, s.misses, schemes, out.basis.schemes, out.basis.fallback_rate, out.basis.uncovered),
+                np.random.default_rng([seed, zlib.crc32(("calibrated " + s.name).encode())]))) for s in picked}
+            stub = [law_answer(s, cal[s.name], question, qs, exceedance=False) for s in picked]
+            cmix = mixture(stub, cal, out.average.weights, question.confidence, qs, out.average.basis)
+            average |= {"cal_lo": cmix.mean_fn.q(LEVELS[0]), "cal_hi": cmix.mean_fn.q(LEVELS[-1]),
+                        "cal_required": cmix.required}
+    return Fan(axis, x, (lo, hi), bands, [s.name for s in sources if s.excluded is not None], average,
+               measured=measured)
+
+
+def answer(questions: Sequence[SizingQuestion], sources: Sequence[LawSource], data: Mapping[str, np.ndarray], *,
+           response: str, response_unit: str, response_scale: float, provenance: str, source: str,
+           schemes: Sequence[Scheme] = (), measured: np.ndarray | None = None, seed: int = 0,
+           fan: bool = True) -> SizingResult:
+    """Answer every question (see :func:`answer_question`); ``fan``: also the fan figures' bands
+    (with the ``measured`` response, SI, drawn against the fan's axis when given)."""
+    answers = []
+    for q in questions:
+        out = answer_question(q, sources, data, schemes=schemes, seed=seed, fan=False)
+        if fan:
+            axis = _fan_axis(q, out.distance, out.tested)
+            points = (np.asarray(data[axis]), np.abs(np.asarray(measured))) if axis and measured is not None else None
+            out.fan = _fan(out, sources, data, seed, points, schemes)
+        answers.append(out)
+    return SizingResult(answers, response, response_unit, response_scale, provenance, source)
