@@ -13,6 +13,7 @@ import matplotlib as mpl
 import numpy as np
 import xarray as xr
 from matplotlib.figure import Figure
+from matplotlib.text import Text
 
 from bayesfric.report.typeset import unit as unit_text
 
@@ -45,7 +46,8 @@ def banner(fig: Figure, ds: xr.Dataset) -> None:
 
 
 def save(fig: Figure, path: Path, *, trim: bool = True) -> Path:
-    """Write ``fig`` as PNG atomically (temporary file, then rename).
+    """Write ``fig`` as PNG atomically (temporary file, then rename), every text drawn literally
+    (a study label with ``$`` in it is not parsed as mathtext, which would fail on ``$x^$``).
 
     ``trim`` cuts the figure to what is drawn (matplotlib's tight bounding box, which lays out
     every text once more: 0.3-0.7 s of the ~1 s a 5 × 5 pair grid took); a figure whose margins
@@ -55,6 +57,8 @@ def save(fig: Figure, path: Path, *, trim: bool = True) -> Path:
 
 
 def _save(fig, path: Path, trim: bool = True) -> Path:
+    for text in fig.findobj(Text):  # labels are user text: a '$' is a dollar, never mathtext to parse
+        text.set_parse_math(False)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(suffix=".png", dir=path.parent)
     os.close(fd)

@@ -1,9 +1,10 @@
-"""User text in CSV, Markdown and HTML cells (issue 27).
+"""User text in CSV, Markdown and HTML cells and in figures (issue 27).
 
 Every CSV bayesfric writes goes through :func:`bayesfric.csvout.write_csv`, which neutralises a
 text cell starting with ``=``, ``+``, ``-``, ``@``, tab or carriage return (OWASP, CSV injection)
 and leaves numbers alone; a ``|`` or a line break in a label cannot break a ``summary.md`` table;
-``report.html`` escapes everything. Fast tests drive the writer and the Markdown escaping; one slow
+``report.html`` escapes everything; a ``$`` in a figure's text is a dollar, not mathtext. Fast tests
+drive the writer and the Markdown escaping; one slow
 test runs a study whose labels, title, claim and sizing texts are all hostile and reads back every
 file it wrote.
 """
@@ -109,9 +110,9 @@ evidence = false
 [[compare.blocked]]
 axis = "velocity"
 threshold = 1.5
-label = "=cmd|' /C calc'!A0 | x\\nnext <b>bold</b>"
+label = "=cmd|' /C calc'!A0 | x\\nnext <b>bold</b> $x^$"
 [[sizing]]
-label = "-2+3 @SUM(A1) | y"
+label = "-2+3 @SUM(A1) | y $\\frac$"
 at = { velocity = "1..3 rad/s" }
 capacity = "40 N*m"
 [[claims]]
