@@ -22,14 +22,15 @@ Scenarios (truth = mean torque at speed v > 0):
   a Stribeck dip on a linear law, and a Stribeck decay plus a gear power-law viscous term ``3 √v``
   (the robot-joint generator's shape).
 
-Asserted (R = 200): when the truth is a candidate, the calibrated band covers it in 85–95 % of
-replicates (consistent at 1 % false alarm) with median width ≤ 1.5× the within-model width; in
-the first three non-candidate scenarios it covers the true curve in ≥ 85 %. The Stribeck + gear
-power-law scenario falls short (about 73 %): its fold's miss is mostly within one standard error
-of zero, so the rate is often estimated as 0 (see :mod:`bayesfric.sizing.calibration`); the test
-asserts only that calibration lifts its coverage well above the within-model one and prints
-the figure, which the README states. With the fold at 1.4 rad/s (ten held-out points) the
-sub-linear case also fell short (83 %). Figures: README, *Actuator sizing*.
+Asserted (R = 200): when the truth is a candidate, the calibrated band covers it at 3 rad/s in
+85–95 % of replicates (consistent at 1 % false alarm) with median width ≤ 1.5× the within-model
+width at every reported point; in the first three non-candidate scenarios it covers the true
+curve in ≥ 85 % at every reported point (2.5, 3 and 4 rad/s). The Stribeck + gear power-law
+scenario falls short (74–80 %): its fold's miss is mostly within one standard error of zero, so
+the rate is often estimated as 0 (see :mod:`bayesfric.sizing.calibration`); the test asserts
+only that calibration lifts its coverage well above the within-model one and prints the figure,
+which the README states. With the fold at 1.4 rad/s (ten held-out points) the sub-linear case
+fell short too (83 % at 3 rad/s, with the miss offset at 0.2). Figures: README, *Actuator sizing*.
 """
 
 from __future__ import annotations
@@ -173,8 +174,8 @@ def test_calibrated_sizing_covers_the_truth_beyond_the_envelope():
     i = REPORT_AT.index(ASSERT_AT)
     low, high = acceptance(REPLICATES)
     assert low <= result["candidate"]["covers"] <= high
-    assert result["candidate"]["width ratio"][i] <= 1.5
+    assert np.all(result["candidate"]["width ratio"] <= 1.5)
     for scenario in COVERED:
-        assert result[scenario]["calibrated"][i] >= 0.85, scenario
+        assert np.all(result[scenario]["calibrated"] >= 0.85), scenario
     for scenario in SHORT:
         assert result[scenario]["calibrated"][i] > result[scenario]["within"][i] + 0.3, scenario

@@ -29,8 +29,8 @@ The miss of one law on one blocked scheme (:func:`measure_miss`)
     what the points say). ``β̂`` is the generalised-least-squares slope, ``se² = 1/(gᵀ Σ⁻¹ g)``.
 
     The rate used is ``κ = sqrt(max(0, β̂² − LAMBDA · se²))`` with LAMBDA = 0.5: between the plug-in
-    ``β̂²`` (LAMBDA = 0), which widens every answer by noise when the law is right (median width
-    2.7× the within-model band on simulated data), and the unbiased positive-part moment estimate
+    ``β̂²`` (LAMBDA = 0), which widens every answer by noise when the law is right (the median
+    width rose to 2.7× the within-model band on simulated data), and the unbiased positive-part moment estimate
     ``β̂² − se²`` (LAMBDA = 1, as DerSimonian & Laird 1986 estimate a between-study variance),
     which sets κ = 0 whenever the miss is within one standard error and so misses the mild form
     errors sizing must not under-state. Half the sampling variance is subtracted: a deliberate
@@ -79,8 +79,9 @@ import xarray as xr
 __all__ = ["OFFSET", "GROWTH", "LAMBDA", "Scheme", "Miss", "measure_miss", "natural", "matching", "relative_sd",
            "per_range", "widen"]
 
-#: Extrapolation distance (tested ranges) the miss is taken to have at the envelope's edge.
-OFFSET = 0.2
+#: Extrapolation distance (tested ranges) the miss is taken to have at the envelope's edge (0.2
+#: under-covered points near the edge on simulated data: 68 % at 0.26 tested ranges).
+OFFSET = 0.4
 #: Power of the miss's growth with distance (2: a missing curvature term, see the module).
 GROWTH = 2.0
 #: Share of the sampling variance ``se²`` subtracted from ``β̂²`` (see the module).
