@@ -310,6 +310,9 @@ def test_tiny_study_end_to_end_and_size_without_refitting(bench, monkeypatch, ca
     assert "figures/sizing_1.png" in summary and "rests on extrapolation" in summary
     assert "- Sizing 'top speed': required \\|torque\\| **" in summary  # the headline among the findings
     assert "calibrated for model-form error" in summary  # the headline quotes the calibrated number
+    # the recommendation names the basis sizing uses (one object, chosen once per question)
+    assert "Sizing uses, per question: 'top speed' by stacking 'above 1.2'" in summary
+    assert "the recommendation's weights" in summary
     assert "<h2>Sizing</h2>" in (folder / "report.html").read_text()
 
     @functools.wraps(inference.SAMPLERS["nuts"])  # keeps the signature the schema reads defaults from

@@ -201,6 +201,31 @@ def recommendation(outcome: StudyOutcome, table: pd.DataFrame) -> Finding:
               f"law carries ≥ {RECOMMEND_WEIGHT:.0%} of the weight; ", _law(winner), f" alone has the {why}.")
 
 
+def sizing_basis(outcome: StudyOutcome, table: pd.DataFrame, rec: Finding) -> Finding:
+    """The recommendation with the basis each sizing question uses, read from the sizing result
+    (the basis is chosen once there, per question, by the direction it extrapolates in): the
+    same weights as the recommendation, or which others and why."""
+    result = getattr(outcome, "sizing", None)
+    c = _deciding(outcome)
+    if result is None or c is None:
+        return rec
+    key = _weight_key(c).removeprefix("stacking ")
+    parts = []
+    for answer in result.answers:
+        basis = answer.basis
+        if basis is None:
+            continue
+        used = ", ".join(f"{k} {fmt(v, digits=2)}" for k, v in sorted(answer.average.weights.items(),
+                                                                      key=lambda kv: -kv[1])) if answer.average else ""
+        same = [s.label for s in basis.schemes] == [key] or (not basis.schemes and key == "LOO")
+        why = ("the recommendation's weights" if same else
+               f"not the recommendation's weights: the question extrapolates in another direction ({basis.note})")
+        parts.append(f"'{answer.question.label}' by {basis.key} ({used}), {why}")
+    if not parts:
+        return rec
+    return Finding(rec.parts + ((" Sizing uses, per question: " + "; ".join(parts) + ".", False),), rec.warning)
+
+
 def no_law_extrapolates(outcome: StudyOutcome, table: pd.DataFrame) -> Finding | None:
     """The verdict "no law extrapolates" for the first blocked scheme on which every law's
     extrapolation penalty exceeds :data:`bayesfric.sizing.basis.NO_EXTRAPOLATION` nats per
@@ -232,4 +257,5 @@ def summary_block(outcome: StudyOutcome, table: pd.DataFrame, extra_warnings: li
                               "outside it: choose by the extrapolation criterion for sizing.", warning=True))
     if outcome.extra.get("quick"):
         warnings.append(plain("QUICK MODE: short chains and few folds — not a basis for decisions.", warning=True))
-    return Summary(outcome.study.question, answers, recommendation(outcome, table), warnings)
+    rec = sizing_basis(outcome, table, recommendation(outcome, table))
+    return Summary(outcome.study.question, answers, rec, warnings)
