@@ -112,7 +112,7 @@ axis = "velocity"
 threshold = 1.5
 label = "=cmd|' /C calc'!A0 | x\\nnext <b>bold</b> $x^$"
 [[sizing]]
-label = "-2+3 @SUM(A1) | y $\\frac$"
+label = "-2+3 @SUM(A1) | y $\\\\frac$"
 at = { velocity = "1..3 rad/s" }
 capacity = "40 N*m"
 [[claims]]
