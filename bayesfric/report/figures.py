@@ -102,7 +102,14 @@ def plot_sizing_fan(result, answer, path: Path, *, title: str = "") -> Path:
         faded = answer.basis is not None and not weight > 0.005  # zero weight: shown, faded
         ax.plot(x, band["curve"] / scale, "-", lw=0.8 if faded else 1.3, color=c, alpha=0.35 if faded else 1.0,
                 label=f"{name} (w = {weight:.2f})" if answer.basis is not None else name)
-        ax.fill_between(x, band["lo"] / scale, band["hi"] / scale, color=c, alpha=0.04 if faded else 0.12, lw=0)
+        if not faded:  # a zero-weight law: its curve only, faded
+            ax.fill_between(x, band["lo"] / scale, band["hi"] / scale, color=c, alpha=0.12, lw=0)
+    if fan.average is not None and answer.basis is not None:
+        ax.fill_between(x, fan.average["lo"] / scale, fan.average["hi"] / scale, facecolor="none",
+                        edgecolor="k", hatch="///", lw=0.6, label="model average, 5–95 % with noise (within-model)")
+        ax.plot(x, fan.average["curve"] / scale, "k-", lw=2.0, label="model average, curve")
+        ax.plot(x, fan.average["required"] / scale, "k--", lw=1.4,
+                label=f"required capacity ({question.confidence:g} quantile, within-model)")
     if fan.average is not None and "cal_lo" in fan.average:
         ax.fill_between(x, fan.average["cal_lo"] / scale, fan.average["cal_hi"] / scale, color="k", alpha=0.15,
                         lw=0, label="model average, calibrated 5–95 % of the curve (model-form error)")
