@@ -116,7 +116,8 @@ def plot_sizing_fan(result, answer, path: Path, *, title: str = "") -> Path:
         ax.plot(x, fan.average["cal_required"] / scale, "k-.", lw=1.4,
                 label=f"calibrated required capacity ({question.confidence:g})")
     if question.capacity is not None:
-        ax.axhline(question.capacity.lo / scale, color="crimson", lw=1.5, label=f"capacity {question.capacity.text}")
+        number, _, given = question.capacity.text.partition(" ")
+        ax.axhline(question.capacity.lo / scale, color="crimson", lw=1.5, label=f"capacity {number} {unit_text(given)}")
     asked = value.display(np.array([value.lo, value.hi]))
     if value.is_range:
         ax.axvspan(asked[0], asked[1], ymax=0.025, color="tab:orange", lw=0, label="asked range")

@@ -215,8 +215,8 @@ def sizing_basis(outcome: StudyOutcome, table: pd.DataFrame, rec: Finding) -> Fi
         basis = answer.basis
         if basis is None:
             continue
-        used = ", ".join(f"{k} {fmt(v, digits=2)}" for k, v in sorted(answer.average.weights.items(),
-                                                                      key=lambda kv: -kv[1])) if answer.average else ""
+        shares = sorted(answer.average.weights.items(), key=lambda kv: -kv[1]) if answer.average else []
+        used = ", ".join(f"{k} {fmt(v, digits=2)}" for k, v in shares if v >= 0.005)
         same = [s.label for s in basis.schemes] == [key] or (not basis.schemes and key == "LOO")
         why = ("the recommendation's weights" if same else
                f"not the recommendation's weights: the question extrapolates in another direction ({basis.note})")
