@@ -70,14 +70,18 @@ def _calibrate(answers: Sequence[LawAnswer], draws: Mapping[str, Draws], sources
     """Each law's answer with its measured model-form error added (``LawAnswer.calibrated``)."""
     out = {}
     for a, src in zip(answers, sources, strict=True):
-        rel = relative_sd(grid, data, src.misses, schemes, basis.schemes, basis.fallback_rate, basis.uncovered)
-        rng = np.random.default_rng([seed, zlib.crc32(("calibrated " + src.name).encode())])
-        d = draws[src.name]
-        mu, y, var = widen(d.mu, d.y, rel, rng)
-        out[src.name] = Draws(mu, y, d.noise_var)
-        a.rel_sd = rel
+        out[src.name], a.rel_sd = _widened(src, draws[src.name], basis, schemes, grid, data, seed)
         a.calibrated = law_answer(src, out[src.name], question, qs)
     return out
+
+
+def _widened(src: LawSource, d: Draws, basis: Basis, schemes: Sequence[Scheme], grid, data,
+             seed: int) -> tuple[Draws, np.ndarray]:
+    """A law's draws with its measured model-form error added, and the discrepancy's relative sd."""
+    rel = relative_sd(grid, data, src.misses, schemes, basis.schemes, basis.fallback_rate, basis.uncovered)
+    rng = np.random.default_rng([seed, zlib.crc32(("calibrated " + src.name).encode())])
+    mu, y, _ = widen(d.mu, d.y, rel, rng)
+    return Draws(mu, y, d.noise_var), rel
 
 
 def _averages(used, draws, weights, question, qs, key) -> Mixture | None:
@@ -158,9 +162,7 @@ def _fan(out: Answer, sources: Sequence[LawSource], data: Mapping[str, np.ndarra
                    "required": mix.required}
         if out.average.calibrated is not None:
             picked = [s for s in sources if s.name in out.average.weights]
-            cal = {s.name: Draws(*widen(draws[s.name].mu, draws[s.name].y, relative_sd(
-                grid, data, s.misses, schemes, out.basis.schemes, out.basis.fallback_rate, out.basis.uncovered),
-                np.random.default_rng([seed, zlib.crc32(("calibrated " + s.name).encode())]))) for s in picked}
+            cal = {s.name: _widened(s, draws[s.name], out.basis, schemes, grid, data, seed)[0] for s in picked}
             stub = [law_answer(s, cal[s.name], question, qs, exceedance=False) for s in picked]
             cmix = mixture(stub, cal, out.average.weights, question.confidence, qs, out.average.basis)
             average |= {"cal_lo": cmix.mean_fn.q(LEVELS[0]), "cal_hi": cmix.mean_fn.q(LEVELS[-1]),
