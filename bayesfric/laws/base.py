@@ -22,6 +22,7 @@ Example
 
 from __future__ import annotations
 
+import contextlib
 import inspect
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -45,6 +46,7 @@ __all__ = [
     "OptionalInput",
     "declare",
     "register_resolver",
+    "declared_in",
 ]
 
 #: Structural input of trajectory (stateful) laws: True at the first sample of each ordered
@@ -182,6 +184,33 @@ class Law:
     def default_priors(self) -> dict[str, Prior]:
         return {k: p.prior for k, p in self.params.items()}
 
+    # composition: variants (bayesfric.laws.variants) of registered laws, as objects
+    def fix(self, **values: float) -> Law:
+        """This law with parameters held at ``values`` (SI) instead of sampled, e.g. ``.fix(delta=1)``."""
+        return self._vary(fixed=values)
+
+    def asymmetric(self, *names: str) -> Law:
+        """This law with one value of each named parameter per direction of motion (``T_C_pos``, ``T_C_neg``)."""
+        return self._vary(asymmetric=names)
+
+    def __add__(self, other: Law | str) -> Law:
+        """This law plus a registered law or a term (``"offset"``, ``"viscous"``), named ``a+b``."""
+        part = other if isinstance(other, str) else other.name
+        if isinstance(other, Law) and REGISTRY.get(part) is not other:
+            from bayesfric.laws.variants import VariantError
+
+            raise VariantError(f"law {part!r} is not registered: declare it with law() or simple_law() "
+                               "to add it", "add")
+        return self._vary(add=[part], name=f"{self.name}+{part}")
+
+    def _vary(self, **options: Any) -> Law:
+        from bayesfric.laws.variants import VariantError, vary
+
+        if not self.recipe and REGISTRY.get(self.name) is not self:
+            raise VariantError(f"law {self.name!r} is not registered: declare it with law() or simple_law() "
+                               "to build variants of it", next(iter(options)))
+        return vary(self, **options)
+
 
 REGISTRY: dict[str, Law] = {}
 #: Functions name -> Law | None that declare a parametrised law on first use (e.g. ``gms_n6``).
@@ -203,6 +232,10 @@ def get_law(name: str) -> Law:
         for resolve in _RESOLVERS:
             if (found := resolve(name)) is not None:
                 return found
+        from bayesfric.laws.plugins import load_entry_points
+
+        if load_entry_points():  # installed packages' laws, loaded on the first unknown name
+            return get_law(name)
         raise KeyError(f"unknown law {name!r}; known laws: {', '.join(sorted(REGISTRY))}") from None
 
 
@@ -246,8 +279,8 @@ def law(
 
     def wrap(fn: Callable[..., Any]) -> Law:
         if name in REGISTRY:
-            raise LawDeclarationError(f"law {name!r} ({fn.__module__}.{fn.__qualname__}): a law named "
-                                      f"{name!r} is already registered")
+            raise LawDeclarationError(f"law {name!r} ({declared_in(fn)}): a law named {name!r} is already registered "
+                                      f"(in {declared_in(REGISTRY[name].fn)}): a law name is defined once")
         declared = declare(fn, name=name, family=family, inputs=inputs, response=response, source=source,
                            params=params, constants=constants, derived=derived, trajectory=trajectory,
                            notes=notes, sign_definite=sign_definite, rotary_only=rotary_only,
@@ -275,10 +308,12 @@ def declare(
     rotary_only: str = "",
     optional: Mapping[str, OptionalInput] | None = None,
     recipe: Mapping[str, Any] | None = None,
+    summary: str | None = None,
 ) -> Law:
     """Validate a declaration and build its :class:`Law` without registering it (see :func:`law`).
 
     Variants (:mod:`bayesfric.laws.variants`) are built here, so they pass the same checks.
+    ``summary`` stands in for a docstring (:mod:`bayesfric.laws.simple`).
     """
     where = f"law {name!r} ({fn.__module__}.{fn.__qualname__})"
     consts = dict(constants or {})
@@ -314,7 +349,7 @@ def declare(
         if iname not in inputs or opt.fill not in consts or not set(opt.drops) <= set(params) | set(consts):
             raise LawDeclarationError(f"{where}: optional input {iname!r} must be an input, its fill a "
                                       "constant and its drops parameters or constants of the law")
-    doc = inspect.getdoc(fn) or ""
+    doc = summary or inspect.getdoc(fn) or ""
     if not doc:
         raise LawDeclarationError(f"{where}: needs a docstring (its first line is the summary)")
     return Law(
@@ -323,6 +358,14 @@ def declare(
         trajectory=trajectory, notes=notes, sign_definite=sign_definite, rotary_only=rotary_only,
         optional=dict(optional or {}), recipe=dict(recipe or {}),
     )
+
+
+def declared_in(fn: Callable[..., Any]) -> str:
+    """Where the function ``fn`` is written: its source file, else its module and name."""
+    with contextlib.suppress(TypeError):
+        if found := inspect.getsourcefile(fn):
+            return found
+    return f"{getattr(fn, '__module__', '?')}.{getattr(fn, '__qualname__', '?')}"
 
 
 def _check_inputs(where: str, inputs: tuple[str, ...], response: str, trajectory: bool) -> None:

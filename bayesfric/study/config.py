@@ -7,6 +7,7 @@ sampler settings, comparison methods and extrapolation folds::
     name = "robot_joint"               # report folder reports/<name>/; default: the file name
     title = "Stäubli RX90 joint 1"
     question = "Which law, fitted on 0-0.5 rad/s, predicts the torque above 0.5 rad/s?"
+    modules = ["my_laws.py"]           # optional: law files (relative to the study file) [[laws]] may name
 
     [data]
     dataset = "robot_joint"            # built-in name or a CSV path (relative to the study file)
@@ -119,6 +120,7 @@ from bayesfric.inference import SAMPLERS
 from bayesfric.inference.engine import METRICS
 from bayesfric.inference.init import INITS
 from bayesfric.laws import Law, get_law
+from bayesfric.laws.plugins import LawModuleError, load_module, load_modules
 from bayesfric.laws.variants import VariantError, vary
 from bayesfric.model import Noise, Program
 from bayesfric.priors import Prior, PriorError
@@ -157,13 +159,18 @@ class LawSpec:
     add: tuple[str, ...] = ()
     asymmetric: tuple[str, ...] = ()
     metric: str | None = None  # this law's NUTS mass matrix, over [sampler] metric
+    modules: tuple[str, ...] = ()  # the study's law files (absolute): loaded before the name is resolved
 
     def settings(self, study_settings: dict[str, Any]) -> dict[str, Any]:
         """The sampler settings this law runs with: the study's, with the entry's own metric."""
         return study_settings if self.metric is None else study_settings | {"metric": self.metric}
 
     def build(self) -> Law:
-        """The entry's law: the registered law with its options applied, named by the label."""
+        """The entry's law: the registered law with its options applied, named by the label.
+
+        The study's law files are loaded first (once per process), so this works in any process:
+        a ``main --jobs`` study process, a Dask worker."""
+        load_modules(self.modules)
         return vary(get_law(self.law or self.name), name=self.name, add=self.add, asymmetric=self.asymmetric,
                     fixed=self.constants | self.fixed)
 
@@ -229,6 +236,26 @@ def _known_law(name: str) -> str | None:
     return None
 
 
+def _files(value: Any) -> str | None:
+    ok = isinstance(value, list) and all(isinstance(v, str) and v.strip() for v in value)
+    return None if ok else "must be a list of law file paths (.py, relative to the study file)"
+
+
+def _law_modules(path: Path, raw: dict[str, Any]) -> tuple[str, ...]:
+    """Load the study's ``[study] modules`` (before the schema: ``[[laws]]`` may name their laws)."""
+    section = raw.get("study")
+    value = section.get("modules", []) if isinstance(section, dict) else []
+    if problem := _files(value):
+        raise StudyError(f"{path}: [study] modules: {problem}")
+    files = tuple(str((path.parent / v).absolute()) for v in value)
+    for i, (given, file) in enumerate(zip(value, files, strict=True)):
+        try:
+            load_module(file, label=given)
+        except LawModuleError as exc:
+            raise StudyError(f"{path}: [study] modules[{i}]: {exc}") from None
+    return files
+
+
 def _kfold(k: int) -> str | None:
     return None if k == 0 or k >= 2 else f"must be 0 (off) or ≥ 2, got integer {k}"
 
@@ -239,6 +266,8 @@ STUDY = Schema((
     Field("name", "name", None, doc="report folder name (default: the study file's name)"),
     Field("title", "text", None, doc="report title (default: the name)"),
     Field("question", "text", "", doc="the question the study asks"),
+    Field("modules", "value", [], rule=_files, doc="law files (.py, relative to the study file) whose laws "
+                                                   "[[laws]] may name (bayesfric.laws.plugins)"),
 ))
 DATA = Schema((
     Field("dataset", "str", REQUIRED, doc="built-in data set or CSV path relative to the study file"),
@@ -411,7 +440,7 @@ def _variant(where: str, entry: dict[str, Any]) -> Law:
     return law
 
 
-def _law_spec(path: Path, i: int, entry: dict[str, Any], noise: Noise) -> LawSpec:
+def _law_spec(path: Path, i: int, entry: dict[str, Any], noise: Noise, modules: tuple[str, ...]) -> LawSpec:
     """Law-specific checks of a parsed ``[[laws]]`` entry: options, parameter and constant names, priors."""
     where = f"{path}: laws[{i}]"
     law = _variant(where, entry)
@@ -428,7 +457,7 @@ def _law_spec(path: Path, i: int, entry: dict[str, Any], noise: Noise) -> LawSpe
     add = _listed(entry["add"]) + (("offset",) if entry["offset"] and "offset" not in _listed(entry["add"]) else ())
     return LawSpec(entry["label"] or entry["name"], priors, dict(entry["constants"]), law=entry["name"],
                    fixed=dict(entry["fixed"]), add=add, asymmetric=_listed(entry["asymmetric"]),
-                   metric=entry["metric"])
+                   metric=entry["metric"], modules=modules)
 
 
 def _sizing_question(path: Path, i: int, entry: dict[str, Any]) -> SizingQuestion:
@@ -488,10 +517,12 @@ def load_study(path: str | Path) -> Study:
     StudyError
         Unreadable file, invalid TOML, unknown keys, values of the wrong kind or out of range,
         settings of another sampler, an invalid name, unknown law, parameter or constant, a bad
-        prior — one line naming the file and the key.
+        prior, a law file (``[study] modules``) that is missing, fails to import or declares a
+        law name already taken — one line naming the file and the key.
     """
     path = Path(path)
     raw = _read(path)
+    modules = _law_modules(path, raw)
     try:
         spec = parse(FILE, raw)
     except SchemaError as exc:
@@ -504,7 +535,7 @@ def load_study(path: str | Path) -> Study:
     if dataset.endswith(".csv"):  # beside the path as written (a link's sidecar is beside the link, as in `data check`)
         dataset = str((path.parent / dataset).absolute())
     noise = Noise(kind=spec["noise"]["kind"], group=spec["noise"]["group"])
-    laws = [_law_spec(path, i, entry, noise) for i, entry in enumerate(spec["laws"])]
+    laws = [_law_spec(path, i, entry, noise, modules) for i, entry in enumerate(spec["laws"])]
     names = [w.name for w in laws]
     for i, label in enumerate(names):
         if label in names[:i]:
