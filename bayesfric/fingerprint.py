@@ -124,4 +124,7 @@ def program_parts(program: Any, response: bool = True) -> dict[str, Any]:
                 resolved=program.resolved, constants=program.constants, scale=program.scale,
                 inputs=program.inputs, group_index=program.group_index,
                 response=program.response if response else list(np.shape(program.response)),
-                chain_start=program.chain_start)
+                chain_start=program.chain_start,
+                # a reduced data set's standard errors (constants of the likelihood); absent otherwise,
+                # so the keys of programs without them stay as they were
+                **({} if getattr(program, "response_se", None) is None else {"response_se": program.response_se}))

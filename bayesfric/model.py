@@ -12,6 +12,17 @@ Every law becomes the same program shape, so fits compare across laws:
   runs a few per cent high";
 * the observation site is always ``response`` over the plate/dimension ``obs``.
 
+Data with a standard error per row (a reduced data set: segment means of a raw log,
+:mod:`bayesfric.datasets.reduce`, whose ``se`` column is :attr:`Program.response_se`): the
+likelihood of row i adds the measured ``se_i`` to the noise model in quadrature, e.g.
+``y_i ~ Normal(mu_i, sqrt(sigma^2 + se_i^2))`` (student_t: the same scale; proportional:
+``(sigma_rel mu_i)^2 + sigma_floor^2 + se_i^2``). ``se_i`` is how well the segment pinned its own
+mean (within-segment noise, autocorrelation included); ``sigma`` keeps its prior and now reads as
+the scatter of the segment means about the law -- the law's misfit and what changes from segment
+to segment -- which within-segment noise cannot measure, so it is *not* divided by the count.
+Predictions at new operating points (sizing, held-out summaries) use the noise model alone.
+Noise ``ar1`` is refused on such data (its rows are independent means, not a trajectory).
+
 The likelihood may be masked by a 0/1 ``mask`` *passed as data*, so cross-validation folds reuse
 one compiled program (see :mod:`bayesfric.compare`).
 """
@@ -30,7 +41,7 @@ import numpyro.distributions as dist
 import xarray as xr
 
 from bayesfric.datasets.loader import OBS_DIM, DataError
-from bayesfric.datasets.views import data_scale, law_inputs, response_values, trajectory_starts
+from bayesfric.datasets.views import data_scale, law_inputs, response_se, response_values, trajectory_starts
 from bayesfric.density import OBS_SITE, Density, build_density
 from bayesfric.laws.base import Law
 from bayesfric.laws.variants import for_data
@@ -111,6 +122,7 @@ class Program:
     group_index: np.ndarray | None
     group_labels: list[Any] = field(default_factory=list)
     chain_start: np.ndarray | None = None  # ar1 noise: True where a trajectory starts (data order)
+    response_se: np.ndarray | None = None  # the response's measured standard error per row (reduced data)
     # init=False: dataclasses.replace(program, response=...) starts a fresh cache, never the old data's density
     _densities: dict[int, Density] = field(default_factory=dict, init=False, repr=False, compare=False)
 
@@ -175,9 +187,9 @@ class Program:
             # predictive draws: one step ahead given the observed data (what the likelihood scores)
             past = self.response if response is None else None
             return AR1Residuals(mu, values["sigma"], values["rho"], self.chain_start, mask, past)
-        return self.observation(mu, values)
+        return self.observation(mu, values, self.response_se)
 
-    def observation(self, mu, values: Mapping[str, Any]) -> dist.Distribution:
+    def observation(self, mu, values: Mapping[str, Any], se=None) -> dist.Distribution:
         """The distribution of one observation with mean ``mu`` given noise-parameter ``values``.
 
         The likelihood uses exactly this distribution (normal, student_t, proportional); for
@@ -191,16 +203,22 @@ class Program:
             Mean function values (any shape broadcasting with the parameter values).
         values : mapping of str to array
             Noise-parameter draws by site name (:meth:`Noise.sites`, without ``group_sd``).
+        se : array, optional
+            Measured standard errors of the observations (broadcasting with ``mu``), added to the
+            noise in quadrature (module docstring); the likelihood passes :attr:`response_se`.
         """
         kind = self.noise.kind
+        extra = 0.0 if se is None else jnp.square(jnp.asarray(se))
         if kind == "normal":
-            return dist.Normal(mu, self.noise.sigma if self.noise.sigma is not None else values["sigma"])
+            sigma = self.noise.sigma if self.noise.sigma is not None else values["sigma"]
+            return dist.Normal(mu, sigma if se is None else jnp.sqrt(jnp.square(sigma) + extra))
         if kind == "student_t":
-            return dist.StudentT(values["nu"], mu, values["sigma"])
+            sigma = values["sigma"]
+            return dist.StudentT(values["nu"], mu, sigma if se is None else jnp.sqrt(jnp.square(sigma) + extra))
         if kind == "ar1":
             rho = values["rho"]
             return dist.Normal(mu, values["sigma"] / jnp.sqrt(1.0 - rho**2))
-        return dist.Normal(mu, jnp.sqrt((values["sigma_rel"] * mu) ** 2 + values["sigma_floor"] ** 2))
+        return dist.Normal(mu, jnp.sqrt((values["sigma_rel"] * mu) ** 2 + values["sigma_floor"] ** 2 + extra))
 
     def parameter_names(self) -> list[str]:
         """Law parameters, derived quantities, then noise parameters (report order)."""
@@ -269,7 +287,10 @@ def build_program(
             raise DataError(f"noise group {noise.group!r} is not a coordinate of the dataset")
         labels_arr, group_index = np.unique(np.asarray(ds[noise.group].values), return_inverse=True)
         labels = labels_arr.tolist()
-    chain_start = None
+    chain_start, se = None, response_se(ds)
+    if noise.kind == "ar1" and se is not None:
+        raise DataError(f"noise kind 'ar1' does not apply to data set {ds.attrs.get('name', '?')!r}: its rows carry "
+                        f"standard errors (segment means of a reduction), independent, not a trajectory")
     if noise.kind == "ar1":
         if not ds.attrs.get("trajectory"):
             raise DataError(f"noise kind 'ar1' needs ordered trajectories, but data set "
@@ -287,4 +308,5 @@ def build_program(
         group_index=group_index,
         group_labels=labels,
         chain_start=chain_start,
+        response_se=se,
     )

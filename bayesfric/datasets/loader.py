@@ -20,10 +20,19 @@ The sidecar (``FILE.toml`` next to ``FILE.csv`` unless named explicitly) says wh
     unit = "N*m"
     [columns.series]
     role = "group"
+    [columns.torque_se]              # optional: the response's standard error per row
+    role = "se"                      # (a reduced data set, :mod:`bayesfric.datasets.reduce`)
+    quantity = "torque"
+    unit = "N*m"
+
+A file written by ``bayesfric data reduce`` also has a ``[reduction]`` table (what was reduced:
+source file and its SHA-256, the settings; :data:`bayesfric.datasets.sidecar.REDUCTION_KEYS`),
+read into ``attrs["reduced_from"]``.
 
 The result has one dimension ``obs``; every input becomes a coordinate named by its *quantity*
 (so laws find ``velocity`` whatever the column was called), groups become coordinates named by
-their column, the response a data variable named by its quantity, aux columns data variables.
+their column, the response a data variable named by its quantity, aux and se columns data variables
+named by their column (an se column is >= 0, in the response's SI unit).
 Units (canonical SI) and the original column/unit live in each variable's attrs; provenance,
 source and a content hash live in the dataset's attrs.
 
@@ -88,7 +97,7 @@ MAX_ROWS = 20_000
 MAX_CELL = 131_072
 
 
-def load_dataset(csv_path: str | Path, meta_path: str | Path | None = None) -> xr.Dataset:
+def load_dataset(csv_path: str | Path, meta_path: str | Path | None = None, *, max_rows: int = MAX_ROWS) -> xr.Dataset:
     """Load ``csv_path`` with its TOML sidecar into an SI-unit :class:`xarray.Dataset`.
 
     Parameters
@@ -97,6 +106,8 @@ def load_dataset(csv_path: str | Path, meta_path: str | Path | None = None) -> x
         The measurement table; first line is the header.
     meta_path : str or Path, optional
         The sidecar; default ``csv_path`` with suffix ``.toml``.
+    max_rows : int, optional
+        Most data rows read (default :data:`MAX_ROWS`); ``bayesfric data reduce`` reads longer raw logs.
 
     Returns
     -------
@@ -115,7 +126,7 @@ def load_dataset(csv_path: str | Path, meta_path: str | Path | None = None) -> x
     meta = read_sidecar(meta_path)
     ds_meta, columns = meta["dataset"], meta["columns"]
     data = _read_bytes(csv_path)
-    header, rows = _parse_table(csv_path, _decode(csv_path, meta_path, data, ds_meta.get("encoding")))
+    header, rows = _parse_table(csv_path, _decode(csv_path, meta_path, data, ds_meta.get("encoding")), max_rows)
     index = _column_index(csv_path, meta_path, header, columns)
     coords, data_vars = _variables(csv_path, meta_path, columns, {c: [r[i] for r in rows] for c, i in index.items()})
     response = next(c for c, s in columns.items() if s["role"] == "response")
@@ -131,6 +142,9 @@ def load_dataset(csv_path: str | Path, meta_path: str | Path | None = None) -> x
         "data_hash": hashlib.sha256(data + meta_path.read_bytes()).hexdigest()[:16],
         "csv_file": str(csv_path),
     }
+    if meta.get("reduction"):
+        red = meta["reduction"]
+        attrs["reduced_from"] = f"{red.get('source_file', '?')} (sha256 {str(red.get('source_sha256', '?'))[:16]})"
     if "trajectory" in ds_meta:
         _check_trajectories(csv_path, meta_path, columns, coords, ds_meta["trajectory"])
         attrs["trajectory"] = ds_meta["trajectory"]
@@ -167,8 +181,8 @@ def _decode(path: Path, meta_path: Path, data: bytes, encoding: str | None) -> s
                         f"{decode_position(data, exc)}") from None
 
 
-def _parse_table(path: Path, text: str) -> tuple[list[str], list[list[str]]]:
-    """Header (cells stripped) and data rows; stops reading at ``MAX_ROWS + 1`` rows.
+def _parse_table(path: Path, text: str, max_rows: int = MAX_ROWS) -> tuple[list[str], list[list[str]]]:
+    """Header (cells stripped) and data rows; stops reading at ``max_rows + 1`` rows.
 
     The csv module's field limit is lifted while reading (the text is in memory already) so that
     a cell longer than :data:`MAX_CELL` is reported with its row and column (:func:`_check_cells`).
@@ -184,9 +198,9 @@ def _parse_table(path: Path, text: str) -> tuple[list[str], list[list[str]]]:
             _check_cells(path, header, cells, len(rows))
             if header is None:
                 header = [c.strip() for c in cells]
-            elif len(rows) == MAX_ROWS:
+            elif len(rows) == max_rows:
                 raise DataError(
-                    f"{path}: more than {MAX_ROWS} data rows (the file has {_line_count(text)} lines), the limit "
+                    f"{path}: more than {max_rows} data rows (the file has {_line_count(text)} lines), the limit "
                     f"per data set (README, 'Bring your own data'); thin it (keep every k-th row), split it into "
                     f"several data sets, or keep only the rows of interest"
                 )
@@ -286,6 +300,12 @@ def _numeric_column(path: Path, meta_path: Path, col: str, spec: dict, raw: list
         raise DataError(f"{path}: row {i + 1}: column {col!r}: {raw[i].strip()} {unit} overflows when converted to "
                         f"{q.unit}")
     bad = q.violations(si, rounding_slack(numbers, scale, offset))  # -459.67 degF is 0 K
+    if spec["role"] == "se":
+        bad = si < 0
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise DataError(f"{path}: row {i + 1}: column {col!r}: {raw[i].strip()} {unit}; a standard error must be "
+                            f">= 0")
     if bad.any():
         i = int(np.argmax(bad))
         value = f"{raw[i].strip()} {unit}" + (f" is {si[i]:.6g} {q.unit}" if (scale, offset) != (1.0, 0.0) else "")

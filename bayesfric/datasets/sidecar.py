@@ -15,10 +15,12 @@ from typing import Any
 from bayesfric.datasets.errors import DataError, decode_position, decode_utf8, read_file
 from bayesfric.quantities import QUANTITIES, RESPONSES
 
-__all__ = ["PROVENANCES", "ROLES", "DATASET_KEYS", "COLUMN_KEYS", "read_sidecar"]
+__all__ = ["PROVENANCES", "ROLES", "DATASET_KEYS", "COLUMN_KEYS", "REDUCTION_KEYS", "read_sidecar"]
 
 PROVENANCES = ("measured", "reconstructed", "simulated")
-ROLES = ("input", "response", "group", "aux")
+#: ``se``: the standard error of the response in each row (a reduced data set's segment means,
+#: :mod:`bayesfric.datasets.reduce`); the likelihood adds it to the noise model (:mod:`bayesfric.model`).
+ROLES = ("input", "response", "group", "aux", "se")
 #: Keys of ``[dataset]`` and their types (``provenance`` and ``source`` are required).
 DATASET_KEYS: dict[str, type] = {
     "name": str, "title": str, "provenance": str, "source": str, "description": str,
@@ -26,6 +28,11 @@ DATASET_KEYS: dict[str, type] = {
 }
 #: Keys of a ``[columns.<name>]`` table and their types (``role`` is required).
 COLUMN_KEYS: dict[str, type] = {"role": str, "quantity": str, "unit": str, "group": bool}
+#: Keys of the optional ``[reduction]`` table that ``bayesfric data reduce`` writes (what was reduced
+#: and how); each value a string, number or true/false.
+REDUCTION_KEYS = ("source_file", "source_sha256", "sidecar_sha256", "on", "rtol", "atol", "settle",
+                  "min_samples", "keep_standstill", "se_method", "segments", "rows_used", "rows_total",
+                  "bayesfric")
 
 
 def read_sidecar(path: Path) -> dict[str, Any]:
@@ -63,12 +70,24 @@ def read_sidecar(path: Path) -> dict[str, Any]:
         raise DataError(f"{path}: invalid TOML: arrays or tables nested too deeply") from None
     if not isinstance(meta.get("dataset"), dict) or not isinstance(meta.get("columns"), dict):
         raise DataError(f"{path}: needs a [dataset] table and [columns.<name>] tables")
-    unknown = sorted(set(meta) - {"dataset", "columns"})
+    unknown = sorted(set(meta) - {"dataset", "columns", "reduction"})
     if unknown:
-        raise DataError(f"{path}: unknown top-level key {unknown[0]!r}; a sidecar has [dataset] and [columns.<name>]")
+        raise DataError(f"{path}: unknown top-level key {unknown[0]!r}; a sidecar has [dataset], [columns.<name>] "
+                        f"and (written by bayesfric data reduce) [reduction]")
     _check_dataset(path, meta["dataset"])
     _check_columns(path, meta["columns"])
+    _check_reduction(path, meta.get("reduction", {}))
     return meta
+
+
+def _check_reduction(path: Path, table: object) -> None:
+    if not isinstance(table, dict):
+        raise DataError(f"{path}: reduction must be a table ([reduction])")
+    for key, value in table.items():
+        if key not in REDUCTION_KEYS:
+            raise DataError(f"{path}: [reduction]: unknown key {key!r}; known keys: {', '.join(REDUCTION_KEYS)}")
+        if not isinstance(value, str | int | float | bool):
+            raise DataError(f"{path}: [reduction] {key} must be a string, number or true/false, got {value!r}")
 
 
 def _check_keys(where: str, table: dict, known: dict[str, type]) -> None:
@@ -106,7 +125,7 @@ def _is_text_encoding(name: str) -> bool:
 
 
 def _check_columns(path: Path, columns: dict) -> None:
-    n_response = 0
+    n_response = n_se = 0
     for col, spec in columns.items():
         where = f"{path}: column {col!r}"
         if not col.strip():
@@ -121,7 +140,7 @@ def _check_columns(path: Path, columns: dict) -> None:
             raise DataError(f"{where}: role {role!r} not one of {ROLES}")
         if spec.get("group") and role != "input":
             raise DataError(f"{where}: 'group = true' applies to inputs only (this column's role is {role!r})")
-        if role in ("input", "response") or "quantity" in spec:
+        if role in ("input", "response", "se") or "quantity" in spec:
             q = spec.get("quantity")
             if q not in QUANTITIES:
                 raise DataError(f"{where}: quantity {q!r} unknown; known: {', '.join(QUANTITIES)}")
@@ -131,5 +150,22 @@ def _check_columns(path: Path, columns: dict) -> None:
             n_response += 1
             if spec["quantity"] not in RESPONSES:
                 raise DataError(f"{where}: a response must be one of {RESPONSES}")
+        n_se += role == "se"
     if n_response != 1:
         raise DataError(f"{path}: exactly one column must have role 'response' (found {n_response})")
+    if n_se:
+        _check_se(path, columns, n_se)
+
+
+def _check_se(path: Path, columns: dict, n_se: int) -> None:
+    """At most one ``se`` column, with a quantity and unit, of the response's quantity."""
+    response = next(spec["quantity"] for spec in columns.values() if spec["role"] == "response")
+    for col, spec in columns.items():
+        if spec["role"] != "se":
+            continue
+        if n_se > 1:
+            raise DataError(f"{path}: column {col!r}: more than one column has role 'se' ({n_se}); the "
+                            f"response has one standard error per row")
+        if spec.get("quantity") != response:
+            raise DataError(f"{path}: column {col!r}: a standard error (role 'se') has the response's quantity "
+                            f"{response!r}, got {spec.get('quantity')!r}")

@@ -13,7 +13,7 @@ from bayesfric.laws.base import TRAJECTORY_START, Law
 from bayesfric.priors import DataScale
 from bayesfric.quantities import QUANTITIES
 
-__all__ = ["law_inputs", "response_values", "data_scale", "select", "trajectory_starts"]
+__all__ = ["law_inputs", "response_values", "response_se", "data_scale", "select", "trajectory_starts"]
 
 
 def trajectory_starts(ds: xr.Dataset) -> np.ndarray:
@@ -57,6 +57,15 @@ def response_values(ds: xr.Dataset, law: Law | None = None) -> np.ndarray:
             f"{ds.attrs.get('name', '?')!r} has response {name}"
         )
     return np.asarray(ds[name].values, dtype=float)
+
+
+def response_se(ds: xr.Dataset) -> np.ndarray | None:
+    """The response's standard error per row in SI units (the ``se`` column of a reduced data
+    set, :mod:`bayesfric.datasets.reduce`), or None when the data set has none."""
+    for var in ds.data_vars.values():
+        if var.attrs.get("role") == "se":
+            return np.asarray(var.values, dtype=float)
+    return None
 
 
 def data_scale(ds: xr.Dataset) -> DataScale:
