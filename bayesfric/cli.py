@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import NoReturn
 
 from bayesfric.datasets.loader import DataError
+from bayesfric.datasets.reduce import add_arguments as reduce_arguments
 from bayesfric.errors import UserError
 from bayesfric.laws.base import LawDeclarationError
 from bayesfric.priors import Prior, PriorError
@@ -207,7 +208,11 @@ def _cmd_fit(args: argparse.Namespace) -> None:
 def _cmd_data(args: argparse.Namespace) -> None:
     from bayesfric.datasets import builtin_names, describe, load_builtin, load_dataset
 
-    if args.data_cmd == "list":
+    if args.data_cmd == "reduce":
+        from bayesfric.datasets.reduce import run_command
+
+        run_command(args)
+    elif args.data_cmd == "list":
         from bayesfric.report.tables import format_table
 
         rows = []
@@ -388,13 +393,17 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--quiet", action="store_true", help="no progress bar")
     q.set_defaults(func=_cmd_fit)
 
-    q = sub.add_parser("data", help="list built-in data sets or check a user's file")
-    dsub = q.add_subparsers(dest="data_cmd", required=True, metavar="{list,check}")
+    q = sub.add_parser("data", help="list built-in data sets, check a user's file, or reduce a raw log")
+    dsub = q.add_subparsers(dest="data_cmd", required=True, metavar="{list,check,reduce}")
     d = dsub.add_parser("list", help="built-in data sets with provenance")
     d.set_defaults(func=_cmd_data)
     d = dsub.add_parser("check", help="validate CSV + TOML metadata and print what was understood")
     d.add_argument("file", help="CSV file")
     d.add_argument("--meta", help="metadata TOML (default: FILE with .toml suffix)")
+    d.set_defaults(func=_cmd_data)
+    d = dsub.add_parser("reduce", help="steady-state reduction of a raw log: segment means with standard errors "
+                                       "and counts (bayesfric.datasets.reduce)")
+    reduce_arguments(d)
     d.set_defaults(func=_cmd_data)
 
     q = sub.add_parser("study", help="run a study TOML file and write reports/<study>/")

@@ -1,0 +1,467 @@
+"""Steady-state reduction of a raw friction log (``bayesfric data reduce``).
+
+The field reduces long logs by hand: run the joint (or load the bearing) at a series of constant
+speeds (loads), drop the transient after each change, and average the rest of each plateau
+(seed 004's Stribeck tables). This module does that reproducibly and writes the result as a data
+file the loader reads, with the standard error and count of every mean, so the same study can fit
+the raw log or its reduction; the likelihood of a reduced row adds its standard error to the noise
+model (:mod:`bayesfric.model`).
+
+Algorithm
+---------
+Rows are taken in file order (the time order of a log); a new *block* starts at the first row and
+wherever any group label (a run, a series, the trajectory group) changes: no segment spans two
+blocks. Within a block, on the chosen input ``on`` (``velocity`` by default; any input quantity
+or its column name, e.g. ``axial_force``):
+
+1. **Split.** A row joins the current segment while it lies within the tolerance
+   ``tol(m) = max(rtol * |m|, atol)`` of the segment's running mean ``m``; otherwise it starts a new
+   segment. A step starts a new segment at once; a ramp breaks into short pieces (its running mean
+   lags behind), which step 4 drops.
+2. **Trim.** Rows at either end of a segment farther than ``tol`` from the segment's median are
+   dropped (the end of a ramp-in, the start of a ramp-out).
+3. **Settle.** The first rows of what is left are dropped as transient: ``settle`` is a fraction
+   of the segment (``"10%"``, the default), a number of rows (``"25"``), or a duration
+   (``"0.5 s"``, any time unit; needs a ``time`` input, read per block).
+4. **Keep.** A segment is kept if at least ``min_samples`` rows remain (default 20), and, when
+   ``on`` is a velocity, if its level is not a standstill (``|m| > atol``: friction at rest is not
+   a steady-state sliding value; ``keep_standstill`` keeps those).
+
+``atol`` defaults to 5 robust noise standard deviations of ``on``, from the median absolute
+first difference (``1.4826 * median|dx| / sqrt(2)``), floored at ``1e-9 * max|x|``.
+
+Means and standard errors
+-------------------------
+Each kept segment gives the mean of every input (the row's operating point) and of the response,
+with ``se = sd / sqrt(n_eff)``: the **effective sample size** of the response inside the segment,
+from its autocorrelation by Geyer's (1992) initial monotone sequence estimator (the estimator Stan
+and arviz use for MCMC draws), ``n_eff = n / tau``, ``tau = 1 + 2 * sum_k rho_k``, capped at
+``n_eff <= n`` (anti-correlated noise is not credited). A logger's noise is autocorrelated (an
+AR(1) with rho = 0.9 has ``tau`` = 19): the naive ``sd / sqrt(n)`` would be 4.4 times too small.
+
+Output
+------
+A CSV with one row per segment -- the inputs (segment means, ``time`` left out) and group labels
+under their source column names and units, the response mean, ``<response>_se`` (role ``se``),
+``count`` (rows averaged), ``n_eff``, ``segment`` (a group, 1, 2, ...), ``first_row`` and
+``last_row`` (the source's data rows averaged, counted from 1 as the loader counts) -- and its
+sidecar, whose ``[reduction]`` table names the source file and the SHA-256 of it and its sidecar,
+and every setting. Aux columns of the source are not carried. Both files are written atomically
+after every check passed; any problem is one line naming file, column or option.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import os
+import secrets
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from bayesfric.csvout import write_csv
+from bayesfric.datasets.errors import DataError
+from bayesfric.datasets.loader import OBS_DIM, load_dataset
+from bayesfric.datasets.sidecar import read_sidecar
+from bayesfric.errors import UserError
+from bayesfric.fsutil import check_output_file
+from bayesfric.quantities import QUANTITIES, UnitError, conversion
+
+__all__ = ["ReduceOptions", "Segment", "Reduction", "MAX_RAW_ROWS", "SE_METHOD", "find_segments", "mean_se",
+           "reduce_log", "write_reduction", "add_arguments", "run_command"]
+
+#: Most rows of a raw log (about 0.3 kB of memory per row of four columns while it is parsed).
+MAX_RAW_ROWS = 2_000_000
+#: How the standard error of a segment mean is computed (module docstring).
+SE_METHOD = "sd / sqrt(n_eff), n_eff by Geyer's initial monotone sequence (autocorrelation), n_eff <= count"
+_VELOCITIES = ("velocity", "linear_velocity")
+
+
+@dataclass(frozen=True)
+class ReduceOptions:
+    """Settings of a reduction (module docstring, *Algorithm*).
+
+    Parameters
+    ----------
+    on : str
+        Input quantity (or its column name) that is constant within a segment.
+    rtol : float
+        Relative tolerance on ``on``.
+    atol : str, optional
+        Absolute tolerance with its unit (``"0.005 rad/s"``); default from the noise of ``on``.
+    settle : str
+        Transient dropped at each segment start: ``"10%"``, ``"25"`` (rows) or ``"0.5 s"``.
+    min_samples : int
+        Fewest rows a kept segment averages (after settling).
+    keep_standstill : bool
+        Keep velocity segments at rest.
+    """
+
+    on: str = "velocity"
+    rtol: float = 0.02
+    atol: str | None = None
+    settle: str = "10%"
+    min_samples: int = 20
+    keep_standstill: bool = False
+
+
+@dataclass(frozen=True)
+class Segment:
+    """One kept segment: source rows ``first:stop`` (0-based) and the response statistics."""
+
+    first: int
+    stop: int
+    mean: float
+    se: float
+    n_eff: float
+
+
+@dataclass
+class Reduction:
+    """A reduced log: the source data set, the kept segments and what the sidecar records."""
+
+    source: xr.Dataset
+    on: str
+    segments: list[Segment]
+    record: dict[str, object] = field(default_factory=dict)
+
+
+def mean_se(y: np.ndarray) -> tuple[float, float, float]:
+    """Mean, standard error and effective sample size of an autocorrelated series.
+
+    Parameters
+    ----------
+    y : ndarray, shape (n,)
+        The response inside one segment, in time order (n >= 2).
+
+    Returns
+    -------
+    tuple of float
+        ``(mean, se, n_eff)``, ``se = sd / sqrt(n_eff)``; ``n_eff = n / tau`` from Geyer's initial
+        monotone sequence of autocorrelation pair sums, within ``[1, n]``.
+    """
+    y = np.asarray(y, dtype=float)
+    n, mean = y.size, float(y.mean())
+    c = y - mean
+    var = float(c @ c) / n
+    if var == 0.0:
+        return mean, 0.0, float(n)
+    size = 1 << (2 * n - 1).bit_length()
+    spectrum = np.fft.rfft(c, size)
+    acov = np.fft.irfft(spectrum * np.conj(spectrum), size)[:n] / n
+    pairs = (acov[: 2 * (n // 2)] / acov[0]).reshape(-1, 2).sum(axis=1)  # Gamma_k = rho_2k + rho_2k+1
+    positive = np.flatnonzero(pairs <= 0.0)
+    pairs = np.minimum.accumulate(pairs[: positive[0] if positive.size else pairs.size])
+    lags = 4 * pairs.size - 1  # lags -K..K summed, K = 2 * pairs - 1
+    # centring on the sample mean lowers every autocovariance by about var(mean): their sum over
+    # the window is low by a factor (1 - lags / n), undone here (at most a factor 2)
+    tau = max((-1.0 + 2.0 * float(pairs.sum())) / max(1.0 - lags / n, 0.5), 1.0)
+    n_eff = n / tau
+    return mean, float(np.sqrt(var / n_eff)), float(n_eff)
+
+
+def find_segments(x: np.ndarray, starts: np.ndarray, rtol: float, atol: float) -> list[tuple[int, int]]:
+    """Split and trim (steps 1-2 of the algorithm): ``(first, stop)`` row ranges, 0-based.
+
+    Parameters
+    ----------
+    x : ndarray, shape (n,)
+        The quantity held constant, in SI, in row order.
+    starts : ndarray of bool, shape (n,)
+        True where a block starts (no segment spans two blocks).
+    rtol, atol : float
+        Tolerance ``max(rtol * |m|, atol)`` around the running mean ``m``.
+    """
+    pieces, first, total, count = [], 0, float(x[0]), 1
+    for k in range(1, x.size):
+        m = total / count
+        if starts[k] or abs(x[k] - m) > max(rtol * abs(m), atol):
+            pieces.append((first, k))
+            first, total, count = k, float(x[k]), 1
+        else:
+            total, count = total + float(x[k]), count + 1
+    pieces.append((first, x.size))
+    out = []
+    for a, b in pieces:
+        level = float(np.median(x[a:b]))
+        inside = np.flatnonzero(np.abs(x[a:b] - level) <= max(rtol * abs(level), atol))
+        if inside.size:
+            out.append((a + int(inside[0]), a + int(inside[-1]) + 1))
+    return out
+
+
+def reduce_log(csv_path: str | Path, meta_path: str | Path | None = None,
+               options: ReduceOptions | None = None) -> Reduction:
+    """Find the steady segments of a raw log and their means (module docstring).
+
+    Parameters
+    ----------
+    csv_path : str or Path
+        The raw log (CSV with its TOML sidecar, as :func:`bayesfric.datasets.load_dataset` reads).
+    meta_path : str or Path, optional
+        The sidecar; default ``csv_path`` with suffix ``.toml``.
+    options : ReduceOptions, optional
+        The settings; default :class:`ReduceOptions()`.
+
+    Raises
+    ------
+    DataError, UserError
+        Bad file (as the loader), an unknown ``on``, a bad option, or no segment kept.
+    """
+    options = options or ReduceOptions()
+    _check_options(options)
+    ds = load_dataset(csv_path, meta_path, max_rows=MAX_RAW_ROWS)
+    on = _on_quantity(ds, options.on, csv_path)
+    x = np.asarray(ds[on].values, dtype=float)
+    starts = _block_starts(ds)
+    atol = _atol(x, options.atol, on)
+    settle = _settler(ds, options.settle)
+    segments, y = [], np.asarray(ds[ds.attrs["response"]].values, dtype=float)
+    for a, b in find_segments(x, starts, options.rtol, atol):
+        a = min(b, a + settle(a, b))
+        standstill = on in _VELOCITIES and abs(float(x[a:b].mean() if b > a else 0.0)) <= atol
+        if b - a >= options.min_samples and (options.keep_standstill or not standstill):
+            segments.append(Segment(a, b, *mean_se(y[a:b])))
+    if not segments:
+        raise DataError(f"{csv_path}: no steady segment of {on} found with at least {options.min_samples} rows "
+                        f"after settling (tolerance max({options.rtol:g} * |level|, {atol:.3g} "
+                        f"{QUANTITIES[on].unit}), settle {options.settle}); widen --rtol/--atol or lower "
+                        f"--min-samples")
+    record = {"on": on, "rtol": options.rtol, "atol": f"{atol:.6g} {QUANTITIES[on].unit}",
+              "settle": options.settle, "min_samples": options.min_samples,
+              "keep_standstill": options.keep_standstill, "se_method": SE_METHOD, "segments": len(segments),
+              "rows_used": sum(s.stop - s.first for s in segments), "rows_total": int(ds.sizes[OBS_DIM])}
+    return Reduction(ds, on, segments, record)
+
+
+def _check_options(options: ReduceOptions) -> None:
+    if not (np.isfinite(options.rtol) and 0.0 <= options.rtol < 1.0):
+        raise UserError(f"--rtol {options.rtol!r}: a relative tolerance in [0, 1)")
+    if not 2 <= options.min_samples <= MAX_RAW_ROWS:
+        raise UserError(f"--min-samples {options.min_samples}: between 2 and {MAX_RAW_ROWS} rows")
+
+
+def _on_quantity(ds: xr.Dataset, on: str, path: str | Path) -> str:
+    """The input coordinate named by quantity or by its source column."""
+    inputs = {k: v for k, v in ds.coords.items() if v.attrs.get("role") == "input"}
+    for name, var in inputs.items():
+        if on in (name, var.attrs.get("column")) and name != "time":
+            return str(name)
+    shown = ", ".join(f"{n} (column {v.attrs.get('column')!r})" for n, v in inputs.items() if n != "time")
+    raise UserError(f"--on {on!r}: {path} has no such input to hold constant (inputs: {shown or 'none'})")
+
+
+def _block_starts(ds: xr.Dataset) -> np.ndarray:
+    """True at the first row and wherever any group label changes."""
+    starts = np.zeros(ds.sizes[OBS_DIM], dtype=bool)
+    starts[0] = True
+    for var in ds.coords.values():
+        if var.attrs.get("role") == "group":
+            labels = np.asarray(var.values)
+            starts[1:] |= labels[1:] != labels[:-1]
+    return starts
+
+
+def _atol(x: np.ndarray, text: str | None, on: str) -> float:
+    """The absolute tolerance in SI: ``--atol`` read with its unit, else 5 robust noise sds."""
+    if text is not None:
+        value = _value(text, on, "--atol")
+        if not value >= 0.0:
+            raise UserError(f"--atol {text!r}: must be >= 0")
+        return value
+    noise = 1.4826 * float(np.median(np.abs(np.diff(x)))) / np.sqrt(2.0) if x.size > 1 else 0.0
+    return max(5.0 * noise, 1e-9 * float(np.max(np.abs(x))), 1e-300)
+
+
+def _value(text: str, quantity: str, option: str) -> float:
+    """``"0.5 s"`` -> SI value of ``quantity``; a one-line UserError naming ``option`` otherwise."""
+    number, _, unit = text.strip().partition(" ")
+    try:
+        scale, offset = conversion(unit.strip() or "", quantity)
+        value = float(number) * scale + offset
+    except (ValueError, UnitError) as exc:
+        raise UserError(f"{option} {text!r}: a number and a unit of {quantity} "
+                        f"(e.g. '0.5 {QUANTITIES[quantity].unit}'): {exc}") from None
+    if not np.isfinite(value):
+        raise UserError(f"{option} {text!r}: not a finite value")
+    return value
+
+
+def _settler(ds: xr.Dataset, text: str) -> Callable[[int, int], int]:
+    """Rows to drop at the start of segment ``first:stop``, from ``--settle``."""
+    spec = text.strip()
+    if spec.endswith("%"):
+        try:
+            fraction = float(spec[:-1]) / 100.0
+        except ValueError:
+            fraction = -1.0
+        if not 0.0 <= fraction < 1.0:
+            raise UserError(f"--settle {text!r}: a percentage in [0, 100)")
+        return lambda a, b: int(np.ceil(fraction * (b - a)))
+    if spec.isdigit():
+        return lambda a, b: int(spec)
+    seconds = _value(spec, "time", "--settle")
+    if "time" not in ds.coords:
+        raise UserError(f"--settle {text!r}: a duration needs a time input in the log; give rows ('25') or a "
+                        f"percentage ('10%')")
+    if not seconds >= 0.0:
+        raise UserError(f"--settle {text!r}: must be >= 0")
+    t = np.asarray(ds["time"].values, dtype=float)
+    back = np.flatnonzero((np.diff(t) <= 0.0) & ~_block_starts(ds)[1:])
+    if back.size:
+        raise DataError(f"{ds.attrs['csv_file']}: row {back[0] + 2}: column {ds['time'].attrs['column']!r}: time does "
+                        f"not increase within a run; --settle as a duration needs increasing time")
+    return lambda a, b: int(np.searchsorted(t[a:b], t[a] + seconds, side="left"))
+
+
+# -- writing -------------------------------------------------------------------------------------
+def write_reduction(red: Reduction, out: str | Path, source_meta: str | Path | None = None) -> tuple[Path, Path]:
+    """Write the reduced CSV and its sidecar (``out`` with suffix ``.toml``), each atomically.
+
+    Parameters
+    ----------
+    red : Reduction
+        From :func:`reduce_log`.
+    out : str or Path
+        The reduced CSV.
+    source_meta : str or Path, optional
+        The source's sidecar (default: its CSV with suffix ``.toml``), read for column names and units.
+    """
+    src = Path(red.source.attrs["csv_file"])
+    meta_path = Path(source_meta) if source_meta is not None else src.with_suffix(".toml")
+    header, rows, columns = _table(red, read_sidecar(meta_path)["columns"])
+    record = dict(source_file=src.name, source_sha256=_sha256(src), sidecar_sha256=_sha256(meta_path),
+                  **red.record, bayesfric=_version())
+    out = Path(out)
+    sidecar = out.with_suffix(".toml")
+    _atomic(out, lambda tmp: write_csv(tmp, rows, header))
+    _atomic(sidecar, lambda tmp: tmp.write_text(_sidecar_text(red.source.attrs, record, columns), encoding="utf-8"))
+    return out, sidecar
+
+
+def _table(red: Reduction, source_columns: dict) -> tuple[list[str], list[list[object]], dict[str, dict]]:
+    """Header, rows (source units) and sidecar column specs of the reduced table."""
+    ds, segs = red.source, red.segments
+    names, values, columns = [], [], {}
+    for name, var in ds.coords.items():
+        role, col = var.attrs.get("role"), var.attrs.get("column", name)
+        if role == "input" and name != "time":
+            scale, offset = conversion(var.attrs["original_unit"], str(name))
+            means = [(float(var.values[s.first:s.stop].mean()) - offset) / scale for s in segs]
+            spec = {k: v for k, v in source_columns[col].items() if k in ("role", "quantity", "unit", "group")}
+        elif role == "group" and str(name) == col:
+            means, spec = [var.values[s.first].item() for s in segs], {"role": "group"}
+        else:
+            continue
+        names.append(col)
+        values.append(means)
+        columns[col] = spec
+    resp = ds[ds.attrs["response"]]
+    col, unit = resp.attrs["column"], resp.attrs["original_unit"]
+    scale, offset = conversion(unit, ds.attrs["response"])
+    kind = {"quantity": ds.attrs["response"], "unit": unit}
+    extra = {col: ([(s.mean - offset) / scale for s in segs], {"role": "response"} | kind),
+             f"{col}_se": ([s.se / scale for s in segs], {"role": "se"} | kind),
+             "count": ([s.stop - s.first for s in segs], {"role": "aux"}),
+             "n_eff": ([round(s.n_eff, 3) for s in segs], {"role": "aux"}),
+             "segment": (list(range(1, len(segs) + 1)), {"role": "group"}),
+             "first_row": ([s.first + 1 for s in segs], {"role": "aux"}),
+             "last_row": ([s.stop for s in segs], {"role": "aux"})}
+    for name, (column, spec) in extra.items():
+        if name in columns:
+            raise DataError(f"{ds.attrs['csv_file']}: column {name!r}: the reduced table writes a column of that "
+                            f"name; rename the source column")
+        names.append(name)
+        values.append(column)
+        columns[name] = spec
+    return names, [list(row) for row in zip(*values, strict=True)], columns
+
+
+def _sidecar_text(attrs: dict, record: dict, columns: dict[str, dict]) -> str:
+    """The reduced table's TOML sidecar (strings JSON-escaped: a valid TOML basic string)."""
+    def value(v: object) -> str:
+        return ("true" if v else "false") if isinstance(v, bool) else json.dumps(v, ensure_ascii=False)
+
+    what = f"steady-state reduction of {record['source_file']} (sha256 {str(record['source_sha256'])[:16]})"
+    dataset = {"name": f"{attrs.get('name', 'data')}_reduced",
+               "title": f"{attrs.get('title') or attrs.get('name', '')} -- {what}",
+               "provenance": attrs["provenance"],
+               "source": f"{attrs['source']}; {what} by bayesfric data reduce",
+               "description": (f"Means of {record['segments']} segments of constant {record['on']} "
+                               f"(bayesfric.datasets.reduce), each with its standard error ({SE_METHOD}) and the "
+                               f"count of rows averaged. {attrs.get('description', '')}").strip()}
+    lines = ["# written by bayesfric data reduce (bayesfric.datasets.reduce); fit it like any data file", "",
+             "[dataset]", *(f"{k} = {value(v)}" for k, v in dataset.items()), "", "[reduction]",
+             *(f"{k} = {value(v)}" for k, v in record.items())]
+    for col, spec in columns.items():
+        lines += ["", f"[columns.{value(col)}]", *(f"{k} = {value(v)}" for k, v in spec.items())]
+    return "\n".join(lines) + "\n"
+
+
+def _sha256(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("bayesfric")
+    except PackageNotFoundError:
+        return "unknown"
+
+
+def _atomic(path: Path, write: Callable[[Path], object]) -> None:
+    """Write ``path`` through a hidden temporary file in its folder, then rename it into place."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.parent / f".{path.name}.{secrets.token_hex(4)}.tmp"
+    try:
+        os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))  # mode: 0o666 less umask
+        write(tmp)
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+
+
+# -- command line --------------------------------------------------------------------------------
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The options of ``bayesfric data reduce`` (defaults: :class:`ReduceOptions`)."""
+    d = ReduceOptions()
+    parser.add_argument("file", help="raw log CSV (sidecar FILE.toml next to it)")
+    parser.add_argument("--meta", help="metadata TOML of the log (default: FILE with .toml suffix)")
+    parser.add_argument("--out", help="reduced CSV to write, its sidecar beside it (default: FILE_reduced.csv)")
+    parser.add_argument("--on", default=d.on, help=f"input held constant in a segment: quantity or column (default "
+                                                   f"{d.on})")
+    parser.add_argument("--rtol", type=float, default=d.rtol, help=f"relative tolerance (default {d.rtol})")
+    parser.add_argument("--atol", help="absolute tolerance with unit, e.g. '0.005 rad/s' (default: 5 noise sds)")
+    parser.add_argument("--settle", default=d.settle, help="dropped at each segment start: '10%%' of it (default), "
+                                                           "'25' rows or '0.5 s' (needs a time input)")
+    parser.add_argument("--min-samples", type=int, default=d.min_samples,
+                        help=f"fewest rows a kept segment averages (default {d.min_samples})")
+    parser.add_argument("--keep-standstill", action="store_true", help="keep velocity segments at rest")
+
+
+def run_command(args: argparse.Namespace) -> None:
+    """``bayesfric data reduce``: check the output path, reduce, write, print what was done."""
+    src = Path(args.file)
+    out = Path(args.out) if args.out else src.with_name(f"{src.stem}_reduced.csv")
+    meta = Path(args.meta) if args.meta else src.with_suffix(".toml")
+    if out.suffix != ".csv":
+        raise UserError(f"--out {out}: the reduced table is a .csv file (its sidecar: the same name, .toml)")
+    for target in (out, out.with_suffix(".toml")):
+        if target.resolve() in (src.resolve(), meta.resolve()):
+            raise UserError(f"--out {out}: would overwrite the source {target}")
+        check_output_file(target)
+    options = ReduceOptions(args.on, args.rtol, args.atol, args.settle, args.min_samples, args.keep_standstill)
+    red = reduce_log(src, meta, options)
+    csv_out, sidecar = write_reduction(red, out, meta)
+    r = red.record
+    print(f"{src}: {r['rows_total']} rows -> {r['segments']} segments of constant {r['on']} ({r['rows_used']} rows "
+          f"averaged; tolerance max({r['rtol']:g} * |level|, {r['atol']}), settle {r['settle']})")
+    print(f"written {csv_out} and {sidecar}")
