@@ -2,7 +2,9 @@
 
 The run store (:mod:`bayesfric.study.store`) keys a study's units with them, and the exported
 sampler programs (:mod:`bayesfric.exported`) key their files with them: the source of
-the computing code and of the module that declares a law, a data set's content, and any
+the computing code and of every module a law's code reads (the module that declares it and the
+modules of the package and of the user's law files it imports, transitively:
+:mod:`bayesfric.codegraph`), a data set's content, and any
 dataclass / array / mapping canonicalised to JSON (:func:`canonical`).
 """
 
@@ -18,6 +20,8 @@ from typing import Any
 
 import numpy as np
 import xarray as xr
+
+from bayesfric.codegraph import roots_of, source_files
 
 __all__ = ["code_fingerprint", "package_fingerprint", "law_fingerprint", "data_fingerprint", "canonical",
            "unit_key", "program_parts"]
@@ -54,10 +58,14 @@ def package_fingerprint() -> str:
 
 
 def law_fingerprint(law) -> str:
-    """SHA-256 of the source of every module that declares ``law`` or a part of it, and its recipe.
+    """SHA-256 of the law's recipe and of the source of every module its code reads.
 
-    A variant (:mod:`bayesfric.laws.variants`) is a recipe over registered laws: its base and
-    added parts are hashed with it, so an edit to any of their modules invalidates its units.
+    For the law and each part of a variant (:mod:`bayesfric.laws.variants`: its base and added
+    laws), the module that declares it and every module of the package, of the user's law files
+    or of a plug-in package that it imports, transitively (:func:`bayesfric.codegraph.source_files`:
+    ``laws/bearing.py`` brings ``laws/ball_loads.py``; a user's law file brings the helper modules
+    beside it that it imports). An edit to any of them invalidates the law's units and exported
+    programs; modules of other installed packages do not count.
     """
     from bayesfric.laws import get_law
 
@@ -65,10 +73,33 @@ def law_fingerprint(law) -> str:
     parts = [law] + [get_law(name) for name in [recipe.get("base"), *recipe.get("add", ())]
                      if isinstance(name, str) and name not in ("", "offset", "viscous")]
     digest = hashlib.sha256(json.dumps(recipe, sort_keys=True, default=str).encode())
+    seen: list[Path] = []
     for part in parts:
         module = inspect.getmodule(part.fn) if getattr(part, "fn", None) is not None else None
-        digest.update((inspect.getsource(module) if module is not None else repr(part)).encode())
+        files = source_files(module) if module is not None else []
+        if not files:
+            digest.update((inspect.getsource(module) if module is not None else repr(part)).encode())
+            continue
+        roots = roots_of(module)
+        for path in (f for f in files if f not in seen):
+            seen.append(path)
+            digest.update(_label(path, roots).encode() + b"\0" + _source(path))
     return digest.hexdigest()
+
+
+def _source(path: Path) -> bytes:
+    """The bytes of a source file that a key covers."""
+    return path.read_bytes()
+
+
+def _label(path: Path, roots: tuple[Path, ...]) -> str:
+    """A source file's name relative to its root (a report folder or study may move: keys stay)."""
+    for root in sorted(roots, key=lambda r: -len(r.parts)):
+        if root == path:
+            return path.name
+        if root in path.parents:
+            return path.relative_to(root).as_posix()
+    return path.name
 
 
 def data_fingerprint(ds: xr.Dataset) -> str:
