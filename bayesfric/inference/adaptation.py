@@ -27,7 +27,7 @@ import blackjax
 import jax
 import jax.numpy as jnp
 import numpy as np
-from blackjax.adaptation.mass_matrix import mass_matrix_adaptation
+from blackjax.adaptation.mass_matrix import welford_algorithm
 from blackjax.adaptation.step_size import dual_averaging_adaptation
 from blackjax.adaptation.window_adaptation import build_schedule
 
@@ -87,11 +87,12 @@ def nuts_chain(key, z0, logdensity, schedule, init_imm, target_accept: float, de
     ``init_imm`` is the initial inverse mass matrix: a vector for a diagonal metric (ones, or a
     previous posterior's unconstrained variances), a square matrix for a dense one (identity,
     or a previous posterior's covariance). The slow windows estimate the same kind (blackjax's
-    Welford estimator, regularised towards the identity as Stan does). Returns every step's
+    Welford estimator, regularised towards a thousandth of the current metric: the module
+    notes). Returns every step's
     output; the caller keeps the sampling rows (inactive rows return zeros).
     """
     da_init, da_update, da_final = dual_averaging_adaptation(target_accept)
-    mm_init, mm_update, mm_final = mass_matrix_adaptation(init_imm.ndim == 1)
+    mm_init, mm_update, mm_final = _scale_relative_metric(init_imm.ndim == 1)
     kernel = blackjax.nuts.build_kernel()
 
     def adapt_step(adapt: _Adaptation, row, position, acceptance_rate) -> _Adaptation:
@@ -100,10 +101,9 @@ def nuts_chain(key, z0, logdensity, schedule, init_imm, target_accept: float, de
         adapt = _Adaptation(jnp.exp(da.log_step_size), adapt.inverse_mass_matrix, da, mm)
 
         def close_window(a: _Adaptation) -> _Adaptation:
-            mm_closed = mm_final(a.mass_matrix)
+            imm, mm_restart = mm_final(a.mass_matrix, a.inverse_mass_matrix)
             da_restart = da_init(da_final(a.dual_averaging))
-            return _Adaptation(jnp.exp(da_restart.log_step_size), mm_closed.inverse_mass_matrix,
-                               da_restart, mm_closed)
+            return _Adaptation(jnp.exp(da_restart.log_step_size), imm, da_restart, mm_restart)
 
         return jax.lax.cond(row[1] == 1, close_window, lambda a: a, adapt)
 
@@ -127,8 +127,31 @@ def nuts_chain(key, z0, logdensity, schedule, init_imm, target_accept: float, de
         k, row = xs
         return jax.lax.cond(row[2] == 1, lambda c: move(c, k, row), idle, carry)
 
-    mm0 = mm_init(z0.shape[0])._replace(inverse_mass_matrix=init_imm)
+    mm0 = mm_init(z0.shape[0])
     adapt0 = _Adaptation(jnp.asarray(1.0, dtype=z0.dtype), init_imm, da_init(1.0), mm0)
     keys = jax.random.split(key, schedule.shape[0])
     _, out = jax.lax.scan(step, (blackjax.nuts.init(z0, logdensity), adapt0), (keys, schedule))
     return out
+
+
+#: Stan's regularisation: a window of ``n`` draws gets weight ``n / (n + PSEUDO_COUNT)``, the
+#: target ``SHRINK_TO`` times the current metric the rest.
+PSEUDO_COUNT = 5.0
+SHRINK_TO = 1e-3
+
+
+def _scale_relative_metric(diagonal: bool):
+    """(init, update, final) of the windowed metric estimate (blackjax's public Welford estimator).
+
+    ``final(state, current)`` returns the window's regularised estimate, shrunk towards
+    ``SHRINK_TO × current`` (its diagonal for a dense metric), and a fresh estimator state.
+    """
+    wc_init, wc_update, wc_final = welford_algorithm(diagonal)
+
+    def final(state, current):
+        covariance, count, _ = wc_final(state)
+        target = SHRINK_TO * (current if diagonal else jnp.diag(jnp.diag(current)))
+        imm = (count / (count + PSEUDO_COUNT)) * covariance + (PSEUDO_COUNT / (count + PSEUDO_COUNT)) * target
+        return imm, wc_init(covariance.shape[0])
+
+    return wc_init, wc_update, final

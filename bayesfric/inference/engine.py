@@ -56,7 +56,7 @@ from scipy.special import logsumexp
 
 from bayesfric.exported import exported_jit
 from bayesfric.fingerprint import program_parts
-from bayesfric.inference.adaptation import nuts_chain, sampling_schedule
+from bayesfric.inference.adaptation import PSEUDO_COUNT, SHRINK_TO, nuts_chain, sampling_schedule
 from bayesfric.inference.datatree import assemble, draw_tables_args, draw_tables_jit
 from bayesfric.inference.diagnostics import GATE, Gate, Verdict, check_folds, import_statistics
 from bayesfric.inference.init import Init, pending_chain_starts
@@ -504,10 +504,12 @@ def _warm_start_from(program: Program, fit: xr.DataTree, chains: int, seed: int,
 
     Picks ``chains`` posterior draws (chain ``c % n_chains``, a random draw of it), maps them
     to the unconstrained space the sampler works in, and takes the per-coordinate variance of
-    all unconstrained draws as the diagonal inverse mass matrix (floored at 1e-8 so a
-    coordinate the data pin down hard keeps a positive scale), or for a dense metric their
-    covariance, regularised towards 1e-3 I as the warm-up's own estimates are (Stan's rule:
-    weight n / (n + 5) on the sample covariance).
+    all unconstrained draws as the diagonal inverse mass matrix (floored at 1e-16 of the largest
+    so a coordinate whose draws did not move keeps a positive scale, but relative, so a
+    coordinate the data pin down hard keeps its own scale), or for a dense metric their
+    covariance, regularised towards a thousandth of its own diagonal as the warm-up's own
+    estimates are (:mod:`bayesfric.inference.adaptation`: weight n / (n + 5) on the sample
+    covariance).
     """
     density = program.density(seed)
     post = fit["posterior"]
@@ -524,6 +526,9 @@ def _warm_start_from(program: Program, fit: xr.DataTree, chains: int, seed: int,
         draws = np.asarray(unconstrained)
         n = draws.shape[0]
         cov = np.atleast_2d(np.cov(draws, rowvar=False))
-        return unconstrained[picks], (n / (n + 5.0)) * cov + 1e-3 * (5.0 / (n + 5.0)) * np.eye(cov.shape[0])
-    imm = jnp.maximum(jnp.var(unconstrained, axis=0), 1e-8)
+        scale = np.diag(cov)
+        target = SHRINK_TO * np.diag(np.maximum(scale, 1e-16 * scale.max() + 1e-300))
+        return unconstrained[picks], (n / (n + PSEUDO_COUNT)) * cov + (PSEUDO_COUNT / (n + PSEUDO_COUNT)) * target
+    var = jnp.var(unconstrained, axis=0)
+    imm = jnp.maximum(var, 1e-16 * jnp.max(var) + 1e-300)
     return unconstrained[picks], imm
