@@ -3,8 +3,10 @@ study, entry points, check_law, and bad input (one line, exit 2, nothing written
 
 from __future__ import annotations
 
+import multiprocessing
 import subprocess
 import sys
+from concurrent.futures import ProcessPoolExecutor
 
 import jax.numpy as jnp
 import pytest
@@ -172,3 +174,18 @@ def test_entry_points_load_when_a_name_is_not_found(tmp_path, monkeypatch):
 def test_importing_the_laws_loads_no_plug_in():
     code = "import bayesfric.laws; from bayesfric.laws.plugins import _ENTRY_POINTS; assert not _ENTRY_POINTS['loaded']"
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def _params_in_a_fresh_process(spec) -> list[str]:
+    return list(spec.build().params)
+
+
+def test_a_law_spec_builds_in_a_fresh_process(tmp_path, data_csv):  # noqa: F811
+    """What a ``main --jobs`` study process or a Dask worker does: a spawned interpreter that has
+    imported nothing gets the pickled spec and loads the law file itself."""
+    (tmp_path / "mine.py").write_text(LAW_FILE.format(name="mine_cv"))
+    (tmp_path / "s.toml").write_text(study_text('[[laws]]\nname = "mine_cv"\n')
+                                     .replace('name = "tiny"', 'name = "tiny"\nmodules = ["mine.py"]'))
+    spec = load_study(tmp_path / "s.toml").laws[0]
+    with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
+        assert pool.submit(_params_in_a_fresh_process, spec).result(timeout=300) == ["T_C", "c_v"]
