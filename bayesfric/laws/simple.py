@@ -104,25 +104,11 @@ def simple_law(
                                  source=source, meanings=meanings, inputs=inputs, register=register, **options)
     name = name or fn.__name__
     where = f"law {name!r} ({declared_in(fn)})"
-    signature = inspect.signature(fn)
-    found = tuple(a for a in signature.parameters if a in QUANTITIES) if inputs is None else tuple(inputs)
-    params = [a for a, p in signature.parameters.items() if a not in found and p.default is inspect.Parameter.empty]
-    consts = {a: p.default for a, p in signature.parameters.items() if a not in found and a not in params}
-    missing = [p for p in params if p not in units]
-    if missing:
-        raise LawDeclarationError(f"{where}: parameter {missing[0]!r} needs a unit (units={{{missing[0]!r}: ...}})")
-    unknown = (set(units) - set(params) - set(consts)) | (set(priors or {}) - set(params))
-    if unknown:
-        raise LawDeclarationError(f"{where}: {sorted(unknown)[0]!r} is not a parameter of the function "
-                                  f"(parameters: {', '.join(params)})")
+    found, params, consts = _read_signature(where, fn, inputs, units, priors or {})
     origin = source or Path(declared_in(fn)).name
     meanings = dict(meanings or {})
     declared = {p: Param(units[p], _prior(where, p, (priors or {}).get(p), units[p], response, found),
                          meanings.get(p, p), origin if p in (priors or {}) else _GENERIC) for p in params}
-    bad = [c for c, v in consts.items() if isinstance(v, bool) or not isinstance(v, int | float)]
-    if bad:
-        raise LawDeclarationError(f"{where}: argument {bad[0]!r} has a default that is not a number: a constant's "
-                                  "default is its value")
     constants = {c: Constant(float(v), units.get(c, "1"), meanings.get(c, c)) for c, v in consts.items()}
     wrapped = _positional(fn, [*found, *params, *constants])
     doc = inspect.getdoc(fn) or f"user law {name}"
@@ -134,6 +120,28 @@ def simple_law(
                                       f"(in {declared_in(REGISTRY[name].fn)}): a law name is defined once")
         REGISTRY[name] = law
     return law
+
+
+def _read_signature(where: str, fn: Callable[..., Any], inputs: tuple[str, ...] | None, units: Mapping[str, str],
+                    priors: Mapping[str, Any]) -> tuple[tuple[str, ...], list[str], dict[str, Any]]:
+    """(inputs, parameters, constants with their defaults) of ``fn``, checked against ``units``
+    and ``priors``."""
+    signature = inspect.signature(fn)
+    found = tuple(a for a in signature.parameters if a in QUANTITIES) if inputs is None else tuple(inputs)
+    params = [a for a, p in signature.parameters.items() if a not in found and p.default is inspect.Parameter.empty]
+    consts = {a: p.default for a, p in signature.parameters.items() if a not in found and a not in params}
+    missing = [p for p in params if p not in units]
+    if missing:
+        raise LawDeclarationError(f"{where}: parameter {missing[0]!r} needs a unit (units={{{missing[0]!r}: ...}})")
+    unknown = (set(units) - set(params) - set(consts)) | (set(priors) - set(params))
+    if unknown:
+        raise LawDeclarationError(f"{where}: {sorted(unknown)[0]!r} is not a parameter of the function "
+                                  f"(parameters: {', '.join(params)})")
+    bad = [c for c, v in consts.items() if isinstance(v, bool) or not isinstance(v, int | float)]
+    if bad:
+        raise LawDeclarationError(f"{where}: argument {bad[0]!r} has a default that is not a number: a constant's "
+                                  "default is its value")
+    return found, params, consts
 
 
 def default_prior(unit: str, response: str, inputs: tuple[str, ...]) -> Prior | None:
@@ -152,8 +160,9 @@ def default_prior(unit: str, response: str, inputs: tuple[str, ...]) -> Prior | 
     -------
     Prior or None
         ``HalfNormal(scale=1)`` scaled by the smallest powers of the response's and the inputs'
-        units whose product is ``unit`` (the response's first where two products agree); ``LogNormal(0, 1)`` for a dimensionless unit no input
-        explains; None when no such powers exist.
+        units whose product is ``unit`` (the response's first where two products agree);
+        ``LogNormal(0, 1)`` for a dimensionless unit no input explains; None when no such powers
+        exist.
     """
     target = parse_unit(unit)
     quantities = [q for q in inputs if q in QUANTITIES]
