@@ -31,6 +31,7 @@ from bayesfric.sizing.compute import (
     predict,
 )
 from bayesfric.sizing.compute import levels as quantile_levels
+from bayesfric.sizing.misfit import LocalMisfit, local_misfit
 from bayesfric.sizing.points import SizingQuestion
 
 __all__ = ["answer_question", "answer"]
@@ -66,19 +67,23 @@ def _warnings(distance: Mapping[str, np.ndarray], sources: Sequence[LawSource], 
 
 def _calibrate(answers: Sequence[LawAnswer], draws: Mapping[str, Draws], sources: Sequence[LawSource],
                basis: Basis, schemes: Sequence[Scheme], grid, data, question: SizingQuestion, qs,
-               seed: int) -> dict[str, Draws]:
+               seed: int, misfits: Mapping[str, LocalMisfit | None]) -> dict[str, Draws]:
     """Each law's answer with its measured model-form error added (``LawAnswer.calibrated``)."""
     out = {}
     for a, src in zip(answers, sources, strict=True):
-        out[src.name], a.rel_sd = _widened(src, draws[src.name], basis, schemes, grid, data, seed)
+        out[src.name], a.rel_sd = _widened(src, draws[src.name], basis, schemes, grid, data, seed,
+                                           misfits.get(src.name))
         a.calibrated = law_answer(src, out[src.name], question, qs)
     return out
 
 
 def _widened(src: LawSource, d: Draws, basis: Basis, schemes: Sequence[Scheme], grid, data,
-             seed: int) -> tuple[Draws, np.ndarray]:
-    """A law's draws with its measured model-form error added, and the discrepancy's relative sd."""
+             seed: int, misfit: LocalMisfit | None = None) -> tuple[Draws, np.ndarray]:
+    """A law's draws with its measured model-form error added, and the discrepancy's relative sd
+    (the blocked folds' miss, floored by the law's misfit at the data nearest each point)."""
     rel = relative_sd(grid, data, src.misses, schemes, basis.schemes, basis.fallback_rate, basis.uncovered)
+    if misfit is not None:
+        rel = np.maximum(rel, misfit.at(grid))
     rng = np.random.default_rng([seed, zlib.crc32(("calibrated " + src.name).encode())])
     mu, y, _ = widen(d.mu, d.y, rel, rng)
     return Draws(mu, y, d.noise_var), rel
@@ -90,13 +95,17 @@ def _averages(used, draws, weights, question, qs, key) -> Mixture | None:
 
 
 def answer_question(question: SizingQuestion, sources: Sequence[LawSource], data: Mapping[str, np.ndarray], *,
-                    schemes: Sequence[Scheme] = (), seed: int = 0, fan: bool = True) -> Answer:
+                    schemes: Sequence[Scheme] = (), seed: int = 0, fan: bool = True,
+                    misfits: Mapping[str, LocalMisfit | None] | None = None) -> Answer:
     """Answer one question from the laws' fits, weights and measured misses (see the module).
 
     ``data`` gives the data's SI values of every input of the question (the tested envelope);
-    ``schemes`` the study's blocked extrapolation schemes. With one source and no scheme (one
-    fit), the law's answer is the only one: no average, no weights, no calibrated numbers.
+    ``schemes`` the study's blocked extrapolation schemes; ``misfits`` each law's residuals at
+    the data (:mod:`bayesfric.sizing.misfit`; none given: the folds' miss alone). With one
+    source and no scheme (one fit), the law's answer is the only one: no average, no weights,
+    no calibrated numbers.
     """
+    misfits = misfits or {}
     qs = quantile_levels(question.confidence)
     grid = question.grid()
     tested = {k: (float(np.min(v)), float(np.max(v))) for k, v in data.items() if k in grid}
@@ -113,7 +122,7 @@ def answer_question(question: SizingQuestion, sources: Sequence[LawSource], data
     weights = {used[0].name: 1.0} if single and used else (basis.weights if basis else {})
     average = _averages(used, draws, weights, question, qs, basis.key if basis else "single fit")
     if average is not None and basis is not None and basis.calibrated:
-        calibrated = _calibrate(answers, draws, sources, basis, schemes, grid, data, question, qs, seed)
+        calibrated = _calibrate(answers, draws, sources, basis, schemes, grid, data, question, qs, seed, misfits)
         average.calibrated = mixture([a.calibrated for a in used], calibrated, average.weights, question.confidence,
                                      qs, basis.key)
     for a in answers:
@@ -132,12 +141,13 @@ def answer_question(question: SizingQuestion, sources: Sequence[LawSource], data
     out = Answer(question, grid, tested, distance, answers, average, average_loo, no_average, governing,
                  qs, warnings, basis=basis)
     if fan:
-        out.fan = _fan(out, sources, data, seed, schemes=schemes)
+        out.fan = _fan(out, sources, data, seed, schemes=schemes, misfits=misfits)
     return out
 
 
 def _fan(out: Answer, sources: Sequence[LawSource], data: Mapping[str, np.ndarray], seed: int,
-         measured: tuple[np.ndarray, np.ndarray] | None = None, schemes: Sequence[Scheme] = ()) -> Fan | None:
+         measured: tuple[np.ndarray, np.ndarray] | None = None, schemes: Sequence[Scheme] = (),
+         misfits: Mapping[str, LocalMisfit | None] | None = None) -> Fan | None:
     question = out.question
     axis = _fan_axis(question, out.distance, out.tested)
     if axis is None:
@@ -162,7 +172,8 @@ def _fan(out: Answer, sources: Sequence[LawSource], data: Mapping[str, np.ndarra
                    "required": mix.required}
         if out.average.calibrated is not None:
             picked = [s for s in sources if s.name in out.average.weights]
-            cal = {s.name: _widened(s, draws[s.name], out.basis, schemes, grid, data, seed)[0] for s in picked}
+            cal = {s.name: _widened(s, draws[s.name], out.basis, schemes, grid, data, seed,
+                                    (misfits or {}).get(s.name))[0] for s in picked}
             stub = [law_answer(s, cal[s.name], question, qs, exceedance=False) for s in picked]
             cmix = mixture(stub, cal, out.average.weights, question.confidence, qs, out.average.basis)
             average |= {"cal_lo": cmix.mean_fn.q(LEVELS[0]), "cal_hi": cmix.mean_fn.q(LEVELS[-1]),
@@ -178,11 +189,13 @@ def answer(questions: Sequence[SizingQuestion], sources: Sequence[LawSource], da
     """Answer every question (see :func:`answer_question`); ``fan``: also the fan figures' bands
     (with the ``measured`` response, SI, drawn against the fan's axis when given)."""
     answers = []
+    misfits = {} if measured is None or (len(sources) == 1 and not schemes) else {
+        s.name: local_misfit(s.fit, data, measured, seed) for s in sources if s.excluded is None}
     for q in questions:
-        out = answer_question(q, sources, data, schemes=schemes, seed=seed, fan=False)
+        out = answer_question(q, sources, data, schemes=schemes, seed=seed, fan=False, misfits=misfits)
         if fan:
             axis = _fan_axis(q, out.distance, out.tested)
             points = (np.asarray(data[axis]), np.abs(np.asarray(measured))) if axis and measured is not None else None
-            out.fan = _fan(out, sources, data, seed, points, schemes)
+            out.fan = _fan(out, sources, data, seed, points, schemes, misfits)
         answers.append(out)
     return SizingResult(answers, response, response_unit, response_scale, provenance, source)

@@ -60,6 +60,12 @@ What it assumes, and where it fails (measured, ``tests/test_sizing_calibration.p
     coverage then stays below nominal: the figures per case are in the README's sizing section.
     Where the law is the true form, κ is usually 0 and the band is the within-model one.
 
+Inside the data
+    The folds measure a miss beyond an envelope; a law's misfit at the data themselves (a curve
+    biased near the edge of the tested range) is measured on the full fit's residuals by
+    :mod:`bayesfric.sizing.misfit` and floors the relative sd at each point
+    (:func:`bayesfric.sizing.answer._widened`).
+
 Direction
     A point is weighed and widened only by schemes that extrapolate in its direction along an
     input where it lies outside the data (:func:`matching`). Where it lies outside along an input
