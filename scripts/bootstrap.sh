@@ -26,6 +26,23 @@ find_python() {
   return 1
 }
 
+uv_args() {  # pip's configured indexes, find-links and constraints as uv options
+  "$1" - <<'PY'
+import shlex, subprocess
+out = subprocess.run([__import__("sys").executable, "-m", "pip", "config", "list"], capture_output=True, text=True).stdout
+flags = {"index-url": "--index-url", "extra-index-url": "--extra-index-url", "find-links": "--find-links",
+         "constraint": "--constraint"}
+args = ["--index-strategy", "unsafe-best-match"]  # pip's rule: the best version over every index
+for line in out.splitlines():
+    key, _, value = line.partition("=")
+    flag = flags.get(key.rsplit(".", 1)[-1])
+    if flag:
+        for v in shlex.split(value)[0].split() if value else []:
+            args += [flag, v]
+print(" ".join(shlex.quote(a) for a in args))
+PY
+}
+
 stamp="$(sha256sum "$here/pyproject.toml" | cut -c1-16)"
 if [ ! -x "$venv/bin/python" ] || ! works "$venv/bin/python" || [ "$(cat "$venv/.stamp" 2>/dev/null)" != "$stamp" ]; then
   py="$(find_python)" || { echo "bootstrap: no Python >= 3.12 found (set BAYESFRIC_PYTHON=/path/to/python3.12)" >&2; exit 1; }
@@ -33,8 +50,15 @@ if [ ! -x "$venv/bin/python" ] || ! works "$venv/bin/python" || [ "$(cat "$venv/
   rm -rf "$venv"
   "$py" -m venv "$venv"
   log="$here/.venv/install.log"
-  if ! { "$venv/bin/python" -m pip install --upgrade pip && "$venv/bin/python" -m pip install -e "$here[test,dask]"; } >"$log" 2>&1; then
-    tail -30 "$log" >&2; echo "bootstrap: installation failed (full log: $log)" >&2; exit 1
+  # uv resolves and installs the same versions as pip in seconds instead of ~80 s (measured on the
+  # 2-core machine: identical package list); it reads pip's configuration (indexes, find-links,
+  # constraints) translated by uv_args below. Any failure falls back to plain pip.
+  if ! { "$venv/bin/python" -m pip install uv && "$venv/bin/uv" pip install --python "$venv/bin/python" \
+           $(uv_args "$venv/bin/python") -e "$here[test,dask]"; } >"$log" 2>&1; then
+    echo "bootstrap: uv unavailable or failed, installing with pip (log: $log)" >&2
+    if ! { "$venv/bin/python" -m pip install --upgrade pip && "$venv/bin/python" -m pip install -e "$here[test,dask]"; } >>"$log" 2>&1; then
+      tail -30 "$log" >&2; echo "bootstrap: installation failed (full log: $log)" >&2; exit 1
+    fi
   fi
   echo "$stamp" > "$venv/.stamp"
 fi
