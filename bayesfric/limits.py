@@ -35,6 +35,7 @@ from typing import Any
 __all__ = [
     "STEP_STATS", "ROW_NUMBERS", "SHARE", "PROCESS_BYTES", "RESERVED_BYTES", "available_memory", "physical_memory",
     "fit_bytes", "program_size", "sampler_problem", "smc_problem", "max_processes", "process_problem",
+    "LOAD_FACTOR", "load_problem",
 ]
 
 #: Numbers kept per chain and step besides the position: divergence, energy, tree size, acceptance ...
@@ -47,6 +48,10 @@ SHARE = 0.5
 #: (``/usr/bin/time -v``), rounded up; and what is left to the rest of the machine.
 PROCESS_BYTES = 2 * 1024**3
 RESERVED_BYTES = 2 * 1024**3
+#: Memory per byte of CSV text while a table is parsed into cells and columns (measured 18: 10⁶
+#: rows × 2 columns, 19 MB of text, 340 MB resident above the interpreter), rounded up. A data set
+#: has no row limit of its own: loading is bounded by this, a fit by :func:`fit_bytes`.
+LOAD_FACTOR = 20
 #: Settings a memory problem may be blamed on, with their usual values (the one furthest above
 #: its usual value is named).
 _USUAL = {"draws": 1000, "tune": 1000, "chains": 4, "walkers": 32}
@@ -170,3 +175,22 @@ def process_problem(n: int, what: str = "processes") -> str | None:
         return None
     return (f"{n} {what} need about {_gib(n * PROCESS_BYTES)} of memory ({_gib(PROCESS_BYTES)} each), more than "
             f"this machine's {_gib(physical_memory())} less {_gib(RESERVED_BYTES)} kept for the rest; at most {most}")
+
+
+def load_problem(path: Path, size: int) -> str | None:
+    """Why a CSV file of ``size`` bytes cannot be loaded in the memory available now (None: it can)."""
+    available = available_memory()
+    need = LOAD_FACTOR * size
+    if available is None or need <= SHARE * available:
+        return None
+    return (f"{path}: {_amount(size)} of text needs about {_amount(need)} of memory to load, more than half of "
+            f"the {_amount(available)} available now; reduce it to steady-state segment means first "
+            f"(bayesfric data reduce), or thin or split it")
+
+
+def _amount(n: float) -> str:
+    """Bytes for a message: kB, MB or GB (decimal)."""
+    for unit, scale in (("GB", 1e9), ("MB", 1e6)):
+        if n >= scale:
+            return f"{n / scale:.1f} {unit}"
+    return f"{n / 1e3:.0f} kB"

@@ -204,11 +204,21 @@ def test_trajectory_time_restarts_in_each_block(tmp_path):
     np.testing.assert_allclose(load_dataset(write(tmp_path, rows, meta=meta))["time"].values, [0, 0.01, 0, 0.005])
 
 
-def test_row_limit_is_inclusive(tmp_path):
-    from bayesfric.datasets.loader import MAX_ROWS
+def test_no_fixed_row_limit(tmp_path):
+    """10⁵ rows load (the old fixed limit was 20 000): only memory bounds a data set."""
+    ds = load_dataset(write(tmp_path, "speed,torque,series\n" + "60,1.5,a\n" * 100_000))
+    assert ds.sizes["obs"] == 100_000
 
-    ds = load_dataset(write(tmp_path, "speed,torque,series\n" + "60,1.5,a\n" * MAX_ROWS))
-    assert ds.sizes["obs"] == MAX_ROWS
+
+def test_a_file_too_large_for_the_memory_is_refused_from_its_size_before_reading(tmp_path, monkeypatch):
+    import bayesfric.limits as limits
+    from bayesfric.datasets.loader import DataError
+
+    path = write(tmp_path, "speed,torque,series\n" + "60,1.5,a\n" * 1000)
+    monkeypatch.setattr(limits, "available_memory", lambda: 200_000)  # 200 kB: 9 kB of text needs 180 kB
+    expected = r"bench.csv: 9 kB of text needs about 180 kB of memory to load, more than half of the 200 kB available"
+    with pytest.raises(DataError, match=expected + r".*\(bayesfric data reduce\)"):
+        load_dataset(path)
 
 
 def test_builtin_data_sets_load():

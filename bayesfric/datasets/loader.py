@@ -46,7 +46,7 @@ rows are data rows counted from 1, comment lines ``#...`` and blank lines not co
 * CSV: UTF-8 with or without BOM, or the codec named by ``[dataset] encoding`` (any text
   encoding Python knows: ``latin-1``, ``cp1252`` ...). First non-comment line is the header; header
   names may not repeat (empty header cells are unnamed, ignored columns); every row has as many
-  cells as the header; at most :data:`MAX_ROWS` data rows.
+  cells as the header; no row limit but the memory its text needs to load (:data:`bayesfric.limits.LOAD_FACTOR`).
 * Cells: numbers, finite before and after conversion to SI; group cells not empty; no cell longer
   than :data:`MAX_CELL` characters.
 * Physical bounds, declared once per quantity in :mod:`bayesfric.quantities` (``Quantity.lower``),
@@ -77,27 +77,25 @@ import xarray as xr
 
 from bayesfric.datasets.errors import DataError, decode_position, decode_utf8, read_file, shorten
 from bayesfric.datasets.sidecar import PROVENANCES, ROLES, read_sidecar
+from bayesfric.limits import load_problem
 from bayesfric.quantities import QUANTITIES, SCALE_RANGE, UnitError, conversion, rounding_slack
 
-__all__ = ["DataError", "load_dataset", "PROVENANCES", "ROLES", "OBS_DIM", "MAX_ROWS", "SCALE_RANGE"]
+__all__ = ["DataError", "load_dataset", "PROVENANCES", "ROLES", "OBS_DIM", "SCALE_RANGE"]
 
 OBS_DIM = "obs"
 
-#: Most data rows per data set. A fit stores posterior_predictive and log_likelihood, each
-#: n_rows x chains x draws float64: at the default 4 chains x 1000 draws that is 2 x 4000 x 8 B =
-#: 64 kB per row, plus 500 prior-predictive draws x 8 B = 4 kB, so about 68 kB per row in memory
-#: and again in the written file (measured: 10^6 rows at fewer draws already took 7.9 GB of memory
-#: and a 7.3 GB file). 20 000 rows -> about 1.4 GB per default fit, which a study multiplies by
-#: its laws and refits; friction data sets have tens to a few thousand rows, so a longer file is
-#: a logger's raw stream that should be thinned, split, or cut to the rows of interest.
-MAX_ROWS = 20_000
+#: No fixed row limit: loading a file is bounded by the memory its text needs
+#: (:func:`bayesfric.limits.load_problem`, checked from the file's size before it is read) and a
+#: fit by the memory its draws need (:func:`bayesfric.limits.sampler_problem`, checked before
+#: sampling; it names the setting to lower).
 
 #: Longest cell (characters), the csv module's own default field limit: a longer cell is not a
 #: measurement (a pasted log, a binary file); the error names its row and column.
 MAX_CELL = 131_072
 
 
-def load_dataset(csv_path: str | Path, meta_path: str | Path | None = None, *, max_rows: int = MAX_ROWS) -> xr.Dataset:
+def load_dataset(csv_path: str | Path, meta_path: str | Path | None = None, *,
+                 max_rows: int | None = None) -> xr.Dataset:
     """Load ``csv_path`` with its TOML sidecar into an SI-unit :class:`xarray.Dataset`.
 
     Parameters
@@ -107,7 +105,7 @@ def load_dataset(csv_path: str | Path, meta_path: str | Path | None = None, *, m
     meta_path : str or Path, optional
         The sidecar; default ``csv_path`` with suffix ``.toml``.
     max_rows : int, optional
-        Most data rows read (default :data:`MAX_ROWS`); ``bayesfric data reduce`` reads longer raw logs.
+        Most data rows read (default: no limit but the memory the file's text needs to load).
 
     Returns
     -------
@@ -119,7 +117,7 @@ def load_dataset(csv_path: str | Path, meta_path: str | Path | None = None, *, m
     DataError
         Any broken rule of the module docstring (missing file or column, bad encoding, unknown
         or wrong-dimension unit, NaN/inf, empty file, non-numeric cell, out-of-bound value,
-        too many rows, unordered trajectory, bad metadata), in one line.
+        too large to load, unordered trajectory, bad metadata), in one line.
     """
     csv_path = Path(csv_path)
     meta_path = Path(meta_path) if meta_path is not None else csv_path.with_suffix(".toml")
@@ -155,6 +153,8 @@ def load_dataset(csv_path: str | Path, meta_path: str | Path | None = None, *, m
 def _read_bytes(path: Path) -> bytes:
     if not path.exists():
         raise DataError(f"{path}: file not found")
+    if path.is_file() and (problem := load_problem(path, path.stat().st_size)):
+        raise DataError(problem)
     return read_file(path, "CSV file")
 
 
@@ -181,8 +181,8 @@ def _decode(path: Path, meta_path: Path, data: bytes, encoding: str | None) -> s
                         f"{decode_position(data, exc)}") from None
 
 
-def _parse_table(path: Path, text: str, max_rows: int = MAX_ROWS) -> tuple[list[str], list[list[str]]]:
-    """Header (cells stripped) and data rows; stops reading at ``max_rows + 1`` rows.
+def _parse_table(path: Path, text: str, max_rows: int | None = None) -> tuple[list[str], list[list[str]]]:
+    """Header (cells stripped) and data rows; with ``max_rows``, stops reading at ``max_rows + 1`` rows.
 
     The csv module's field limit is lifted while reading (the text is in memory already) so that
     a cell longer than :data:`MAX_CELL` is reported with its row and column (:func:`_check_cells`).
@@ -198,12 +198,8 @@ def _parse_table(path: Path, text: str, max_rows: int = MAX_ROWS) -> tuple[list[
             _check_cells(path, header, cells, len(rows))
             if header is None:
                 header = [c.strip() for c in cells]
-            elif len(rows) == max_rows:
-                raise DataError(
-                    f"{path}: more than {max_rows} data rows (the file has {_line_count(text)} lines), the limit "
-                    f"per data set (README, 'Bring your own data'); thin it (keep every k-th row), split it into "
-                    f"several data sets, or keep only the rows of interest"
-                )
+            elif max_rows is not None and len(rows) == max_rows:
+                raise DataError(f"{path}: more than {max_rows} data rows (the file has {_line_count(text)} lines)")
             elif len(cells) != len(header):
                 raise DataError(f"{path}: row {len(rows) + 1}: has {len(cells)} cells, header has {len(header)}")
             else:

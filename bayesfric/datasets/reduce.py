@@ -76,7 +76,8 @@ from bayesfric.quantities import QUANTITIES, UnitError, conversion
 __all__ = ["ReduceOptions", "Segment", "Reduction", "MAX_RAW_ROWS", "SE_METHOD", "find_segments", "mean_se",
            "reduce_log", "write_reduction", "add_arguments", "run_command"]
 
-#: Most rows of a raw log (about 0.3 kB of memory per row of four columns while it is parsed).
+#: Largest --min-samples accepted. A raw log itself has no row limit but the memory its text needs
+#: to load (:func:`bayesfric.limits.load_problem`).
 MAX_RAW_ROWS = 2_000_000
 #: How the standard error of a segment mean is computed (module docstring).
 SE_METHOD = "sd / sqrt(n_eff), n_eff by Geyer's initial monotone sequence (autocorrelation), n_eff <= count"
@@ -216,7 +217,7 @@ def reduce_log(csv_path: str | Path, meta_path: str | Path | None = None,
     """
     options = options or ReduceOptions()
     _check_options(options)
-    ds = load_dataset(csv_path, meta_path, max_rows=MAX_RAW_ROWS)
+    ds = load_dataset(csv_path, meta_path)
     on = _on_quantity(ds, options.on, csv_path)
     x = np.asarray(ds[on].values, dtype=float)
     starts = _block_starts(ds)

@@ -13,7 +13,6 @@ from pathlib import Path
 
 import pytest
 
-from bayesfric.datasets.loader import MAX_ROWS
 from tests.hostile.harness import assert_user_error
 
 BASE_META = """\
@@ -175,9 +174,6 @@ CASES = [
     Case("response-all-zero", f"{HEADER}\n60,0,a\n-60,0.0,b\n", ("bench.csv", "column 'torque'", "zero in every row")),
     Case("response-huge", f"{HEADER}\n60,1e300,a\n", ("bench.csv", "column 'torque'", "above 1e+12")),
     Case("input-subnormal", f"{HEADER}\n1e-310,1,a\n0,1,b\n", ("bench.csv", "column 'speed'", "below 1e-12")),
-    # -- size
-    Case("too-many-rows", HEADER + "\n" + "60,1.5,a\n" * (MAX_ROWS + 1),
-         ("bench.csv", f"more than {MAX_ROWS} data rows", f"{MAX_ROWS + 2} lines", "thin", "split")),
     # -- sidecar
     Case("no-sidecar", GOOD, ("bench.toml", "metadata file not found"), meta=NO_SIDECAR),
     Case("toml-syntax-error", GOOD, ("bench.toml", "invalid TOML", "line 7"),
@@ -264,3 +260,15 @@ def test_a_linked_csv_has_its_sidecar_beside_the_link(tmp_path, command):
     from bayesfric.study.runner import load_study_data
 
     assert load_study_data(load_study(tmp_path / "s.toml")).attrs["csv_file"] == str(tmp_path / "link.csv")
+
+
+@pytest.mark.parametrize("command", sorted(COMMANDS))
+def test_a_file_too_large_to_load_is_refused_from_its_size(tmp_path, command, monkeypatch):
+    """No fixed row limit: a file whose text would not fit the memory available is refused before
+    it is read, in one line naming it and what to do (``available_memory`` made small here)."""
+    import bayesfric.limits as limits
+
+    Case("large", HEADER + "\n" + "60,1.5,a\n" * 2000, ()).write(tmp_path)
+    monkeypatch.setattr(limits, "available_memory", lambda: 400_000)
+    assert_user_error(COMMANDS[command], tmp_path,
+                      ("bench.csv", "18 kB of text needs about 360 kB", "bayesfric data reduce"))
