@@ -34,7 +34,7 @@ _NOT_COMPUTING = ("report", "cli.py", "__main__.py", "study/executor.py", "study
 @lru_cache(maxsize=1)
 def code_fingerprint() -> str:
     """SHA-256 of the package version and the source of every computing module (not laws/)."""
-    from bayesfric import __version__
+    from bayesfric._version import __version__
 
     digest = hashlib.sha256(str(__version__).encode())
     for path in sorted(_PACKAGE.rglob("*.py")):
@@ -49,7 +49,7 @@ def code_fingerprint() -> str:
 @lru_cache(maxsize=1)
 def package_fingerprint() -> str:
     """SHA-256 of every source file and report template of the package (what a report renders with)."""
-    from bayesfric import __version__
+    from bayesfric._version import __version__
 
     digest = hashlib.sha256(str(__version__).encode())
     for path in sorted(p for p in _PACKAGE.rglob("*") if p.suffix in (".py", ".j2")):
@@ -68,10 +68,11 @@ def law_fingerprint(law) -> str:
     programs; modules of other installed packages do not count.
     """
     from bayesfric.laws import get_law
+    from bayesfric.laws.variants import term_names
 
     recipe = dict(getattr(law, "recipe", None) or {})
     parts = [law] + [get_law(name) for name in [recipe.get("base"), *recipe.get("add", ())]
-                     if isinstance(name, str) and name not in ("", "offset", "viscous")]
+                     if isinstance(name, str) and name not in ("", *term_names())]
     digest = hashlib.sha256(json.dumps(recipe, sort_keys=True, default=str).encode())
     seen: list[Path] = []
     for part in parts:

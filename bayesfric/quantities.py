@@ -123,10 +123,11 @@ class Quantity:
 
 
 # Bounds: loads that the laws use as magnitudes (radial force of the drum's ball-load law,
-# preload, axial force) are >= 0; absolute temperature > 0 K; time since the start of a trajectory
-# >= 0. Signed by nature, so unbounded: velocities, angles, displacements, the friction response
-# (torque, force: its sign follows the direction of motion), initial_velocity (its sign is the
-# coast-down direction) and bending_moment (a tilting moment has a direction; the bearing laws
+# preload, axial force, a tribometer's normal force) are >= 0; absolute temperature > 0 K; time
+# since the start of a trajectory >= 0. Signed by nature, so unbounded: velocities,
+# accelerations, angles, displacements, the friction response (torque, force: its sign follows
+# the direction of motion), initial_velocity (its sign is the coast-down direction) and
+# bending_moment (a tilting moment has a direction; the bearing laws
 # read |M| or solve the ball loads for either sign).
 _VOCABULARY = [
     Quantity("velocity", "rad/s", "angular velocity of the moving part (joint, shaft, bearing ring)"),
@@ -140,6 +141,11 @@ _VOCABULARY = [
     Quantity("displacement", "m", "translational displacement"),
     Quantity("time", "s", "time since the start of a trajectory", lower=0.0),
     Quantity("initial_velocity", "rad/s", "angular velocity at t = 0 of a coast-down trajectory"),
+    # drive dynamics (issue 29): inertia terms read these (bayesfric.laws.terms); a sidecar may
+    # derive them from velocity and time (bayesfric.datasets.derive)
+    Quantity("acceleration", "rad/s**2", "angular acceleration of the moving part (joint, shaft)"),
+    Quantity("linear_acceleration", "m/s**2", "acceleration of a translational axis (carriage, slider)"),
+    Quantity("normal_force", "N", "normal load pressing a sliding contact together (tribometer)", lower=0.0),
     Quantity("torque", "N*m", "friction torque"),
     Quantity("force", "N", "friction force"),
 ]

@@ -69,6 +69,7 @@ def design(law: Law, n_traj: int = 3, per_traj: int = 40) -> dict[str, np.ndarra
         "axial_force": lambda: rng.uniform(0.0, 2e5, n), "radial_force": lambda: rng.uniform(0.0, 2e5, n),
         "preload": lambda: np.repeat(np.linspace(27.0, 160.0, n_traj), per_traj),
         "linear_velocity": lambda: np.linspace(-0.5, 0.5, n),
+        "normal_force": lambda: np.repeat(np.linspace(5.0, 50.0, n_traj), per_traj),
     }
     out: dict[str, np.ndarray] = {}
     for q in law.inputs:

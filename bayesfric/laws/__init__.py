@@ -3,7 +3,7 @@
 One module per family; each law is declared once with :func:`bayesfric.laws.base.law`.
 """
 
-from bayesfric.laws import bearing, classical, drum, hysteresis, slip, thermal  # noqa: F401  (registers laws)
+from bayesfric.laws import bearing, classical, contact, drum, hysteresis, slip, thermal  # noqa: F401  (registers laws)
 from bayesfric.laws.base import REGISTRY, Constant, Derived, Law, Param, get_law, law
 from bayesfric.laws.simple import simple_law
 from bayesfric.laws.variants import alias

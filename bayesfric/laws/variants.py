@@ -6,7 +6,9 @@ beyond that declaration is a *variant*, built here from a small recipe and valid
 
 ``add``
     Additive parts: a term of :data:`TERMS` (``"offset"``: a constant response offset with a
-    data-scaled prior; ``"viscous"``: ``c_v · q̇``) or any registered law with the same response.
+    data-scaled prior; ``"viscous"``: ``c_v · q̇``; the drive terms ``"inertia"``: ``J · q̈``,
+    ``M · ẍ`` on force data, and ``"gravity"`` of :mod:`bayesfric.laws.terms`) or any registered
+    law with the same response.
     A part's parameter whose name the law already uses is renamed ``<name>_<part>``.
 ``offset``
     Shorthand for ``add = ["offset"]``.
@@ -27,8 +29,9 @@ beyond that declaration is a *variant*, built here from a small recipe and valid
 ``motion``
     ``"translational"``: the law declared on rotary quantities runs on force data. Inputs map
     ``velocity → linear_velocity``, ``angle → displacement``, the response ``torque → force``;
-    parameter units map N·m → N and rad → m (so N·m·s/rad → N·s/m, rad/s → m/s), and the priors'
-    data scaling follows the renamed inputs. Quantities that do not depend on the motion kind
+    parameter units map N·m → N and rad → m (so N·m·s/rad → N·s/m, rad/s → m/s) and a moment of
+    inertia ``J`` in kg·m² becomes the mass ``M`` in kg (``fixed`` and ``priors`` may name either),
+    and the priors' data scaling follows the renamed inputs. Quantities that do not depend on the motion kind
     (time, preload, temperature) are unchanged. A law that cannot run translationally says why
     (:func:`translation_problem`).
 
@@ -60,19 +63,20 @@ from bayesfric.laws.base import (
     declare,
     get_law,
 )
+from bayesfric.laws.terms import all_terms
 from bayesfric.priors import MAX_LOG10, Prior
 from bayesfric.quantities import parse_unit
 
 __all__ = [
     "VariantError", "TERMS", "TRANSLATIONAL", "vary", "build", "for_data", "translation_problem",
-    "translational_unit", "law_of_fit", "describe", "alias",
+    "translational_unit", "law_of_fit", "describe", "alias", "term_names",
 ]
 
 #: Rotary quantity -> its translational counterpart.
-TRANSLATIONAL = {"velocity": "linear_velocity", "angle": "displacement", "torque": "force"}
+TRANSLATIONAL = {"velocity": "linear_velocity", "angle": "displacement", "torque": "force",
+                 "acceleration": "linear_acceleration"}
 #: Inputs whose meaning does not depend on the motion kind.
-MOTION_NEUTRAL = ("time", "preload", "temperature", TRAJECTORY_START)
-_GENERIC = "generic coefficient, data-scaled weakly-informative prior (bayesfric.priors)"
+MOTION_NEUTRAL = ("time", "preload", "temperature", "normal_force", TRAJECTORY_START)
 
 
 class VariantError(LawDeclarationError):
@@ -101,6 +105,9 @@ def translational_unit(unit: str) -> str:
     torque = powers.get("newton", 0.0)
     changed = False
     if torque and powers.get("meter", 0.0) == torque:
+        powers.pop("meter")
+        changed = True
+    if not torque and powers.get("kilogram") == 1 and powers.get("meter") == 2:  # J (kg·m²) -> M (kg)
         powers.pop("meter")
         changed = True
     if "radian" in powers:
@@ -162,6 +169,8 @@ def _reads(d: Derived) -> set[str]:
 
 # -- the operations ------------------------------------------------------------------------------
 def _add(law: Law, part: Law) -> Law:
+    if law.response == "force" and part.response == "torque" and not translation_problem(part):
+        part = _translational(part)  # a law declared on force data (amontons) takes the terms' force form
     if part.response != law.response:
         raise VariantError(f"cannot add {part.name!r} ({part.response}) to law {law.name!r} ({law.response})",
                            "add")
@@ -184,12 +193,14 @@ def _add(law: Law, part: Law) -> Law:
         derived=dict(law.derived) | {rename[k]: _rewire(d, rename, {}) for k, d in part.derived.items()},
         optional=dict(law.optional) | dict(part.optional),
         sign_definite=law.sign_definite and part.sign_definite and part.name != "offset",
+        rotary_only=law.rotary_only or part.rotary_only,
         summary=f"{law.summary} + {part.name}: {part.summary}",
     )
 
 
 def _asymmetric(law: Law, names: Sequence[str]) -> Law:
-    if law.trajectory or "velocity" not in law.inputs:
+    direction = next((i for i in ("velocity", "linear_velocity") if i in law.inputs), None)
+    if law.trajectory or direction is None:
         raise VariantError(f"law {law.name!r} must be a steady law that reads velocity "
                            "(a trajectory law would mix the two parameter sets along its state)", "asymmetric")
     unknown = [n for n in names if n not in law.params]
@@ -217,7 +228,7 @@ def _asymmetric(law: Law, names: Sequence[str]) -> Law:
     def call(kw):
         pos = law.fn(**{k: kw[f"{k}_pos"] if k in names else kw[k] for k in own})
         neg = law.fn(**{k: kw[f"{k}_neg"] if k in names else kw[k] for k in own})
-        return jnp.where(jnp.asarray(kw["velocity"]) >= 0, pos, neg)
+        return jnp.where(jnp.asarray(kw[direction]) >= 0, pos, neg)
 
     return _rebuild(law, call, params=params, derived=derived,
                     summary=f"{law.summary} [direction-dependent {', '.join(names)}]")
@@ -305,7 +316,7 @@ def _angle_unscaled(p: Param) -> bool:
 def _translational(law: Law) -> Law:
     if problem := translation_problem(law):
         raise VariantError(f"law {law.name!r} runs on rotary (torque) data only: {problem}")
-    to = dict(TRANSLATIONAL)
+    to = dict(TRANSLATIONAL) | _mass_name(law)
 
     def param(p: Param) -> Param:
         prior = p.translational or Prior(
@@ -317,8 +328,9 @@ def _translational(law: Law) -> Law:
     return _rebuild(
         law, lambda kw: law.fn(**{k: kw[to.get(k, k)] for k in own}),
         inputs=tuple(to.get(i, i) for i in law.inputs), response="force",
-        params={k: param(p) for k, p in law.params.items()},
-        constants={k: dataclasses.replace(c, unit=translational_unit(c.unit)) for k, c in law.constants.items()},
+        params={to.get(k, k): param(p) for k, p in law.params.items()},
+        constants={to.get(k, k): dataclasses.replace(c, unit=translational_unit(c.unit))
+                   for k, c in law.constants.items()},
         derived={k: dataclasses.replace(d, unit=translational_unit(d.unit),
                                         meaning=d.meaning.replace("torque", "force"))
                  for k, d in law.derived.items()},
@@ -327,39 +339,27 @@ def _translational(law: Law) -> Law:
     )
 
 
-# -- terms that only make sense as parts ---------------------------------------------------------
-def _offset(offset):
-    """Constant additive offset: T = T_0 (sensor zero, gravity or cable drag; not friction)."""
-    return offset
+def _mass_name(law: Law) -> dict[str, str]:
+    """``{"J": "M"}`` when ``law`` has a moment of inertia ``J`` (kg·m²) that becomes a mass."""
+    p = law.params.get("J") or law.constants.get("J")
+    taken = "M" in law.params or "M" in law.constants
+    return {"J": "M"} if p is not None and p.unit == "kg*m**2" and not taken else {}
 
 
-def _viscous(velocity, c_v):
-    """Linear viscous term: T = c_v q̇."""
-    return c_v * velocity
-
-
-def _terms() -> dict[str, Law]:
-    from bayesfric.laws.classical import c_v_linear  # one declaration of the viscous coefficient
-
-    offset = Param("N*m", Prior("Normal", loc=0.0, scale=0.5, scaled_by={"response": 1}),
-                   "constant additive offset of the response (not friction: sensor zero, gravity, cables)",
-                   _GENERIC)
-    return {
-        "offset": declare(_offset, name="offset", family="term", inputs=(), response="torque", source="bayesfric",
-                          params={"offset": offset}, sign_definite=False),
-        "viscous": declare(_viscous, name="viscous", family="term", inputs=("velocity",), response="torque",
-                           source=c_v_linear.source, params={"c_v": c_v_linear}),
-    }
-
-
+# -- terms that only make sense as parts (bayesfric.laws.terms) ---------------------------------
 #: Additive terms a law entry may ``add`` besides registered laws (built on first use).
 TERMS: dict[str, Law] = {}
 
 
-def _part(name: str) -> Law:
+def term_names() -> tuple[str, ...]:
+    """Names of the additive terms (:data:`TERMS`), which are parts of variants, not registered laws."""
     if not TERMS:
-        TERMS.update(_terms())
-    if name in TERMS:
+        TERMS.update(all_terms())
+    return tuple(TERMS)
+
+
+def _part(name: str) -> Law:
+    if name in term_names():
         return TERMS[name]
     try:
         return get_law(name)
@@ -392,7 +392,8 @@ def build(recipe: Mapping[str, Any], name: str | None = None) -> Law:
     if recipe.get("asymmetric"):
         law = _asymmetric(law, list(recipe["asymmetric"]))
     if recipe.get("fixed"):
-        law = _fix(law, recipe["fixed"])
+        mass = _mass_name(law) if recipe.get("motion") == "translational" else {}
+        law = _fix(law, {("J" if mass and k == "M" else k): v for k, v in recipe["fixed"].items()})
     for input_name in recipe.get("without", ()):
         if input_name not in law.optional:
             raise VariantError(f"law {law.name!r} cannot do without input {input_name!r}")
