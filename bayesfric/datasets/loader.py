@@ -25,6 +25,9 @@ The sidecar (``FILE.toml`` next to ``FILE.csv`` unless named explicitly) says wh
     quantity = "torque"
     unit = "N*m"
 
+A ``[derive.<quantity>]`` table computes an input from others: an acceleration differentiated
+from velocity and time by a stated Savitzky–Golay filter, per trajectory
+(:mod:`bayesfric.datasets.derive`; recorded in ``attrs["derived"]``).
 A file written by ``bayesfric data reduce`` also has a ``[reduction]`` table (what was reduced:
 source file and its SHA-256, the settings; :data:`bayesfric.datasets.sidecar.REDUCTION_KEYS`),
 read into ``attrs["reduced_from"]``.
@@ -75,6 +78,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from bayesfric.datasets.derive import derive_inputs
 from bayesfric.datasets.errors import DataError, decode_position, decode_utf8, read_file, shorten
 from bayesfric.datasets.sidecar import PROVENANCES, ROLES, read_sidecar
 from bayesfric.limits import load_problem
@@ -146,6 +150,9 @@ def load_dataset(csv_path: str | Path, meta_path: str | Path | None = None, *,
     if "trajectory" in ds_meta:
         _check_trajectories(csv_path, meta_path, columns, coords, ds_meta["trajectory"])
         attrs["trajectory"] = ds_meta["trajectory"]
+    if meta.get("derive"):
+        derived, attrs["derived"] = derive_inputs(meta_path, meta["derive"], coords, ds_meta.get("trajectory"))
+        coords |= derived
     return xr.Dataset(data_vars=data_vars, coords=coords, attrs=attrs)
 
 

@@ -12,6 +12,7 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
+from bayesfric.datasets.derive import check_derive
 from bayesfric.datasets.errors import DataError, decode_position, decode_utf8, read_file
 from bayesfric.quantities import QUANTITIES, RESPONSES
 
@@ -70,13 +71,14 @@ def read_sidecar(path: Path) -> dict[str, Any]:
         raise DataError(f"{path}: invalid TOML: arrays or tables nested too deeply") from None
     if not isinstance(meta.get("dataset"), dict) or not isinstance(meta.get("columns"), dict):
         raise DataError(f"{path}: needs a [dataset] table and [columns.<name>] tables")
-    unknown = sorted(set(meta) - {"dataset", "columns", "reduction"})
+    unknown = sorted(set(meta) - {"dataset", "columns", "reduction", "derive"})
     if unknown:
-        raise DataError(f"{path}: unknown top-level key {unknown[0]!r}; a sidecar has [dataset], [columns.<name>] "
-                        f"and (written by bayesfric data reduce) [reduction]")
+        raise DataError(f"{path}: unknown top-level key {unknown[0]!r}; a sidecar has [dataset], [columns.<name>], "
+                        f"[derive.<quantity>] and (written by bayesfric data reduce) [reduction]")
     _check_dataset(path, meta["dataset"])
     _check_columns(path, meta["columns"])
     _check_reduction(path, meta.get("reduction", {}))
+    check_derive(path, meta.get("derive", {}))
     return meta
 
 
