@@ -13,5 +13,20 @@ import numpyro  # noqa: F401  (see below)
 # arviz-base lazy-loads numpyro; a later `import numpyro.distributions` through that lazy module
 # leaves `numpyro.distributions.distribution` unset and numpyro.factor fails inside NUTS.
 # Importing numpyro eagerly here, before any arviz import of ours, avoids that.
+from bayesfric._version import __version__
 
-__version__ = "0.1.0"
+#: The public API (:mod:`bayesfric.api`), imported on first use so ``import bayesfric`` stays cheap.
+_API = ("load_data", "law", "Param", "Prior", "fit", "compare_laws", "size", "Study", "StudyResult", "run")
+__all__ = ["__version__", *_API]
+
+
+def __getattr__(name: str):
+    if name in _API:
+        from bayesfric import api
+
+        return getattr(api, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_API))

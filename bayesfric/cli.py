@@ -123,22 +123,18 @@ def _parse_select(items: list[str] | None) -> dict[str, object]:
     return out
 
 
+def _option(key: str) -> str:
+    """The option of ``fit`` that sets the sampler setting ``key``."""
+    return "--sampler" if key == "name" else f"--{key.replace('_', '-')}"
+
+
 def _fit_settings(args: argparse.Namespace) -> dict[str, object]:
     """Sampler options of ``fit``, validated against the study schema's ``[sampler]`` table."""
-    from bayesfric.study.config import SAMPLER, retry_problem, sampler_settings
-    from bayesfric.study.schema import SchemaError, parse
+    from bayesfric.api.fitting import sampler_options
 
-    options = {"name": args.sampler, "seed": args.seed, "draws": args.draws, "tune": args.tune,
-               "chains": args.chains, "walkers": args.walkers, "init": args.init, "metric": args.metric,
-               "retry_target_accept": args.retry_target_accept}
-    try:
-        section = parse(SAMPLER, {k: v for k, v in options.items() if v is not None})
-    except SchemaError as exc:
-        option = {"name": "sampler"}.get(str(exc.where[0]), str(exc.where[0])) if exc.where else "sampler"
-        raise UserError(f"--{option.replace('_', '-')}: {exc.problem}") from None
-    if problem := retry_problem(section):
-        raise UserError(f"--retry-target-accept: {problem}")
-    return sampler_settings(section)
+    return sampler_options(args.sampler, args.seed, {"draws": args.draws, "tune": args.tune, "chains": args.chains,
+                                                     "walkers": args.walkers, "init": args.init, "metric": args.metric,
+                                                     "retry_target_accept": args.retry_target_accept}, key=_option)
 
 
 def _load_selected(data: str, items: list[str] | None):
@@ -152,23 +148,11 @@ def _load_selected(data: str, items: list[str] | None):
 
 
 def _checked_program(law, ds, priors: dict[str, Prior], noise, sampler: str, settings: dict[str, object]):
-    """Build the fit's program (data-scaled priors resolved) and check its walkers and the memory
-    its settings imply (:mod:`bayesfric.limits`), before anything is sampled; return it."""
-    from bayesfric.limits import program_size, sampler_problem
-    from bayesfric.model import build_program
-    from bayesfric.study.config import walkers_problem
+    """The fit's program, its priors, walkers and memory checked before sampling
+    (:func:`bayesfric.api.fitting.checked_program`, errors naming the options)."""
+    from bayesfric.api.fitting import checked_program
 
-    try:
-        program = build_program(law, ds, priors=priors, noise=noise)  # data-scaled priors resolve here
-    except PriorError as exc:  # exc.key: priors.<parameter>.<key in its spec>
-        name, _, key = exc.key.removeprefix("priors.").partition(".")
-        where = f"--prior {name}" if name in priors else f"law {law.name!r}: prior of {name}"
-        raise UserError(f"{where}{': ' + key if key else ''}: {exc.problem}") from None
-    if sampler == "emcee" and (problem := walkers_problem(program, settings.get("walkers"))):
-        raise UserError(f"--walkers: {problem}")
-    if found := sampler_problem(sampler, settings, *program_size(program)):
-        raise UserError(f"--{found[0]}: {found[1]}")
-    return program
+    return checked_program(law, ds, priors, noise, sampler, settings, key=_option, prior_key="--prior {}".format)
 
 
 def _cmd_fit(args: argparse.Namespace) -> None:
@@ -279,55 +263,22 @@ def _size_question(args: argparse.Namespace):
 
 
 def _size_study(args: argparse.Namespace, question):
-    from bayesfric import sizing
-    from bayesfric.fsutil import is_marked
     from bayesfric.study import load_study
-    from bayesfric.study.runner import load_study_data, sizing_questions
+    from bayesfric.study.resize import size_from_report
 
-    study = load_study(args.target)
-    ds = load_study_data(study)
-    if question is None and not study.sizing:
-        raise UserError(f"{study.path}: the study asks no sizing question: add a [[sizing]] entry or give --at")
-    questions = sizing_questions(study, ds, [question] if question is not None else None, cli=question is not None)
-    folder = Path(args.reports) / study.name
-    if not is_marked(folder, study.name):
-        raise UserError(f"{study.path}: no report of study {study.name!r} in {args.reports}: run "
-                        f"`bayesfric study {args.target} --out {args.reports}` first")
-    record = sizing.read_record(folder)
-    laws = sizing.sources(record, folder, [spec.name for spec in study.laws], data_hash=ds.attrs.get("data_hash"),
-                          selection=str(ds.attrs.get("selection", "")))
-    return sizing.size_study(questions, ds, laws, record, study_name=study.name, seed=study.sampler["seed"], fan=False)
+    return size_from_report(load_study(args.target), [question] if question is not None else None, args.reports,
+                            cli=True, run_hint=f"`bayesfric study {args.target} --out {args.reports}`")
 
 
 def _size_fit(args: argparse.Namespace, question):
-    from pathlib import Path
-
     from bayesfric import sizing
-    from bayesfric.inference import load_fit
-    from bayesfric.laws.variants import law_of_fit
+    from bayesfric.sizing.single import fit_question, read_fit
 
-    path = Path(args.target)
     if question is None:
         raise UserError('--at: required with a fit, e.g. --at "velocity=2 rad/s"')
-    if not path.is_file():
-        raise UserError(f"{path}: fit file not found" if not path.exists() else f"{path}: not a file")
-    try:
-        fit = load_fit(path)
-    except Exception:  # h5py/netCDF raise many types for a file that is not a fit
-        raise UserError(f"{path}: not a readable fit (a NetCDF file written by `bayesfric fit --out`)") from None
-    if not {"law", "noise", "priors", "constants"} <= set(fit.attrs) or not {"posterior", "constant_data"} <= set(
-            fit.children):
-        raise UserError(f"{path}: not a bayesfric fit (no law, noise model or posterior recorded)")
-    try:
-        law = law_of_fit(fit.attrs)
-    except KeyError as exc:
-        raise UserError(f"{path}: {exc.args[0]}") from None
-    if law.trajectory:
-        raise UserError(f"{path}: law {law.name!r} is a trajectory (stateful) law: its friction depends on the "
-                        "path, so it cannot be sized at an operating point")
-    question = sizing.check_question(question, law.operating_inputs, law.operating_inputs, law.response,
-                                     keys=sizing.CLI_KEYS, inputs_of=f"law {law.name!r}")
-    return sizing.size_fit(fit, question, name=path.name)
+    fit = read_fit(args.target)
+    question = fit_question(fit, question, keys=sizing.CLI_KEYS, where=args.target)
+    return sizing.size_fit(fit, question, name=Path(args.target).name)
 
 
 def _cmd_size(args: argparse.Namespace) -> None:

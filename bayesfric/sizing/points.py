@@ -26,7 +26,7 @@ from bayesfric.quantities import QUANTITIES, SCALE_RANGE, UnitError, conversion,
 
 __all__ = [
     "RANGE_POINTS", "CLI_KEYS", "SizingError", "Value", "SizingQuestion", "parse_value", "parse_capacity",
-    "parse_at", "make_question", "check_question",
+    "parse_at", "make_question", "check_question", "value_text",
 ]
 
 #: Points at which a range is sized (evenly spaced, both ends included).
@@ -123,6 +123,27 @@ def parse_value(text: object, quantity: str, key: str = "", allow_range: bool = 
     if len(si) == 2 and not si[1] > si[0]:
         raise SizingError(key, f"range {text!r} must go from the smaller to the larger value")
     return Value(quantity, si[0], si[-1], text.strip(), unit, scale, offset)
+
+
+def value_text(value: object, key: str, quantity: str) -> str:
+    """A value given in Python as ``"2 rad/s"``, ``(2, "rad/s")`` or a range ``(0.5, 6, "rad/s")``
+    -> its text (what :func:`parse_value` reads). A bare number has no unit: a :class:`SizingError`
+    naming ``key`` and showing both forms with the unit of ``quantity``."""
+    if isinstance(value, str):
+        return value
+    unit = QUANTITIES[quantity].unit if quantity in QUANTITIES else "N*m"
+    if _is_number(value):
+        raise SizingError(key, f"{value!r} has no unit; give it as ({value!r}, \"{unit}\") or \"{value} {unit}\"")
+    if isinstance(value, tuple | list) and len(value) in (2, 3) and isinstance(value[-1], str) \
+            and all(_is_number(x) for x in value[:-1]):
+        numbers = [str(int(x)) if float(x).is_integer() and abs(x) < 1e15 else repr(float(x)) for x in value[:-1]]
+        return f"{'..'.join(numbers)} {value[-1]}"
+    raise SizingError(key, f"expected \"<number> <unit>\", (number, \"{unit}\") or (low, high, \"{unit}\"), "
+                           f"got {value!r}")
+
+
+def _is_number(x: object) -> bool:
+    return isinstance(x, int | float | np.integer | np.floating) and not isinstance(x, bool | np.bool_)
 
 
 def parse_capacity(text: object, response: str | None = None, key: str = "capacity") -> Value:

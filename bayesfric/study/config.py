@@ -131,7 +131,8 @@ from bayesfric.study.claims import Claim, ClaimError, make_claim
 from bayesfric.study.schema import REQUIRED, Field, Schema, SchemaError, parse
 
 __all__ = [
-    "StudyError", "Study", "LawSpec", "BlockedSpec", "load_study", "FILE", "SAMPLER", "SIZING", "sampler_settings",
+    "StudyError", "Study", "LawSpec", "BlockedSpec", "load_study", "study_from_raw", "FILE", "SAMPLER", "SIZING",
+    "sampler_settings",
     "walkers_problem", "free_parameter_count", "EVIDENCE_MIN_DRAWS",
 ]
 
@@ -521,7 +522,14 @@ def load_study(path: str | Path) -> Study:
         law name already taken — one line naming the file and the key.
     """
     path = Path(path)
-    raw = _read(path)
+    return study_from_raw(path, _read(path))
+
+
+def study_from_raw(path: Path, raw: dict[str, Any]) -> Study:
+    """Validate a study given as the parsed TOML (``raw``; :func:`load_study` reads it from
+    ``path``, :class:`bayesfric.Study` builds it from Python objects). ``path`` names the study
+    in every error, and relative paths (``[data] dataset``, ``[study] modules``) are resolved
+    against its folder. Raises :class:`StudyError` as :func:`load_study` does."""
     modules = _law_modules(path, raw)
     try:
         spec = parse(FILE, raw)

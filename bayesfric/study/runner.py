@@ -129,7 +129,7 @@ def _check_sizes(study: Study, spec, program) -> None:
 
 
 def sizing_questions(study: Study, ds, questions: list[sizing.SizingQuestion] | None = None,
-                     cli: bool = False) -> list[sizing.SizingQuestion]:
+                     cli: bool = False, keys: dict[str, str] | None = None) -> list[sizing.SizingQuestion]:
     """The study's ``[[sizing]]`` questions (or ``questions``) checked against the data and the laws.
 
     Every input named must be an input of the data, every input a candidate law reads must be
@@ -140,7 +140,8 @@ def sizing_questions(study: Study, ds, questions: list[sizing.SizingQuestion] | 
     ------
     StudyError
         One line naming the study file and the key (``sizing[i].at.velocity``), or with ``cli``
-        the option (``--at velocity``) of a question given on the command line.
+        the option (``--at velocity``) of a question given on the command line, or with ``keys``
+        the key they name (``at.velocity``: :func:`bayesfric.size`'s arguments).
     """
     where = str(study.path)
     questions = study.sizing if questions is None else questions
@@ -157,9 +158,9 @@ def sizing_questions(study: Study, ds, questions: list[sizing.SizingQuestion] | 
     for i, question in enumerate(questions):
         try:
             checked.append(sizing.check_question(question, inputs, required, ds.attrs["response"],
-                                                 keys=sizing.CLI_KEYS if cli else None))
+                                                 keys=sizing.CLI_KEYS if cli else keys))
         except sizing.SizingError as exc:
-            raise StudyError(str(exc) if cli else f"{where}: sizing[{i}].{exc}") from None
+            raise StudyError(str(exc) if cli or keys is not None else f"{where}: sizing[{i}].{exc}") from None
     return checked
 
 
@@ -221,7 +222,8 @@ def _plan_laws(study: Study, ds, schemes, settings: dict, seed: int) -> list:
 def _inputs_key(study: Study, plans: list, quick: bool) -> str:
     """SHA-256 of everything a report is rendered from: the study file, every unit key (data,
     laws, priors, settings, seed, computing code) and every source file and template."""
-    digest = hashlib.sha256(study.path.read_bytes())
+    text = study.path.read_bytes() if study.path.is_file() else json.dumps(study.raw, sort_keys=True).encode()
+    digest = hashlib.sha256(text)  # a study built in Python (bayesfric.Study) has no file: its keys
     digest.update(json.dumps({"quick": quick, "units": [[u.key for u in (fit, *rest)] for _, fit, rest in plans]},
                              sort_keys=True).encode())
     digest.update(package_fingerprint().encode())
@@ -358,9 +360,9 @@ def _check_claims(study: Study, labels: list[str], ds) -> None:
             raise StudyError(f"{study.path}: claims[{i}].basis: {problem}")
 
 
-def _prepare(path: str | Path, out_root: str | Path, quick: bool):
+def _prepare(path: str | Path | Study, out_root: str | Path, quick: bool):
     """Every check of a run, before anything is written: study, report folder, data, folds."""
-    study = load_study(path)
+    study = path if isinstance(path, Study) else load_study(path)
     fsutil.check_output_folder(out_root)  # a root problem is not the study's: reported as the path's
     try:
         final = fsutil.report_folder(out_root, study.name)
@@ -378,15 +380,16 @@ def _prepare(path: str | Path, out_root: str | Path, quick: bool):
     return study, final, ds, settings, kfold, schemes, sizing_questions(study, ds)
 
 
-def run_study(path: str | Path, out_root: str | Path = "reports", quick: bool = False, *, fresh: bool = False,
+def run_study(path: str | Path | Study, out_root: str | Path = "reports", quick: bool = False, *, fresh: bool = False,
               workers: int = 0, scheduler: str | None = None, client=None, timings: list | None = None,
               live_progress: bool | None = None) -> Path:
     """Run the study file at ``path`` and write ``<out_root>/<study name>/``.
 
     Parameters
     ----------
-    path : str or Path
-        Study TOML file.
+    path : str, Path or Study
+        Study TOML file, or a study already loaded (:func:`~bayesfric.study.config.load_study`,
+        :class:`bayesfric.Study`).
     out_root : str or Path
         Reports root folder (created if missing).
     quick : bool

@@ -1,0 +1,146 @@
+"""Public API: actuator sizing from one fit or from a study's result.
+
+The same functions answer ``bayesfric size`` (:mod:`bayesfric.sizing.single` for a fit,
+:mod:`bayesfric.study.resize` for a study's report); here every key of the question is checked
+where it is given, and an error names the argument (``at.velocity``, ``capacity``,
+``confidence``): a capacity is never dropped, an input never held at a default.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import xarray as xr
+
+from bayesfric.errors import UserError
+from bayesfric.sizing import SizingError, SizingQuestion, SizingResult
+
+__all__ = ["size", "question"]
+
+_NO_KEYS: dict[str, str] = {}  # errors name the keys as the arguments: at.velocity, capacity, confidence
+
+
+def question(at: Mapping[str, Any] | str, *, capacity: Any = None, confidence: float | None = None,
+             energy_rotation: Any = None, label: str = "") -> SizingQuestion:
+    """A sizing question from Python values; its data-independent checks run here.
+
+    Values are ``"2 rad/s"``, ``(2, "rad/s")`` or a range ``(0.5, 6, "rad/s")`` (sized at 25
+    points); ``at`` may also be the command line's text, ``"velocity=2 rad/s, temperature=40 degC"``.
+
+    Raises
+    ------
+    SizingError
+        One line naming the argument: a value without a unit or with one of another dimension,
+        an unknown input quantity, a confidence outside (0, 1), a capacity that is not positive.
+
+    Examples
+    --------
+    >>> from bayesfric.api.sizing import question
+    >>> q = question({"velocity": (0.5, 6, "rad/s")}, capacity=(40, "N*m"))
+    >>> q.describe(), q.capacity_text, q.confidence
+    ('velocity = 0.5..6 rad/s', '40 N*m', 0.99)
+    >>> question({"velocity": 2})
+    Traceback (most recent call last):
+    ...
+    bayesfric.sizing.points.SizingError: at.velocity: 2 has no unit; give it as (2, "rad/s") or "2 rad/s"
+    """
+    from bayesfric.sizing import make_question, parse_at
+    from bayesfric.sizing.points import value_text
+
+    if isinstance(at, str):
+        texts: dict[str, Any] = parse_at(at, "at")
+    elif isinstance(at, Mapping):
+        texts = {str(k): value_text(v, f"at.{k}", str(k)) for k, v in at.items()}
+    else:
+        raise SizingError("at", f"expected a dict of input -> value, e.g. {{'velocity': (2, 'rad/s')}}, got {at!r}")
+    level = 0.99 if confidence is None else confidence
+    if isinstance(level, bool) or not isinstance(level, int | float):
+        raise SizingError("confidence", f"must be a number in (0, 1), got {level!r}")
+    cap = value_text(capacity, "capacity", "torque") if capacity is not None else None
+    rotation = value_text(energy_rotation, "energy_rotation", "angle") if energy_rotation is not None else None
+    return make_question(texts, float(level), label=label, capacity=cap, energy_rotation=rotation, keys=_NO_KEYS)
+
+
+def size(source: Any, at: Mapping[str, Any] | str | None = None, *, capacity: Any = None,
+         confidence: float | None = None, energy_rotation: Any = None, reports: str | Path = "reports",
+         seed: int = 0) -> SizingResult:
+    """The friction torque (or force) a drive must deliver at operating points, and how sure that is.
+
+    Parameters
+    ----------
+    source : xarray.DataTree, StudyResult, Study, str or Path
+        A fit (:func:`bayesfric.fit`; its law must be registered), a study's result
+        (:func:`bayesfric.run`), a study whose report exists in ``reports``, or a file: a fit
+        (``.nc``) or a study (``.toml``).
+    at : mapping or str, optional
+        Input -> value: ``{"velocity": (0.5, 6, "rad/s")}`` (a range), ``{"velocity": "2 rad/s"}``.
+        Every input the law(s) read must be given. Required with a fit; without it a study
+        answers its own ``[[sizing]]`` questions.
+    capacity : str or (number, unit), optional
+        The drive's torque or force: the answer gives P(|T| > capacity) at every point.
+    confidence : float, optional
+        Size for this quantile of |T|, in (0, 1) (default 0.99).
+    energy_rotation : str or (number, unit), optional
+        Friction energy of one rotation through this angle (torque data).
+    reports : str or Path
+        Reports root of a study given as a Study or a file.
+    seed : int
+        Seed of the predictive draws.
+
+    Returns
+    -------
+    SizingResult
+        ``answers[0].laws[i]`` per law (``required``, ``p_exceed`` ... arrays over the points);
+        ``answers[0].average`` the model average of a study; ``bayesfric.report.sizing.text_report``
+        prints it as ``bayesfric size`` does.
+
+    Raises
+    ------
+    UserError
+        One line naming the argument: ``at.velocity`` (no unit, another dimension, not an input
+        of the law or data), ``at`` (an input the laws read is missing), ``capacity`` (not of the
+        response quantity, not positive), ``confidence``; ``capacity``/``confidence`` without ``at``.
+
+    Examples
+    --------
+    >>> import bayesfric
+    >>> f = bayesfric.fit("coulomb_viscous", "robot_joint", draws=100, tune=100, chains=2)
+    >>> result = bayesfric.size(f, at={"velocity": (5, "rad/s")}, capacity=(40, "N*m"))
+    >>> answer = result.answers[0].laws[0]
+    >>> bool(0 <= answer.p_exceed[0] <= 1), bool(answer.required[0] > 0)
+    (True, True)
+    """
+    from bayesfric.api.studies import StudyResult, as_study
+
+    if at is None:
+        for name, value in (("capacity", capacity), ("confidence", confidence), ("energy_rotation", energy_rotation)):
+            if value is not None:
+                raise SizingError(name, "applies only with at (a study's [[sizing]] questions carry their own)")
+        asked = None
+    else:
+        asked = question(at, capacity=capacity, confidence=confidence, energy_rotation=energy_rotation)
+    if isinstance(source, str | Path) and str(source).endswith(".nc"):
+        from bayesfric.sizing.single import read_fit
+
+        return _size_fit(read_fit(source), asked, Path(source).name, seed)
+    if isinstance(source, xr.DataTree):
+        return _size_fit(source, asked, f"of {source.attrs.get('law', '?')}", seed)
+    if isinstance(source, StudyResult):
+        source, reports = source.study, source.folder.parent
+    study = as_study(source, "source")
+    from bayesfric.study.resize import size_from_report
+
+    return size_from_report(study, [asked] if asked is not None else None, reports, keys=_NO_KEYS,
+                            run_hint=f"bayesfric.run(study, out={str(reports)!r})")
+
+
+def _size_fit(fit: xr.DataTree, asked: SizingQuestion | None, name: str, seed: int) -> SizingResult:
+    from bayesfric.sizing import size_fit
+    from bayesfric.sizing.single import fit_question
+
+    if asked is None:
+        raise UserError("at: required with a fit, e.g. at={'velocity': (2, 'rad/s')}")
+    checked = fit_question(fit, asked, keys=_NO_KEYS, where=f"fit {name}")
+    return size_fit(fit, checked, name=name, seed=seed)

@@ -1,0 +1,284 @@
+"""Public API: a study built from Python objects or a TOML file, run into a report folder.
+
+:class:`Study` *is* the validated study of :mod:`bayesfric.study.config` (a subclass that only
+adds constructors): ``Study(...)`` assembles the TOML file's tables from its arguments and
+validates them with the same schema and checks (:func:`~bayesfric.study.config.study_from_raw`),
+so every error names the key as a study file would, prefixed ``Study('<name>')``.
+:func:`run` is :func:`bayesfric.study.runner.run_study`; it returns a :class:`StudyResult` that
+holds the report folder and the tables and fits read back from it. The report itself
+(``summary.md``, ``report.html``, CSV tables, figures) is written by :func:`run`; there is no
+separate ``write_report`` until a study's result is one tree (issue 31, item 1).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+import xarray as xr
+
+from bayesfric.errors import UserError
+from bayesfric.laws.base import Law
+from bayesfric.priors import Prior
+from bayesfric.study import config
+
+__all__ = ["Study", "StudyResult", "run", "as_study"]
+
+
+def _plain(value: Any) -> Any:
+    """Python objects as the TOML reader gives them: dicts, lists, strings, numbers."""
+    if isinstance(value, Prior):
+        return value.to_dict()
+    if isinstance(value, Mapping):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_plain(v) for v in value]
+    return str(value) if isinstance(value, Path) else value
+
+
+def _law_entry(where: str, i: int, entry: Any) -> dict[str, Any]:
+    from bayesfric.laws.base import REGISTRY
+
+    if isinstance(entry, str):
+        return {"name": entry}
+    if isinstance(entry, Law):
+        if REGISTRY.get(entry.name) is not entry:
+            raise config.StudyError(f"{where}: laws[{i}]: law {entry.name!r} is not registered: declare it with "
+                                    "bayesfric.law(fn, ..., register=True), or give a variant as a dict "
+                                    "(name, add, fixed, asymmetric)")
+        return {"name": entry.name}
+    if isinstance(entry, Mapping):
+        return _plain(entry)
+    raise config.StudyError(f"{where}: laws[{i}]: expected a law name, a registered Law or a dict of a [[laws]] "
+                            f"entry, got {type(entry).__name__}")
+
+
+def _sizing_entry(where: str, i: int, entry: Any) -> dict[str, Any]:
+    from bayesfric.sizing.points import SizingError, value_text
+
+    if not isinstance(entry, Mapping):
+        raise config.StudyError(f"{where}: sizing[{i}]: expected a dict of a [[sizing]] entry (at, capacity, ...)")
+    out = _plain(entry)
+    try:
+        if isinstance(entry.get("at"), Mapping):
+            out["at"] = {str(k): value_text(v, f"at.{k}", str(k)) for k, v in entry["at"].items()}
+        for key, quantity in (("capacity", "torque"), ("energy_rotation", "angle")):
+            if entry.get(key) is not None:
+                out[key] = value_text(entry[key], key, quantity)
+    except SizingError as exc:
+        raise config.StudyError(f"{where}: sizing[{i}].{exc}") from None
+    return out
+
+
+def _noise_table(where: str, noise: Any) -> dict[str, Any]:
+    from bayesfric.model import Noise
+
+    if isinstance(noise, str):
+        return {"kind": noise}
+    if isinstance(noise, Noise):
+        if noise.sigma is not None:
+            raise config.StudyError(f"{where}: [noise] sigma: a study samples the noise; a known sigma is for fit()")
+        return {"kind": noise.kind} | ({"group": noise.group} if noise.group else {})
+    return _plain(noise)
+
+
+class Study(config.Study):
+    """A study: data, candidate laws, comparisons, sizing questions; :func:`run` runs it.
+
+    Built from Python objects with the keys of a study file's tables (documented in
+    :mod:`bayesfric.study.config`), or read from one with :meth:`from_toml`.
+
+    Parameters
+    ----------
+    name : str
+        Plain name (letters, digits, ``-``, ``_``, ``.``): the report folder ``<out>/<name>/``.
+    data : str or Path
+        Built-in data set name or CSV path (relative to the working folder).
+    laws : sequence
+        Each a registered name, a registered :class:`~bayesfric.laws.Law`, or a dict of a
+        ``[[laws]]`` entry (``{"name": "stribeck", "priors": {...}, "fixed": {...}}``).
+    title, question : str, optional
+        Report title and the question the study answers.
+    select : mapping, optional
+        ``[data] select``: rows to keep.
+    noise : str, mapping or Noise, optional
+        ``[noise]``: ``"proportional"``, ``{"kind": "normal", "group": "series"}``.
+    sampler, compare : mapping, optional
+        ``[sampler]`` (draws, tune, chains, seed, ...) and ``[compare]`` (loo, kfold, grouped,
+        evidence, ``blocked=[{"axis": "velocity", "threshold": 0.5}]``, ...).
+    sizing, claims : sequence of mappings, optional
+        ``[[sizing]]`` entries (values as in :func:`bayesfric.size`: ``(0.5, 6, "rad/s")``) and ``[[claims]]``.
+    modules : sequence of str, optional
+        ``[study] modules``: law files (relative to the working folder).
+
+    Raises
+    ------
+    StudyError
+        One line naming the key, e.g. ``Study('bench'): [sampler] draws: ...``.
+
+    Examples
+    --------
+    >>> import bayesfric
+    >>> study = bayesfric.Study("bench", "robot_joint", laws=["coulomb_viscous", "stribeck"],
+    ...                         sampler={"draws": 200, "tune": 200, "chains": 2},
+    ...                         compare={"evidence": False, "blocked": [{"axis": "velocity", "threshold": 0.5}]},
+    ...                         sizing=[{"at": {"velocity": (0.5, 6, "rad/s")}, "capacity": (40, "N*m")}])
+    >>> [spec.name for spec in study.laws], study.sizing[0].capacity_text
+    (['coulomb_viscous', 'stribeck'], '40 N*m')
+    >>> bayesfric.Study("bench", "robot_joint", laws=["stribeck"], sampler={"draws": 0})
+    Traceback (most recent call last):
+    ...
+    bayesfric.study.config.StudyError: Study('bench'): [sampler] draws: must be an integer ≥ 1, got integer 0
+    """
+
+    def __init__(self, name: str, data: str | Path, *, laws: Sequence[str | Law | Mapping[str, Any]],
+                 title: str | None = None, question: str | None = None, select: Mapping[str, Any] | None = None,
+                 noise: Any = None, sampler: Mapping[str, Any] | None = None,
+                 compare: Mapping[str, Any] | None = None, sizing: Sequence[Mapping[str, Any]] = (),
+                 claims: Sequence[Mapping[str, Any]] = (), modules: Sequence[str | Path] = ()) -> None:
+        from bayesfric.fsutil import name_problem
+
+        if not isinstance(name, str) or (problem := name_problem(name)):
+            raise config.StudyError(f"Study: name: {problem if isinstance(name, str) else 'must be a string'}")
+        where = f"Study({name!r})"
+        if isinstance(data, xr.Dataset) or not isinstance(data, str | Path):
+            raise config.StudyError(f"{where}: [data] dataset: a study reads its data itself: give a built-in "
+                                    "name or a CSV path")
+        meta = {"name": name, "title": title, "question": question, "modules": _plain(list(modules)) or None}
+        raw = {"study": {k: v for k, v in meta.items() if v is not None},
+               "data": {"dataset": str(data)} | ({"select": _plain(select)} if select else {}),
+               "laws": [_law_entry(where, i, x) for i, x in enumerate(laws)],
+               "sizing": [_sizing_entry(where, i, x) for i, x in enumerate(sizing)],
+               "claims": _plain(list(claims))}
+        for key, value in (("noise", None if noise is None else _noise_table(where, noise)),
+                           ("sampler", sampler), ("compare", compare)):
+            if value is not None:
+                raw[key] = _plain(value)
+        self.__dict__.update(vars(config.study_from_raw(Path(where), raw)))
+
+    @classmethod
+    def from_toml(cls, path: str | Path) -> Study:
+        """Read and validate a study file (:func:`bayesfric.study.config.load_study`).
+
+        Examples
+        --------
+        >>> import bayesfric
+        >>> from bayesfric.study import STUDIES_DIR
+        >>> bayesfric.Study.from_toml(STUDIES_DIR / "robot_joint.toml").name
+        'robot_joint'
+        """
+        study = cls.__new__(cls)
+        study.__dict__.update(vars(config.load_study(path)))
+        return study
+
+
+def as_study(study: Any, argument: str = "study") -> config.Study:
+    """A study given as a :class:`Study` (or a loaded one) or as a study file's path."""
+    if isinstance(study, config.Study):
+        return study
+    if isinstance(study, str | Path):
+        return Study.from_toml(study)
+    raise UserError(f"{argument}: expected a Study or a study file (.toml), got {type(study).__name__}")
+
+
+@dataclass(frozen=True)
+class StudyResult:
+    """What :func:`run` wrote, read back: the report folder, its tables and the fits.
+
+    Attributes
+    ----------
+    study : Study
+    folder : Path
+        ``<out>/<name>/``: ``summary.md``, ``report.html``, the CSV tables, ``figures/``, ``fits/``.
+    scores : pandas.DataFrame
+        ``scores.csv``: one row per law, metric (``elpd_loo``, ``elpd_cv``, ``penalty``,
+        ``log_evidence``, ``weight``) and scheme, with ``estimate``, ``se``, ``reliable``, ``reason``.
+    ranking : pandas.DataFrame
+        ``ranking.csv``: the laws in the report's order, one row each.
+    fits : dict of str to xarray.DataTree
+        Each law's full fit (``fits/<law>.nc``).
+    sizing : pandas.DataFrame or None
+        ``sizing.csv`` (every law and point of every ``[[sizing]]`` question), if the study asks any.
+    """
+
+    study: config.Study
+    folder: Path
+    scores: pd.DataFrame
+    ranking: pd.DataFrame
+    fits: dict[str, xr.DataTree] = field(repr=False)
+    sizing: pd.DataFrame | None = None
+
+    @classmethod
+    def read(cls, study: config.Study, folder: str | Path) -> StudyResult:
+        """Read the report folder of ``study`` (written by :func:`run` or ``bayesfric study``)."""
+        from bayesfric.inference import load_fit
+        from bayesfric.sizing import read_record
+
+        folder = Path(folder)
+        entries = {e["law"]: e for e in read_record(folder)["laws"]}
+        fits = {spec.name: load_fit(folder / entries[spec.name]["fit"]) for spec in study.laws}
+        sizing = pd.read_csv(folder / "sizing.csv") if (folder / "sizing.csv").is_file() else None
+        return cls(study, folder, pd.read_csv(folder / "scores.csv", keep_default_na=False, na_values=[""]),
+                   pd.read_csv(folder / "ranking.csv"), fits, sizing)
+
+
+def run(study: Study | str | Path, out: str | Path = "reports", *, quick: bool = False, fresh: bool = False,
+        workers: int = 0) -> StudyResult:
+    """Run a study: fit every law, compare them every way it asks, answer its sizing questions,
+    and write the report to ``<out>/<name>/`` (what ``bayesfric study`` does).
+
+    Units of work are reused from the run store (``<out>/.store/``) when nothing they depend on
+    changed, and an unchanged study returns its report as it is.
+
+    Parameters
+    ----------
+    study : Study, str or Path
+        A :class:`Study` or a study file.
+    out : str or Path
+        Reports root folder.
+    quick : bool
+        Smoke test: fewer draws and folds (the report says so).
+    fresh : bool
+        Recompute every unit instead of reusing the run store.
+    workers : int
+        Run units on a local Dask cluster of this many processes (0: serially, in this process).
+
+    Returns
+    -------
+    StudyResult
+
+    Raises
+    ------
+    UserError
+        A bad study, data, fold, claim, sizing question or output folder: one line, before
+        anything is written.
+
+    Examples
+    --------
+    >>> import bayesfric, tempfile
+    >>> study = bayesfric.Study("doc", "robot_joint", laws=["coulomb_viscous", "stribeck"],
+    ...                         sampler={"draws": 100, "tune": 100, "chains": 2},
+    ...                         compare={"evidence": False, "blocked": [{"axis": "velocity", "threshold": 0.5}]})
+    >>> result = bayesfric.run(study, tempfile.mkdtemp())  # doctest: +ELLIPSIS
+    [doc] ...
+    >>> sorted(result.fits), result.folder.name, "elpd_loo" in set(result.scores["metric"])
+    (['coulomb_viscous', 'stribeck'], 'doc', True)
+    """
+    from bayesfric.fsutil import PathError, check_output_folder
+    from bayesfric.limits import process_problem
+    from bayesfric.study.runner import run_study
+
+    chosen = as_study(study)
+    try:
+        check_output_folder(out)
+    except PathError as exc:
+        raise UserError(f"out: {exc}") from None
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 0:
+        raise UserError(f"workers: must be 0 (serial) or a number of processes ≥ 1, got {workers!r}")
+    if problem := process_problem(workers, "worker processes"):
+        raise UserError(f"workers: {problem}")
+    folder = run_study(chosen, out_root=out, quick=quick, fresh=fresh, workers=workers)
+    return StudyResult.read(chosen, folder)

@@ -1,0 +1,74 @@
+"""Sizing one fit: a fit file read and checked, and a question checked against the fit's law.
+
+Used by ``bayesfric size FIT.nc --at ...`` and by :func:`bayesfric.size` on a fit; the answer
+itself is :func:`bayesfric.sizing.size_fit` (weight 1, the fit's own data as the tested range).
+Every problem is a :class:`~bayesfric.errors.UserError` of one line naming the file (or the fit)
+and the key.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+
+import xarray as xr
+
+from bayesfric.errors import UserError
+from bayesfric.inference import load_fit
+from bayesfric.sizing.points import SizingQuestion, check_question
+
+__all__ = ["read_fit", "fit_question"]
+
+
+def read_fit(path: str | Path) -> xr.DataTree:
+    """The fit saved at ``path`` (``bayesfric fit --out``, :func:`bayesfric.inference.save_fit`).
+
+    Raises
+    ------
+    UserError
+        No such file, not a file, not readable as NetCDF, or not a bayesfric fit.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise UserError(f"{path}: fit file not found" if not path.exists() else f"{path}: not a file")
+    try:
+        fit = load_fit(path)
+    except Exception:  # h5py/netCDF raise many types for a file that is not a fit
+        raise UserError(f"{path}: not a readable fit (a NetCDF file written by `bayesfric fit --out`)") from None
+    _check_is_fit(fit, str(path))
+    return fit
+
+
+def _check_is_fit(fit: object, where: str) -> None:
+    if not isinstance(fit, xr.DataTree):
+        raise UserError(f"{where}: not a fit (an xarray.DataTree from bayesfric.fit), got {type(fit).__name__}")
+    if not {"law", "noise", "priors", "constants"} <= set(fit.attrs) or not {"posterior", "constant_data"} <= set(
+            fit.children):
+        raise UserError(f"{where}: not a bayesfric fit (no law, noise model or posterior recorded)")
+
+
+def fit_question(fit: xr.DataTree, question: SizingQuestion, *, keys: Mapping[str, str] | None = None,
+                 where: str = "the fit") -> SizingQuestion:
+    """``question`` checked against the law of ``fit`` (:func:`~bayesfric.sizing.points.check_question`:
+    every input named is one the law reads and every one it reads is given; the capacity is of
+    its response), with its capacity parsed. ``keys`` names the question's keys in errors
+    (:data:`~bayesfric.sizing.points.CLI_KEYS` for the command line); ``where`` names the fit.
+
+    Raises
+    ------
+    UserError
+        Not a bayesfric fit, a law no longer registered, a trajectory (stateful) law, or a
+        question the law cannot answer (:class:`~bayesfric.sizing.points.SizingError`).
+    """
+    from bayesfric.laws.variants import law_of_fit
+
+    _check_is_fit(fit, where)
+    try:
+        law = law_of_fit(fit.attrs)
+    except KeyError as exc:
+        raise UserError(f"{where}: {exc.args[0]}") from None
+    if law.trajectory:
+        raise UserError(f"{where}: law {law.name!r} is a trajectory (stateful) law: its friction depends on the "
+                        "path, so it cannot be sized at an operating point")
+    return check_question(question, law.operating_inputs, law.operating_inputs, law.response, keys=keys,
+                          inputs_of=f"law {law.name!r}")

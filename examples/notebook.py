@@ -1,0 +1,37 @@
+"""Example (a): fit -> compare -> size on a built-in data set, from Python (each block a notebook cell).
+
+    python examples/notebook.py [--quick]
+
+Fits two laws of robot joint friction (Stäubli RX90 joint 1, measured to 4 rad/s) with NUTS,
+ranks them by PSIS-LOO with stacking weights, and asks the better one what torque the drive
+must deliver at 6 rad/s, beyond the tested speeds, against a 40 N*m drive. ``--quick`` (CI,
+tests/test_example_notebook.py) samples less: a smoke test, not an answer to act on.
+"""
+
+import sys
+
+import bayesfric
+
+settings = {"draws": 300, "tune": 300, "chains": 2} if "--quick" in sys.argv else {}  # {}: 4 x 1000 draws
+
+# Data: a built-in data set (`bayesfric data list`), SI units, provenance in its attrs.
+data = bayesfric.load_data("robot_joint")
+print(f"{data.attrs['name']}: {data.sizes['obs']} points, {data.attrs['provenance']}")
+
+# Fit two laws; relative (proportional) noise, as the robot_joint study uses.
+laws = ["stribeck", "joint_tribological"]
+fits = {law: bayesfric.fit(law, data, noise="proportional", **settings) for law in laws}
+
+# Compare: PSIS-LOO (high-k points refitted exactly) and stacking weights.
+table = bayesfric.compare_laws(fits, data)
+print(table[["elpd_loo", "se", "elpd_diff", "weight", "reliable"]].round(3).to_string())
+best = table.index[0]
+
+# Size: the best law at 6 rad/s (beyond the tested 4 rad/s), 99 % of |T|, against a 40 N*m drive.
+result = bayesfric.size(fits[best], at={"velocity": (6, "rad/s")}, capacity=(40, "N*m"), confidence=0.99)
+answer = result.answers[0].laws[0]
+p = f"{answer.p_exceed[0]:.3f} ± {answer.p_se[0]:.3f}" if 0 < answer.p_exceed[0] < 1 else (
+    f"{answer.p_exceed[0]:.0f} (no draw on the other side: within {answer.p_bound[0]:.3f})")
+print(f"{best}: required {answer.required[0]:.1f} N*m at 6 rad/s (99 % of |T|); P(|T| > 40 N*m) = {p}")
+for warning in result.answers[0].warnings:
+    print("warning:", warning)
