@@ -12,14 +12,14 @@ main: venv
 	.venv/bin/python -m bayesfric main
 
 test: venv
-	.venv/bin/python -m ruff check bayesfric tests benchmarks data
+	.venv/bin/python -m ruff check bayesfric tests benchmarks data examples
 	.venv/bin/python -m pytest -q
 
 test-fast: venv
 	.venv/bin/python -m pytest -q -m "not slow"
 
 lint: venv
-	.venv/bin/python -m ruff check bayesfric tests benchmarks data
+	.venv/bin/python -m ruff check bayesfric tests benchmarks data examples
 
 bench: venv
 	.venv/bin/python benchmarks/bench_fit.py
