@@ -12,10 +12,10 @@ directions), the same rows for every side at a size.
 Sides, each a fresh whole process timed by this parent, interleaved per size:
 
 * ``bayesfric``: ``bayesfric.inference.fit`` (the compiled blackjax NUTS engine, its warm-up with the
-  scale-relative metric regulariser of :mod:`bayesfric.inference.adaptation`);
-* ``stan``: the same, with the warm-up's metric regularised as Stan and blackjax's
-  ``mass_matrix_adaptation`` do (towards ``1e-3 I``) — patched in this benchmark's child only, to
-  show the before/after side by side;
+  Fisher diagonal and the scale-relative regulariser of :mod:`bayesfric.inference.adaptation`);
+* ``stan``: the same, with the warm-up's metric estimated and regularised as Stan and blackjax's
+  ``mass_matrix_adaptation`` do (positions' variance, shrunk towards ``1e-3 I``) — patched in
+  this benchmark's child only, to show the before/after side by side;
 * ``nutpie``: PyMC + nutpie on the same model, priors and data (the child of
   ``benchmarks/bench_vs_pymc.py``; needs the ``bench`` extra: ``pip install -e ".[bench]"``).
 
@@ -82,6 +82,7 @@ def bayesfric_child(args: argparse.Namespace) -> None:
         import bayesfric.inference.adaptation as adaptation
 
         adaptation._scale_relative_metric = stan_metric
+        adaptation.DIAGONAL = "welford"
     ds = dataset(args.rows)
     start = time.perf_counter()
     dt = fit(get_law("stribeck"), ds, seed=args.seed, draws=args.draws, tune=args.tune, chains=args.chains)
