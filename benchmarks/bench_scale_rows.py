@@ -12,7 +12,9 @@ directions), the same rows for every side at a size.
 Sides, each a fresh whole process timed by this parent, interleaved per size:
 
 * ``bayesfric``: ``bayesfric.inference.fit`` (the compiled blackjax NUTS engine, its warm-up with the
-  Fisher diagonal and the scale-relative regulariser of :mod:`bayesfric.inference.adaptation`);
+  scale-relative regulariser of :mod:`bayesfric.inference.adaptation`);
+* ``fisher``: the same with the Fisher diagonal (``adaptation.DIAGONAL = "fisher"``, measured but
+  not the default: see that module);
 * ``stan``: the same, with the warm-up's metric estimated and regularised as Stan and blackjax's
   ``mass_matrix_adaptation`` do (positions' variance, shrunk towards ``1e-3 I``) — patched in
   this benchmark's child only, to show the before/after side by side;
@@ -70,7 +72,7 @@ def stan_metric(diagonal: bool):
         target = 1e-3 * (jnp.ones_like(covariance) if diagonal else jnp.eye(covariance.shape[0]))
         return (count / (count + 5.0)) * covariance + (5.0 / (count + 5.0)) * target, wc_init(covariance.shape[0])
 
-    return wc_init, wc_update, final
+    return wc_init, lambda state, position, grad: wc_update(state, position), final
 
 
 def bayesfric_child(args: argparse.Namespace) -> None:
@@ -82,7 +84,10 @@ def bayesfric_child(args: argparse.Namespace) -> None:
         import bayesfric.inference.adaptation as adaptation
 
         adaptation._scale_relative_metric = stan_metric
-        adaptation.DIAGONAL = "welford"
+    if args.child == "fisher":
+        import bayesfric.inference.adaptation as adaptation
+
+        adaptation.DIAGONAL = "fisher"
     ds = dataset(args.rows)
     start = time.perf_counter()
     dt = fit(get_law("stribeck"), ds, seed=args.seed, draws=args.draws, tune=args.tune, chains=args.chains)
@@ -137,13 +142,13 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rows", type=int, nargs="+", default=[1000, 10_000, 100_000])
     parser.add_argument("--sides", nargs="+", default=["bayesfric", "stan", "nutpie"],
-                        choices=["bayesfric", "stan", "nutpie"])
+                        choices=["bayesfric", "stan", "fisher", "nutpie"])
     parser.add_argument("--chains", type=int, default=4)
     parser.add_argument("--draws", type=int, default=1000)
     parser.add_argument("--tune", type=int, default=1000)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--cold", action="store_true", help="skip the cache-filling run (large sizes)")
-    parser.add_argument("--child", choices=["bayesfric", "stan"], help=argparse.SUPPRESS)
+    parser.add_argument("--child", choices=["bayesfric", "stan", "fisher"], help=argparse.SUPPRESS)
     parser.add_argument("--one", type=int, dest="rows_one", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child:

@@ -18,13 +18,9 @@ array of (stage 0 fast / 1 slow, slow-window end, active, sampling). Inactive st
 compiled sampler runs both a full Stan warm-up and a shorter warm-up that starts from a
 previous posterior, with the same number of scan steps.
 
-Two rules differ from Stan's, both so that the warm-up does not degrade as data grow:
+One rule differs from Stan's, so that the warm-up does not degrade as data grow:
 
-* **What a slow window estimates.** A diagonal metric is ``sqrt(Var[x] / Var[∇ log p])`` per
-  coordinate over the window (the Fisher-divergence diagonal nutpie uses, from positions *and*
-  gradients: :func:`_fisher_metric`; exact for a Gaussian posterior), not Stan's ``Var[x]``.
-  A dense metric keeps Stan's covariance of the positions.
-* **How it is regularised.** Stan (and blackjax's ``mass_matrix_adaptation``) shrinks a window's
+* **How a window's estimate is regularised.** Stan (and blackjax's ``mass_matrix_adaptation``) shrinks a window's
   estimate towards ``1e-3 I``, an *absolute* scale: as data narrow the posterior, true
   variances fall far below that term (~1e-7 for log T_C of a Stribeck fit at 10⁵ rows), the
   metric is wrong by orders of magnitude and the steps per draw grow with the data. Here the
@@ -33,9 +29,18 @@ Two rules differ from Stan's, both so that the warm-up does not degrade as data 
   ``1e-3 I`` as Stan does (the metric starts at the identity), later ones towards a thousandth
   of the scale already estimated.
 
+* **Measured, not adopted: the Fisher diagonal.** :data:`DIAGONAL` = ``"fisher"`` estimates a
+  diagonal metric as ``sqrt(Var[x] / Var[∇ log p])`` per coordinate (the Fisher-divergence
+  diagonal nutpie uses, from positions and gradients: :func:`_fisher_metric`). It cut the steps
+  per draw (Stribeck data 18.2 / 18.7 at 10³ / 10⁵ rows) and the warm-cache main job's fit stage
+  (102 s against 183–242 s), but the draws are correspondingly more autocorrelated (robot_joint
+  coulomb_viscous: 10.9 steps, bulk ESS 557, R-hat 1.011, against 19.0 steps, ESS 938, R-hat
+  1.004): at a fixed number of draws the seed studies had 6 gate failures instead of 4. The
+  default stays Stan's positions' variance; the benchmark shows both.
+
 Measured on steady-state Stribeck data, 2 chains × (1000 + 1000), steps per draw at 10³ / 10⁵
-rows: Stan's rules 26.5 / 52.5, relative regulariser 28.2 / 24.1, with the Fisher diagonal
-18.2 / 18.7, the same posterior throughout (``benchmarks/bench_scale_rows.py``).
+rows: Stan's rules 26.5 / 52.5, relative regulariser 28.2 / 24.1 (fit 139.8 s against 301.1 s
+at 10⁵), the same posterior throughout (``benchmarks/bench_scale_rows.py``).
 """
 
 from __future__ import annotations
@@ -156,7 +161,7 @@ def nuts_chain(key, z0, logdensity, schedule, init_imm, target_accept: float, de
 
 #: The diagonal metric's estimator: "fisher" (positions and gradients, :func:`_fisher_metric`) or
 #: "welford" (positions only, Stan's).
-DIAGONAL = "fisher"
+DIAGONAL = "welford"
 #: Stan's regularisation: a window of ``n`` draws gets weight ``n / (n + PSEUDO_COUNT)``, the
 #: target ``SHRINK_TO`` times the current metric the rest.
 PSEUDO_COUNT = 5.0
