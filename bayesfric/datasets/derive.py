@@ -28,7 +28,6 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-from scipy.signal import savgol_filter
 
 from bayesfric.datasets.errors import DataError
 from bayesfric.quantities import QUANTITIES
@@ -94,6 +93,8 @@ def savgol_derivative(time: np.ndarray, values: np.ndarray, window: int, order: 
         The derivative at every sample (``mode="interp"`` at the ends).
     """
     step = float(np.median(np.diff(time)))
+    from scipy.signal import savgol_filter  # here: scipy.signal imports scipy.stats, which `fit` defers
+
     return savgol_filter(values, window, order, deriv=1, delta=step, mode="interp")
 
 
