@@ -187,3 +187,17 @@ def test_a_law_entry_sets_its_own_mass_matrix(tmp_path, data_csv):
     before = [p[0] for p in _plan_laws(plain, ds, schemes, settings, 0)]
     assert jobs[0].settings["metric"] == "dense" and jobs[1].settings["metric"] == "diag"
     assert jobs[0].key != before[0].key and [j.key for j in jobs[1:]] == [j.key for j in before[1:]]
+
+
+def test_a_study_without_ranking_criterion_reports_that_instead_of_crashing(tmp_path, data_csv):
+    """loo = false, evidence = false, no folds: nothing ranks the laws; the report says so (it
+    used to raise IndexError drawing the figures)."""
+    path = tmp_path / "s.toml"
+    text = study_text().replace("loo = true", "loo = false")
+    path.write_text(text[:text.index("[[compare.blocked]]")])
+    folder = run_study(path, out_root=tmp_path / "reports", quick=True)
+    summary = (folder / "summary.md").read_text()
+    assert "no ranking criterion" in summary
+    assert "no ranking criterion" in (folder / "report.html").read_text()
+    with (folder / "ranking.csv").open() as fh:
+        assert {r["law"] for r in csv.DictReader(fh)} == {"coulomb", "coulomb_viscous"}

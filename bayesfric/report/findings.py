@@ -20,11 +20,16 @@ from bayesfric.study import scores as sc
 if TYPE_CHECKING:
     from bayesfric.study.outcome import StudyOutcome
 
-__all__ = ["Finding", "Summary", "findings", "summary_block", "plain", "counted_winners", "RECOMMEND_WEIGHT"]
+__all__ = ["Finding", "Summary", "findings", "summary_block", "plain", "counted_winners", "RECOMMEND_WEIGHT",
+           "NO_CRITERION"]
 
 #: A law is recommended alone when its stacking weight on the deciding criterion is at least
 #: this; below it the report recommends the stacking-averaged prediction.
 RECOMMEND_WEIGHT = 0.9
+#: What the report says when the study computes no score that ranks the laws.
+NO_CRITERION = ("The study has no ranking criterion: no PSIS-LOO ([compare] loo = false), no cross-validation "
+                "(kfold = 0, no grouped or blocked folds) and no evidence (evidence = false), so the laws are "
+                "not ranked; they are listed in the study file's order.")
 
 
 @dataclass(frozen=True)
@@ -124,6 +129,8 @@ def findings(outcome: StudyOutcome, table: pd.DataFrame) -> list[Finding]:
     crits = sc.criteria(outcome)
     loo_winner = sc.best(table, "elpd_loo") if outcome.study.loo else None
     lines = [a for c in crits if (a := _answer(table, c, loo_winner)) is not None]
+    if not crits:
+        lines.append(plain(NO_CRITERION, warning=True))
     for w in outcome.laws:  # direction-dependent coefficients (laws.variants): is the asymmetry supported?
         if w.law.recipe.get("asymmetric"):
             lines += [_f("Direction asymmetry of ", _law(w.name), f": {_asymmetry(a)}.") for a in asymmetry(w.fit)]
@@ -185,7 +192,9 @@ def recommendation(outcome: StudyOutcome, table: pd.DataFrame) -> Finding:
     """The law to use (or the stacking average), with the reason, from the deciding criterion:
     the first blocked-extrapolation scheme (the study's question), else PSIS-LOO."""
     c = _deciding(outcome)
-    winner = sc.best(table, c.metric, c.scheme) if c is not None else None
+    if c is None:
+        return plain("No recommendation: the study has no ranking criterion.", warning=True)
+    winner = sc.best(table, c.metric, c.scheme)
     if winner is None:
         return _f("No recommendation: no law passed the checks on the deciding criterion.", warning=True)
     weights = table[(table["metric"] == "weight") & (table["scheme"] == _weight_key(c))]
@@ -248,7 +257,10 @@ def summary_block(outcome: StudyOutcome, table: pd.DataFrame, extra_warnings: li
     """The top summary: question, one answer per criterion (after the verdict that no law
     extrapolates, when that holds), recommendation, decision warnings."""
     loo_winner = sc.best(table, "elpd_loo") if outcome.study.loo else None
-    answers = [a for c in sc.criteria(outcome) if (a := _answer(table, c, loo_winner)) is not None]
+    crits = sc.criteria(outcome)
+    answers = [a for c in crits if (a := _answer(table, c, loo_winner)) is not None]
+    if not crits:
+        answers.append(plain(NO_CRITERION, warning=True))
     if (verdict := no_law_extrapolates(outcome, table)) is not None:
         answers.insert(0, verdict)
     warnings = counted_winners(outcome, table) + _warnings(outcome) + list(extra_warnings or [])

@@ -65,8 +65,8 @@ def rank_cells(outcome: StudyOutcome) -> tuple[list[str], dict[str, str]]:
     table, crits = outcome.table, sc.criteria(outcome)
     crit = crits[0] if crits else None
     order = sc.ranking_order(table, [w.name for w in outcome.laws], crit)
-    if crit is None:
-        return order, {name: str(i + 1) for i, name in enumerate(order)}
+    if crit is None:  # no criterion ranks the laws: none is numbered (bayesfric.report.findings.NO_CRITERION)
+        return order, {name: "–" for name in order}
     laws = {w.name: w for w in outcome.laws}
     cells, ranked = {}, 0
     for place, name in enumerate(order, start=1):
@@ -101,8 +101,11 @@ def ranking_table(outcome: StudyOutcome) -> tuple[Table, list[str]]:
         rows.append(row)
         if cells[name].startswith("⚠") or not laws[name].reliable:
             warn.append(i)
-    first = crits[0].label if crits else "name"
-    caption = (f"Laws ordered by {first} (higher elpd / log Z is better; penalty/pt: lower is better; ± one "
+    if not crits:
+        return Table("Laws in the study file's order: the study has no ranking criterion (no LOO, cross-validation "
+                     "or evidence), so no law is ranked. Every number: ranking.csv and scores.csv.", header, rows,
+                     warn), order
+    caption = (f"Laws ordered by {crits[0].label} (higher elpd / log Z is better; penalty/pt: lower is better; ± one "
                "standard error, numbers rounded to it). Every law stands where its score puts it; ⚠ in the rank "
                "column = not ranked, with the reason (a fold or the fit failed the diagnostics gate, or the evidence "
                "estimators disagree), and only ranked laws are numbered. Every number, with p_loo, Pareto k and all "

@@ -75,12 +75,19 @@ def _shown(ds, name: str, values) -> np.ndarray:
     return (np.asarray(values, dtype=float) - offset) / scale
 
 
+def _order(outcome: StudyOutcome) -> list[str]:
+    """The laws in ranking order on the study's first criterion; in the study's order when it has
+    none (``loo = false``, ``evidence = false``, no folds: the report says so)."""
+    crits = sc.criteria(outcome)
+    return sc.ranking_order(outcome.table, [w.name for w in outcome.laws], crits[0] if crits else None)
+
+
 def plot_penalty(outcome: StudyOutcome, path: Path) -> Path:
     """Extrapolation penalty per law and blocked scheme, ± 1 standard error: nats per held-out
     point lost outside the tested envelope relative to inside it (0 = extrapolates as well as it
     interpolates)."""
     table = outcome.table
-    order = sc.ranking_order(table, [w.name for w in outcome.laws], sc.criteria(outcome)[0])
+    order = _order(outcome)
     fig = Figure(figsize=(8.5, 0.42 * len(order) + 1.6), layout="constrained")
     ax = fig.subplots()
     y = np.arange(len(order))[::-1]
@@ -120,7 +127,7 @@ def plot_bands(outcome: StudyOutcome, axis: str, path: Path, heldout: np.ndarray
     ds = outcome.data
     response = ds.attrs["response"]
     x, y = _shown(ds, axis, ds[axis].values), _shown(ds, response, ds[response].values)
-    order = sc.ranking_order(outcome.table, [w.name for w in outcome.laws], sc.criteria(outcome)[0])[:MAX_PANELS]
+    order = _order(outcome)[:MAX_PANELS]
     fits = {w.name: w.fit for w in outcome.laws}
     one_input = sum(v.attrs.get("role") == "input" for v in ds.coords.values()) == 1
     cols = min(3, len(order))
@@ -204,7 +211,7 @@ def plot_trajectories(outcome: StudyOutcome, path: Path) -> Path | None:
     key = ds.attrs.get("trajectory")
     if not key:
         return None
-    order = sc.ranking_order(outcome.table, [w.name for w in outcome.laws], sc.criteria(outcome)[0])[:2]
+    order = _order(outcome)[:2]
     laws = {w.name: w for w in outcome.laws}
     axis = _path_axis(ds, laws[order[0]].law)
     ids = list(dict.fromkeys(np.asarray(ds[key].values).tolist()))
