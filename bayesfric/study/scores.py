@@ -23,11 +23,12 @@ text and searched back.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
+
+from bayesfric.study.metrics import METRICS, Criterion
 
 if TYPE_CHECKING:
     from bayesfric.study.outcome import StudyOutcome
@@ -35,29 +36,7 @@ if TYPE_CHECKING:
 __all__ = ["METRICS", "COLUMNS", "Criterion", "score_table", "best", "passed_over", "ranking_order", "criteria",
            "value", "fold_failure"]
 
-#: metric -> (display name, higher is better, unit)
-METRICS = {
-    "elpd_loo": ("elpd PSIS-LOO", True, "nats"),
-    "elpd_cv": ("elpd", True, "nats"),
-    "penalty": ("extrapolation penalty", False, "nats per held-out point"),
-    "log_evidence": ("log evidence", True, "nats"),
-    "weight": ("weight", True, "1"),
-}
 COLUMNS = ["law", "metric", "scheme", "estimate", "se", "reliable", "reason"]
-
-
-@dataclass(frozen=True)
-class Criterion:
-    """A ranking criterion of the study: a metric under a scheme, with how to read it."""
-
-    metric: str
-    scheme: str
-    kind: str  # "interpolation", "extrapolation", "cross-validation", "evidence"
-
-    @property
-    def label(self) -> str:
-        name = METRICS[self.metric][0]
-        return f"{name} {self.scheme}".strip() if self.metric != "elpd_loo" else name
 
 
 def _gate(w, include_failed: bool) -> tuple[bool, str]:
