@@ -14,7 +14,7 @@ import xarray as xr
 
 from bayesfric.inference.diagnostics import Verdict
 from bayesfric.laws.base import Law
-from bayesfric.study.config import Study
+from bayesfric.study.spec import Study
 
 __all__ = ["Checks", "LawOutcome", "StudyOutcome", "Weight"]
 
@@ -110,9 +110,7 @@ class LawOutcome:
         if self.loo is not None and not self.loo.reliable:
             why = "the full fit failed the gate" if not self.loo.fit_passed else self.loo.handling
             out.append(f"LOO unreliable ({why})")
-        from bayesfric.study.scores import fold_failure
-
-        out += [f"{label}: {fold_failure(cv)}" for label, cv in self.cv.items() if not cv.reliable]
+        out += [f"{label}: {cv.failure}" for label, cv in self.cv.items() if not cv.reliable]  # scores.fold_failure
         if not self.evidence_agree:
             out.append(_disagreement(self.agreement))
         if self.checks is not None and not self.checks.loo_pit_ok:

@@ -1,0 +1,173 @@
+"""The schema of a study file, one table per section: :data:`STUDY`, :data:`DATA`, :data:`NOISE`,
+:data:`SAMPLER`, :data:`LAW` (``[[laws]]``), :data:`COMPARE` with :data:`BLOCKED`, :data:`SIZING`,
+:data:`CLAIM`, and :data:`FILE` over them all. :func:`bayesfric.study.schema.parse` derives
+validation, defaults and messages from them; the file format is described in
+:mod:`bayesfric.study.config`, which re-exports these tables. The sampler defaults are the
+backends' own (:data:`bayesfric.inference.SAMPLERS`); the ``fit`` command checks its sampler
+options against :data:`SAMPLER`.
+"""
+
+from __future__ import annotations
+
+import inspect
+from typing import Any, get_args, get_type_hints
+
+from bayesfric.inference import SAMPLERS
+from bayesfric.inference.engine import METRICS
+from bayesfric.inference.init import INITS
+from bayesfric.laws import get_law
+from bayesfric.model import Noise
+from bayesfric.study.claimspec import BASES, KINDS
+from bayesfric.study.schema import REQUIRED, Field, Schema
+
+__all__ = ["STUDY", "DATA", "NOISE", "SAMPLER", "LAW", "BLOCKED", "COMPARE", "SIZING", "CLAIM", "FILE", "NUTS", "EMCEE",
+           "law_files_problem"]
+
+
+def _backend(key: str):
+    """Default of a sampler setting: the chosen backend's own keyword default."""
+    return lambda section: inspect.signature(SAMPLERS[section["name"]]).parameters[key].default
+
+
+def _known_law(name: str) -> str | None:
+    try:
+        get_law(name)
+    except KeyError as exc:
+        return str(exc.args[0])
+    return None
+
+
+def law_files_problem(value: Any) -> str | None:
+    """Why ``value`` is not a list of law files for ``[study] modules`` (None if it is)."""
+    ok = isinstance(value, list) and all(isinstance(v, str) and v.strip() for v in value)
+    return None if ok else "must be a list of law file paths (.py, relative to the study file)"
+
+
+def _kfold(k: int) -> str | None:
+    return None if k == 0 or k >= 2 else f"must be 0 (off) or ≥ 2, got integer {k}"
+
+
+NUTS, EMCEE = ("nuts",), ("emcee",)
+
+STUDY = Schema((
+    Field("name", "name", None, doc="report folder name (default: the study file's name)"),
+    Field("title", "text", None, doc="report title (default: the name)"),
+    Field("question", "text", "", doc="the question the study asks"),
+    Field("modules", "value", [], rule=law_files_problem, doc="law files (.py, relative to the study file) whose laws "
+                                                   "[[laws]] may name (bayesfric.laws.plugins)"),
+))
+DATA = Schema((
+    Field("dataset", "str", REQUIRED, doc="built-in data set or CSV path relative to the study file"),
+    Field("select", "table", {}, items="value", doc="rows whose coordinates equal these values"),
+))
+NOISE = Schema((
+    Field("kind", "str", "normal", choices=get_args(get_type_hints(Noise)["kind"]),
+          doc="observation noise model"),
+    Field("group", "str", None, doc="group coordinate of partial-pooled offsets"),
+))
+SAMPLER = Schema((
+    Field("name", "str", "nuts", choices=tuple(SAMPLERS), doc="sampling backend"),
+    Field("seed", "int", 0, min=0, max=2**32 - 1, doc="seed of every random draw"),
+    Field("draws", "int", _backend("draws"), min=1, doc="draws per chain (emcee: steps before thinning)"),
+    Field("tune", "int", _backend("tune"), min=0, doc="warm-up draws (emcee: burn-in steps)"),
+    Field("chains", "int", _backend("chains"), min=1, only=("name", NUTS), doc="NUTS chains"),
+    Field("target_accept", "number", _backend("target_accept"), gt=0, lt=1, only=("name", NUTS),
+          doc="NUTS target acceptance probability"),
+    Field("retry_target_accept", "number", _backend("retry_target_accept"), min=0, lt=1, only=("name", NUTS),
+          doc="draws with divergent transitions are sampled again at this target acceptance "
+              "(above target_accept); 0 switches the retry off"),
+    Field("metric", "str", _backend("metric"), choices=METRICS, only=("name", NUTS),
+          doc="mass matrix of the warm-up: diagonal, or dense for strongly correlated coefficients"),
+    Field("init", "str", _backend("init"), choices=INITS, only=("name", NUTS),
+          doc="chain starts: prior medians, or multi-path Pathfinder draws (posteriors with minor modes)"),
+    Field("walkers", "int", _backend("walkers"), min=2, only=("name", EMCEE),
+          doc="emcee walkers: at least 2 × free parameters (default max(32, 4 × free parameters))"),
+    Field("thin", "int", _backend("thin"), min=1, only=("name", EMCEE), doc="emcee thinning"),
+), only_label="sampler")
+
+
+def _names(value: Any) -> str | None:
+    items = value if isinstance(value, list) else [value]
+    return None if all(isinstance(v, str) and v.strip() for v in items) else "must be a name or a list of names"
+
+
+LAW = Schema((
+    Field("name", "str", REQUIRED, rule=_known_law, doc="registered law (bayesfric laws --names)"),
+    Field("label", "name", None, doc="name of this entry in reports and fit files (default: the law's name); "
+                                     "required to list one law twice"),
+    Field("priors", "table", {}, items="table", doc="prior overrides by parameter name"),
+    Field("constants", "table", {}, items="number", doc="constant overrides by name"),
+    Field("fixed", "table", {}, items="number", doc="parameters (or constants) held at a value, SI units"),
+    Field("add", "value", [], rule=_names, doc='additive parts: "offset", "viscous" or registered laws'),
+    Field("offset", "bool", False, doc='add a constant offset term (same as add = ["offset"])'),
+    Field("asymmetric", "value", [], rule=_names,
+          doc="parameters with one value per direction: <p>_pos (velocity ≥ 0), <p>_neg (velocity < 0)"),
+    Field("metric", "str", None, choices=METRICS,
+          doc="NUTS mass matrix of this law, over [sampler] metric (dense for strongly correlated coefficients)"),
+))
+BLOCKED = Schema((
+    Field("axis", "str", REQUIRED, doc="input coordinate to block along"),
+    Field("direction", "str", "upper", choices=("upper", "lower"), doc="upper: train below, score above"),
+    Field("threshold", "number", None, doc="cut in SI units"),
+    Field("quantile", "number", None, gt=0, lt=1, doc="cut as a quantile of the axis"),
+    Field("label", "text", "", doc="label in reports"),
+    Field("future", "bool", False, doc="leave-future-out: split each trajectory at the cut, train on its past"),
+), exactly_one=(("threshold", "quantile"),))
+COMPARE = Schema((
+    Field("loo", "bool", True, doc="PSIS-LOO"),
+    Field("kfold", "int", 0, min=0, rule=_kfold, doc="random K-fold folds (0: off)"),
+    Field("grouped", "str", None, doc="leave-one-group-out coordinate"),
+    Field("evidence", "bool", True, doc="bridge sampling + Laplace-t importance sampling"),
+    Field("smc", "bool", False, doc="tempered SMC reference estimator (opt-in: 3-13x the fit)"),
+    Field("smc_particles", "int", 300, min=20, doc="SMC particles per run"),
+    Field("smc_runs", "int", 3, min=2, doc="independent SMC runs"),
+    Field("include_failed", "bool", False, doc="weight fits that failed the gate"),
+    Field("failed_fits", "str", "skip", choices=("skip", "run"),
+          doc="a law whose full fit failed the gate: skip its CV refits and evidence, or run them anyway"),
+    Field("blocked", "tables", [], schema=BLOCKED, doc="blocked extrapolation folds"),
+))
+SIZING = Schema((
+    Field("label", "text", "", doc="label in reports (default: the point)"),
+    Field("at", "table", REQUIRED, items="value",
+          doc='input -> "<value> <unit>" or "<low>..<high> <unit>"; every input the laws read'),
+    Field("confidence", "number", 0.99, gt=0, lt=1, doc="size for this quantile of |T| with noise"),
+    Field("capacity", "str", None, doc="available drive torque or force, with its unit"),
+    Field("energy_rotation", "str", None, doc="angle of one rotation whose friction energy is asked (torque)"),
+))
+
+
+def _claimed_range(value) -> str | None:
+    ok = isinstance(value, list) and len(value) == 2 and all(
+        isinstance(v, int | float) and not isinstance(v, bool) for v in value)
+    return None if ok and value[0] <= value[1] else "must be [low, high]: two numbers, low ≤ high"
+
+
+CLAIM = Schema((
+    Field("text", "str", REQUIRED, doc="the claim, as the paper states it"),
+    Field("source", "str", REQUIRED, doc="where the paper states it (seed, section, figure)"),
+    Field("kind", "str", REQUIRED, choices=KINDS, doc="ratio | parameter | score | best"),
+    Field("law", "str", REQUIRED, doc="the candidate (its label) the claim is about (best: the claimed winner)"),
+    Field("expect", "value", None, rule=_claimed_range, doc="claimed range [low, high] (not for best)"),
+    Field("at", "table", {}, items="value", doc='ratio: numerator point, input -> "<value> <unit>"'),
+    Field("minus", "table", {}, items="value", doc="ratio: subtract the law at this point (a chord)"),
+    Field("fixed", "table", {}, items="number", doc="ratio: numerator parameters/constants fixed (SI)"),
+    Field("reference", "str", None, doc="ratio: denominator law (default: law); score: subtract its score"),
+    Field("reference_at", "table", {}, items="value", doc="ratio: denominator point (default: at)"),
+    Field("reference_minus", "table", {}, items="value", doc="ratio: denominator chord start (default: minus)"),
+    Field("parameter", "str", None, doc="parameter: the law's parameter"),
+    Field("metric", "str", None, doc="score, best: a metric of bayesfric.study.scores.METRICS"),
+    Field("scheme", "text", "", doc="score, best: CV scheme label or evidence estimator ('' for LOO)"),
+    Field("basis", "str", None, choices=BASES,
+          doc='"pipeline check": the number was used to build the data (reconstructed data); "evidence": it was '
+              'not. Required on reconstructed data'),
+))
+FILE = Schema((
+    Field("study", "table", {}, schema=STUDY),
+    Field("data", "table", REQUIRED, schema=DATA),
+    Field("noise", "table", {}, schema=NOISE),
+    Field("sampler", "table", {}, schema=SAMPLER),
+    Field("laws", "tables", REQUIRED, min=1, schema=LAW),
+    Field("compare", "table", {}, schema=COMPARE),
+    Field("sizing", "tables", [], schema=SIZING, doc="actuator sizing questions"),
+    Field("claims", "tables", [], schema=CLAIM, doc="claims of the source paper checked against the posterior"),
+))

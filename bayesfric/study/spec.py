@@ -1,0 +1,107 @@
+"""The validated study as plain types: :class:`Study` with its :class:`LawSpec` and
+:class:`BlockedSpec` entries, and :class:`StudyError`.
+
+What a study file may say and how it is checked: :mod:`bayesfric.study.config` (which re-exports
+these names), with the schema tables of :mod:`bayesfric.study.sections`. These types sit below the
+claims' evaluation, the law × metric table and the outcome, which all read a :class:`Study`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from bayesfric.errors import UserError
+from bayesfric.laws import Law, get_law
+from bayesfric.laws.plugins import load_modules
+from bayesfric.laws.variants import vary
+from bayesfric.model import Noise
+from bayesfric.priors import Prior
+from bayesfric.sizing.points import SizingQuestion
+from bayesfric.study.claimspec import Claim
+
+__all__ = ["StudyError", "LawSpec", "BlockedSpec", "Study"]
+
+
+class StudyError(UserError):
+    """A study file error: one line naming the file and key."""
+
+
+@dataclass(frozen=True)
+class LawSpec:
+    """A candidate law with its overrides and variant options (:mod:`bayesfric.laws.variants`).
+
+    ``name`` is the entry's label -- what fits, tables and ``weights.json`` call it (the law's
+    name unless the entry gives ``label``); ``law`` is the registered law it is built from.
+    """
+
+    name: str
+    priors: dict[str, Prior] = field(default_factory=dict)
+    constants: dict[str, float] = field(default_factory=dict)
+    law: str = ""
+    fixed: dict[str, float] = field(default_factory=dict)
+    add: tuple[str, ...] = ()
+    asymmetric: tuple[str, ...] = ()
+    metric: str | None = None  # this law's NUTS mass matrix, over [sampler] metric
+    modules: tuple[str, ...] = ()  # the study's law files (absolute): loaded before the name is resolved
+
+    def settings(self, study_settings: dict[str, Any]) -> dict[str, Any]:
+        """The sampler settings this law runs with: the study's, with the entry's own metric."""
+        return study_settings if self.metric is None else study_settings | {"metric": self.metric}
+
+    def build(self) -> Law:
+        """The entry's law: the registered law with its options applied, named by the label.
+
+        The study's law files are loaded first (once per process), so this works in any process:
+        a ``main --jobs`` study process, a Dask worker."""
+        load_modules(self.modules)
+        return vary(get_law(self.law or self.name), name=self.name, add=self.add, asymmetric=self.asymmetric,
+                    fixed=self.constants | self.fixed)
+
+
+@dataclass(frozen=True)
+class BlockedSpec:
+    """A blocked extrapolation fold along an operating input."""
+
+    axis: str
+    direction: str = "upper"
+    threshold: float | None = None
+    quantile: float | None = None
+    label: str = ""
+    future: bool = False  # leave-future-out: split inside each trajectory (compare.folds)
+
+    def describe(self) -> str:
+        cut = f"{self.threshold:g}" if self.threshold is not None else f"q{self.quantile:g}"
+        arrow = "train ≤ cut, score above" if self.direction == "upper" else "train ≥ cut, score below"
+        if self.future:
+            arrow = "each trajectory's past trains, its future beyond the cut is scored"
+        return self.label or f"{self.axis} {cut} ({arrow})"
+
+
+@dataclass
+class Study:
+    """A validated study (``sampler``: every setting of the chosen sampler, defaults filled)."""
+
+    path: Path
+    name: str
+    title: str
+    question: str
+    dataset: str
+    select: dict[str, Any]
+    noise: Noise
+    sampler: dict[str, Any]
+    laws: list[LawSpec]
+    loo: bool = True
+    kfold: int = 0
+    grouped: str | None = None
+    evidence: bool = True
+    smc: bool = False  # opt-in reference: tempered SMC costs 3-13x the fit (bench_evidence.py)
+    smc_particles: int = 300  # tempered SMC: within ~0.1 nat of bridge sampling at ~1/5 the cost of 1000
+    smc_runs: int = 3
+    blocked: list[BlockedSpec] = field(default_factory=list)
+    include_failed: bool = False
+    failed_fits: str = "skip"  # a law whose full fit failed the gate: "skip" its CV and evidence, or "run" them
+    sizing: list[SizingQuestion] = field(default_factory=list)
+    claims: list[Claim] = field(default_factory=list)
+    raw: dict[str, Any] = field(default_factory=dict)
