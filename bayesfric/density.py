@@ -20,7 +20,7 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from functools import cached_property, partial
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import jax
 import jax.numpy as jnp
@@ -31,16 +31,27 @@ from numpyro.infer.util import constrain_fn, log_likelihood, potential_energy, u
 
 from bayesfric.exported import program_jit
 
-if TYPE_CHECKING:
-    from bayesfric.model import Program
-
-__all__ = ["Density", "build_density", "median_starts", "pending_median_starts", "start_seeds", "N_STARTS",
-           "OBS_SITE"]
+__all__ = ["Density", "ProgramLike", "build_density", "median_starts", "pending_median_starts", "start_seeds",
+           "N_STARTS", "OBS_SITE"]
 
 #: The observation site of every program (over dimension ``obs``).
 OBS_SITE = "response"
 #: Prior-median starts computed together by :attr:`Density.starts` (the NUTS chains' default).
 N_STARTS = 4
+
+
+class ProgramLike(Protocol):
+    """What a density reads of its program: the numpyro model, its arguments and the number of
+    observations. :class:`bayesfric.model.Program` is one; the type is declared here, below
+    :mod:`bayesfric.model`, which builds each program's density (no import back)."""
+
+    def model(self, inputs: Any, group_index: Any = None, response: Any = None, mask: Any = None) -> None: ...
+
+    @property
+    def model_kwargs(self) -> dict[str, Any]: ...
+
+    @property
+    def n_obs(self) -> int: ...
 
 
 @dataclass(frozen=True)
@@ -49,8 +60,8 @@ class Density:
 
     Attributes
     ----------
-    program : Program
-        The program (law, priors, noise, data).
+    program : ProgramLike
+        The program (a :class:`bayesfric.model.Program`: law, priors, noise, data).
     sites : list of str
         Latent sample sites, in the order of the flat vector.
     dim : int
@@ -61,7 +72,7 @@ class Density:
         Seed of the prior draws behind :attr:`x0`.
     """
 
-    program: Program
+    program: ProgramLike
     sites: list[str]
     dim: int
     unravel: Callable[[jax.Array], dict[str, jax.Array]]
@@ -134,7 +145,7 @@ class Density:
         return program_jit(self.program, "to_unconstrained", to_flat)(draws)
 
 
-def _median_start(program: Program, key: jax.Array) -> dict[str, jax.Array]:
+def _median_start(program: ProgramLike, key: jax.Array) -> dict[str, jax.Array]:
     """Unconstrained latent sites at a prior median (numpyro's ``init_to_median(num_samples=15)``)."""
     model, kwargs = program.model, program.model_kwargs
     substituted = handlers.substitute(handlers.seed(model, key), substitute_fn=init_to_median(num_samples=15))
@@ -149,7 +160,7 @@ def start_seeds(seed: int, n: int) -> list[int]:
     return [seed * 7919 + c for c in range(n)]
 
 
-def _median_starts_jit(program: Program) -> Callable:
+def _median_starts_jit(program: ProgramLike) -> Callable:
     def flat_starts(keys):
         return jax.vmap(lambda key: ravel_pytree(_median_start(program, key))[0])(keys)
 
@@ -160,7 +171,7 @@ def _seed_keys(seeds: list[int]) -> jax.Array:
     return jnp.stack([jax.random.PRNGKey(s) for s in seeds])
 
 
-def median_starts(program: Program, seeds: list[int]) -> jax.Array:
+def median_starts(program: ProgramLike, seeds: list[int]) -> jax.Array:
     """Flat prior-median starting points ``(len(seeds), dim)``, one per seed, in ONE compiled call.
 
     Executing the model eagerly instead dispatches (and, the first time in a process, compiles)
@@ -169,7 +180,7 @@ def median_starts(program: Program, seeds: list[int]) -> jax.Array:
     return _median_starts_jit(program)(_seed_keys(seeds))
 
 
-def pending_median_starts(program: Program, seeds: list[int]) -> Callable[[], jax.Array]:
+def pending_median_starts(program: ProgramLike, seeds: list[int]) -> Callable[[], jax.Array]:
     """:func:`median_starts`, compiling in the background (:mod:`bayesfric.exported`) from now on;
     call the returned function for the value (it waits for the compilation)."""
     keys = _seed_keys(seeds)
@@ -178,7 +189,7 @@ def pending_median_starts(program: Program, seeds: list[int]) -> Callable[[], ja
     return lambda: starts(keys)
 
 
-def build_density(program: Program, seed: int = 0) -> Density:
+def build_density(program: ProgramLike, seed: int = 0) -> Density:
     """The density of ``program``; its latent sites are found by an abstract trace (no compilation)."""
     shapes = jax.eval_shape(partial(_median_start, program), jax.random.PRNGKey(seed))
     flat, unravel = ravel_pytree(jax.tree.map(lambda s: jnp.zeros(s.shape, s.dtype), shapes))
