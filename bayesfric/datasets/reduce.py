@@ -60,7 +60,7 @@ from __future__ import annotations
 
 import argparse
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -68,7 +68,7 @@ import xarray as xr
 
 from bayesfric.datasets.errors import DataError
 from bayesfric.datasets.loader import OBS_DIM, load_dataset
-from bayesfric.datasets.reduced_file import write_reduction
+from bayesfric.datasets.reduced_file import Reduction, Segment, write_reduction
 from bayesfric.errors import UserError
 from bayesfric.fsutil import check_output_file
 from bayesfric.quantities import QUANTITIES, UnitError, conversion
@@ -110,27 +110,6 @@ class ReduceOptions:
     settle: str = "10%"
     min_samples: int = 20
     keep_standstill: bool = False
-
-
-@dataclass(frozen=True)
-class Segment:
-    """One kept segment: source rows ``first:stop`` (0-based) and the response statistics."""
-
-    first: int
-    stop: int
-    mean: float
-    se: float
-    n_eff: float
-
-
-@dataclass
-class Reduction:
-    """A reduced log: the source data set, the kept segments and what the sidecar records."""
-
-    source: xr.Dataset
-    on: str
-    segments: list[Segment]
-    record: dict[str, object] = field(default_factory=dict)
 
 
 def mean_se(y: np.ndarray) -> tuple[float, float, float]:

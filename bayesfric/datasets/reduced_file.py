@@ -15,6 +15,7 @@ import json
 import os
 import secrets
 from collections.abc import Callable
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -24,9 +25,31 @@ from bayesfric.datasets.sidecar import read_sidecar
 from bayesfric.quantities import conversion
 
 if TYPE_CHECKING:
-    from bayesfric.datasets.reduce import Reduction
+    import xarray as xr
 
-__all__ = ["write_reduction"]
+# Segment and Reduction are what this module writes; bayesfric.datasets.reduce makes and re-exports them.
+__all__ = ["write_reduction", "Segment", "Reduction"]
+
+
+@dataclass(frozen=True)
+class Segment:
+    """One kept segment: source rows ``first:stop`` (0-based) and the response statistics."""
+
+    first: int
+    stop: int
+    mean: float
+    se: float
+    n_eff: float
+
+
+@dataclass
+class Reduction:
+    """A reduced log: the source data set, the kept segments and what the sidecar records."""
+
+    source: xr.Dataset
+    on: str
+    segments: list[Segment]
+    record: dict[str, object] = field(default_factory=dict)
 
 def write_reduction(red: Reduction, out: str | Path, source_meta: str | Path | None = None) -> tuple[Path, Path]:
     """Write the reduced CSV and its sidecar (``out`` with suffix ``.toml``), each atomically.
