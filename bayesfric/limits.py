@@ -11,13 +11,17 @@ its key, what it would need and the largest value that fits.
 The memory of a fit (NUTS or emcee, and every refit of a fold, which is no larger): the compiled
 sampler keeps every step of every chain, warm-up included (its position and :data:`STEP_STATS`
 statistics: emcee stores its burn-in and every step before thinning too), and every kept draw
-holds the parameters and derived quantities plus, per data row, the log-likelihood, the
-posterior-predictive draw and a transient copy while they are computed (:data:`ROW_NUMBERS`)::
+holds the parameters and derived quantities; the pointwise groups (:func:`pointwise_bytes`)
+hold, while chains × kept × rows ≤ ``pointwise.FULL_NUMBERS``, per draw and data row the
+log-likelihood, the posterior-predictive draw and a transient copy while they are computed
+(:data:`ROW_NUMBERS`), and above it a bounded amount whatever the rows (thinned draws in
+chunks: :mod:`bayesfric.inference.pointwise`)::
 
-    bytes = 8 · chains · [(tune + draws) · (parameters + STEP_STATS) + kept · (parameters + ROW_NUMBERS · rows)]
+    bytes = 8 · chains · [(tune + draws) · (parameters + STEP_STATS) + kept · parameters] + pointwise_bytes
 
 with ``kept = draws`` (NUTS) or ``draws // thin`` (emcee, whose chains are its walkers). SMC keeps
-every particle of every run the same way (``chains = runs``, ``kept = particles``). A fit may
+every particle of every run, with every row of each (``chains = runs``, ``kept = particles``,
+``8 · ROW_NUMBERS · rows`` per particle: it has no thinned storage). A fit may
 claim at most :data:`SHARE` of the memory available now (:func:`available_memory`). A process
 (a study of ``--jobs``, a Dask worker of ``--workers``) takes :data:`PROCESS_BYTES`, and
 :data:`RESERVED_BYTES` stay with the rest of the machine (the same budget
@@ -34,8 +38,8 @@ from typing import Any
 
 __all__ = [
     "STEP_STATS", "ROW_NUMBERS", "SHARE", "PROCESS_BYTES", "RESERVED_BYTES", "available_memory", "physical_memory",
-    "fit_bytes", "program_size", "sampler_problem", "smc_problem", "max_processes", "process_problem",
-    "LOAD_FACTOR", "load_problem",
+    "fit_bytes", "pointwise_bytes", "program_size", "sampler_problem", "smc_problem", "max_processes",
+    "process_problem", "LOAD_FACTOR", "load_problem",
 ]
 
 #: Numbers kept per chain and step besides the position: divergence, energy, tree size, acceptance ...
@@ -84,9 +88,23 @@ def available_memory() -> int | None:
     return min(found) if found else physical_memory()
 
 
+def pointwise_bytes(*, chains: int, kept: int, rows: int) -> int:
+    """Memory of a fit's pointwise groups (:mod:`bayesfric.inference.pointwise`): every draw
+    and row, :data:`ROW_NUMBERS` float64 numbers each, up to ``FULL_NUMBERS``; above it three
+    groups of at most ``STORED_NUMBERS``, in the worst case both as float32 and again as float64
+    (values that float32 would round too far), plus the chunks being computed (four arrays of
+    ``CHUNK_NUMBERS`` in float64)."""
+    from bayesfric.inference.pointwise import CHUNK_NUMBERS, FULL_NUMBERS, STORED_NUMBERS
+
+    if chains * kept * rows <= FULL_NUMBERS:
+        return 8 * ROW_NUMBERS * chains * kept * rows
+    return (4 + 8) * 3 * STORED_NUMBERS + 8 * 4 * CHUNK_NUMBERS
+
+
 def fit_bytes(*, chains: int, tune: int, draws: int, kept: int, params: int, rows: int) -> int:
     """Memory of a fit (module docstring); exact integers, whatever the sizes."""
-    return 8 * chains * ((tune + draws) * (params + STEP_STATS) + kept * (params + ROW_NUMBERS * rows))
+    return (8 * chains * ((tune + draws) * (params + STEP_STATS) + kept * params)
+            + pointwise_bytes(chains=chains, kept=kept, rows=rows))
 
 
 def program_size(program) -> tuple[int, int]:
@@ -153,7 +171,7 @@ def sampler_problem(sampler: str, settings: Mapping[str, Any], params: int, rows
 def smc_problem(particles: int, runs: int, params: int, rows: int, memory: int | None = None) -> tuple[str, str] | None:
     """``(key, problem)`` when tempered SMC with ``runs`` × ``particles`` would not fit in memory."""
     budget = _budget(memory)
-    need = fit_bytes(chains=runs, tune=0, draws=particles, kept=particles, params=params, rows=rows)
+    need = 8 * runs * particles * (2 * params + STEP_STATS + ROW_NUMBERS * rows)  # every row of every particle
     if budget is None or need <= budget:
         return None
     key = "smc_particles" if particles / 300 >= runs / 3 else "smc_runs"

@@ -16,10 +16,11 @@ from numpyro.infer import Predictive, log_likelihood
 
 from bayesfric.datasets.loader import OBS_DIM
 from bayesfric.exported import program_jit
+from bayesfric.inference import pointwise
 from bayesfric.inference.diagnostics import check
 from bayesfric.model import OBS_SITE, Program
 
-__all__ = ["assemble", "provenance", "log_prior_draws", "draw_tables_jit", "draw_tables_args"]
+__all__ = ["assemble", "provenance", "log_prior_draws", "draw_tables_jit", "tables_jit", "draw_tables_args"]
 
 #: Prior (and prior predictive) draws stored with every fit.
 N_PRIOR = 500
@@ -92,6 +93,12 @@ def draw_tables_jit(program: Program, n_prior: int = N_PRIOR):
     return program_jit(program, f"draw_tables n_prior={n_prior}", partial(_draw_tables, program, n_prior))
 
 
+def tables_jit(program: Program, info: pointwise.Storage):
+    """The compiled tables of a fit with pointwise storage ``info``: :func:`draw_tables_jit`
+    (every draw) or :func:`bayesfric.inference.pointwise.thinned_tables_jit`."""
+    return draw_tables_jit(program, info.n_prior) if info.full else pointwise.thinned_tables_jit(program, info)
+
+
 def draw_tables_args(site_shapes: dict[str, Any], n_draws: int, seed: int) -> tuple:
     """Example arguments of :func:`draw_tables_jit` (for compiling ahead): ``n_draws`` draws of
     every site, ``site_shapes`` giving one draw's shape and dtype per site."""
@@ -117,17 +124,29 @@ def assemble(
     and the gate verdict.
 
     ``samples`` are constrained draws shaped (chain, draw, ...); every latent site of the
-    program must be present. ``tables`` is :func:`draw_tables_jit` of the program with
-    ``n_prior``, when the caller already has it compiling.
+    program must be present. ``tables`` is the program's compiled tables for this fit's
+    :func:`~bayesfric.inference.pointwise.storage` (:func:`tables_jit`), when the caller
+    already has it compiling.
+
+    What the pointwise groups (log_likelihood, posterior_predictive, prior_predictive) keep
+    follows :func:`bayesfric.inference.pointwise.storage`: every draw in float64 for small fits,
+    thinned draws (float32 where the numbers allow) above ``pointwise.FULL_NUMBERS``, recorded
+    in ``attrs["pointwise_storage"]``.
     """
-    n_chains = next(iter(samples.values())).shape[0]
+    n_chains, n_draws = next(iter(samples.values())).shape[:2]
     flat = _flatten(samples)
     key_pp, key_prior = jax.random.split(jax.random.PRNGKey(seed + 1))
+    info = pointwise.storage(program.n_obs, n_chains, n_draws, n_prior)
 
-    # one compiled program for every per-draw table (it used to be three scans, compiled apart)
-    tables = draw_tables_jit(program, n_prior) if tables is None else tables
-    ll, log_prior, pp, prior = tables(flat, key_pp, key_prior)
-    prior_pred = {OBS_SITE: prior.pop(OBS_SITE)}
+    tables = tables_jit(program, info) if tables is None else tables
+    if info.full:  # one compiled program for every per-draw table (it used to be three scans, compiled apart)
+        ll, log_prior, pp, prior = tables(flat, key_pp, key_prior)
+        prior_pred = {OBS_SITE: prior.pop(OBS_SITE)}
+        dtypes = dict.fromkeys(pointwise.GROUPS, "float64")
+    else:  # thinned, in chunks: memory bounded whatever draws × rows
+        (ll, log_prior, pp, prior, prior_pp), dtypes = pointwise.thinned_tables(program, info, flat, key_pp,
+                                                                                key_prior, tables)
+        pp, prior_pred = {OBS_SITE: pp}, {OBS_SITE: prior_pp}
     # posterior keeps sampled + derived sites; drop nothing the sampler returned
     posterior = {k: v for k, v in samples.items()}
     for name, value in program.law.derived_values({k: flat[k] for k in program.law.params}).items():
@@ -156,6 +175,9 @@ def assemble(
         dims=dims,
         coords=coords,
     )
+    if not info.full:  # the kept draws keep their own indices: the groups line up with the posterior
+        for group in ("log_likelihood", "posterior_predictive"):
+            dt[group] = dt[group].to_dataset().assign_coords(draw=info.draw_index())
     # one log density per site and draw: built without the site dims of vector-valued parameters
     dt["log_prior"] = arviz_base.from_dict({"log_prior": _chains(log_prior, n_chains)})["log_prior"]
     # group coordinates of the data (series, run ...) travel with the observations
@@ -168,5 +190,6 @@ def assemble(
         {"quantity": ds.attrs.get("response", ""), "units": ds[ds.attrs["response"]].attrs.get("units", "")}
     )
     dt.attrs.update(provenance(program, ds, sampler, settings, seed))
+    dt.attrs["pointwise_storage"] = info.to_json(dtypes)
     dt.attrs["diagnostics"] = check(dt).to_json()
     return dt

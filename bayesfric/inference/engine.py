@@ -57,9 +57,10 @@ from scipy.special import logsumexp
 from bayesfric.exported import exported_jit
 from bayesfric.fingerprint import program_parts
 from bayesfric.inference.adaptation import PSEUDO_COUNT, SHRINK_TO, nuts_chain, sampling_schedule
-from bayesfric.inference.datatree import assemble, draw_tables_args, draw_tables_jit
+from bayesfric.inference.datatree import assemble, draw_tables_args, tables_jit
 from bayesfric.inference.diagnostics import GATE, Gate, Verdict, check_folds, import_statistics
 from bayesfric.inference.init import Init, pending_chain_starts
+from bayesfric.inference.pointwise import log_mean_likelihood, storage
 from bayesfric.model import Program
 
 __all__ = ["NutsEngine", "FoldFits", "available_cpus", "METRICS"]
@@ -354,8 +355,8 @@ class NutsEngine:
             draws = _vmap_or_squeeze(one_chain)(fold_keys, init_z)
             constrained = jax.vmap(jax.vmap(lambda v: density.constrain(v, data)))(draws.position)
             flat = {k: v.reshape((-1,) + v.shape[2:]) for k, v in constrained.items()}
-            ll = jax.vmap(lambda c: density.pointwise(c, data))(flat)
-            lpd = jax.scipy.special.logsumexp(ll, axis=0) - jnp.log(ll.shape[0])
+            # draws × rows at once for small data, else in chunks of draws (bounded memory)
+            lpd = log_mean_likelihood(lambda c: density.pointwise(c, data), flat, p.n_obs)
             stats = dict(diverging=draws.diverging, energy=draws.energy, n_steps=draws.n_steps,
                          acceptance_rate=draws.acceptance_rate)
             return constrained, stats, lpd
@@ -444,7 +445,7 @@ class NutsEngine:
         """
         seed = self.seed if seed is None else int(seed)
         if self._tables is None:  # compiles in the background while the chains run
-            self._tables = draw_tables_jit(self.program)
+            self._tables = tables_jit(self.program, storage(self.program.n_obs, self.chains, self.draws))
             sites = {k: jax.ShapeDtypeStruct(v.shape[3:], v.dtype) for k, v in self._sampler.out_shapes[0].items()}
             self._tables.ahead(*draw_tables_args(sites, self.chains * self.draws, seed))
         import_statistics()  # the gate's library imports while the programs above compile or load
