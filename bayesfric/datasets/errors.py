@@ -1,18 +1,16 @@
 """The data loader's error type and helpers for its one-line messages.
 
-:class:`DataError` lives in this small module so that the sidecar reader and the loader can both
-raise it; import it from :mod:`bayesfric.datasets.loader` or :mod:`bayesfric.datasets` (both
-re-export it).
+:class:`DataError` is declared in :mod:`bayesfric.errors` (the laws raise it too) and re-exported
+here, so that the sidecar reader and the loader can both raise it; import it from
+:mod:`bayesfric.datasets.loader` or :mod:`bayesfric.datasets` (both re-export it).
 """
 
 import codecs
 from pathlib import Path
 
+from bayesfric.errors import DataError
+
 __all__ = ["DataError", "read_file", "decode_utf8", "decode_position", "shorten"]
-
-
-class DataError(ValueError):
-    """Bad input data: the message is one line naming file, column and row where they apply."""
 
 
 def read_file(path: Path, what: str = "file") -> bytes:
