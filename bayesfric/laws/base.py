@@ -30,6 +30,7 @@ from typing import Any
 
 import jax.numpy as jnp
 
+from bayesfric.laws.errors import LawDeclarationError, VariantError
 from bayesfric.priors import Prior
 from bayesfric.quantities import QUANTITIES, RESPONSES, UnitError, parse_unit
 
@@ -47,15 +48,13 @@ __all__ = [
     "declare",
     "register_resolver",
     "declared_in",
+    "VariantError",
+    "set_variant_builder",
 ]
 
 #: Structural input of trajectory (stateful) laws: True at the first sample of each ordered
 #: trajectory, where the internal state is reset. Built by the dataset, not measured.
 TRAJECTORY_START = "trajectory_start"
-
-
-class LawDeclarationError(TypeError):
-    """A law declaration that is inconsistent with its function or the vocabulary."""
 
 
 @dataclass(frozen=True)
@@ -197,24 +196,30 @@ class Law:
         """This law plus a registered law or a term (``"offset"``, ``"viscous"``), named ``a+b``."""
         part = other if isinstance(other, str) else other.name
         if isinstance(other, Law) and REGISTRY.get(part) is not other:
-            from bayesfric.laws.variants import VariantError
-
             raise VariantError(f"law {part!r} is not registered: declare it with law() or simple_law() "
                                "to add it", "add")
         return self._vary(add=[part], name=f"{self.name}+{part}")
 
     def _vary(self, **options: Any) -> Law:
-        from bayesfric.laws.variants import VariantError, vary
-
         if not self.recipe and REGISTRY.get(self.name) is not self:
             raise VariantError(f"law {self.name!r} is not registered: declare it with law() or simple_law() "
                                "to build variants of it", next(iter(options)))
-        return vary(self, **options)
+        return _VARIANT_BUILDER[0](self, **options)
 
 
 REGISTRY: dict[str, Law] = {}
 #: Functions name -> Law | None that declare a parametrised law on first use (e.g. ``gms_n6``).
 _RESOLVERS: list[Callable[[str], Law | None]] = []
+
+
+#: What builds :meth:`Law.fix`, ``.asymmetric`` and ``+``: :func:`bayesfric.laws.variants.vary`, installed by
+#: that module, which builds on this one; the package's ``__init__`` (run before any of its modules) imports it.
+_VARIANT_BUILDER: list[Callable[..., Law]] = []
+
+
+def set_variant_builder(vary: Callable[..., Law]) -> None:
+    """Install the function that builds a law's variants (:func:`bayesfric.laws.variants.vary`)."""
+    _VARIANT_BUILDER[:] = [vary]
 
 
 def register_resolver(resolve: Callable[[str], Law | None]) -> None:
@@ -224,23 +229,15 @@ def register_resolver(resolve: Callable[[str], Law | None]) -> None:
 
 def get_law(name: str) -> Law:
     """Look up a registered law by name (or declare it through a resolver); a clear error lists
-    the known names."""
-    _ensure_loaded()
+    the known names. The package's ``__init__`` registered every family and, as the last resolver,
+    :func:`bayesfric.laws.plugins.entry_point_law` (installed packages' laws)."""
     try:
         return REGISTRY[name]
     except KeyError:
         for resolve in _RESOLVERS:
             if (found := resolve(name)) is not None:
                 return found
-        from bayesfric.laws.plugins import load_entry_points
-
-        if load_entry_points():  # installed packages' laws, loaded on the first unknown name
-            return get_law(name)
         raise KeyError(f"unknown law {name!r}; known laws: {', '.join(sorted(REGISTRY))}") from None
-
-
-def _ensure_loaded() -> None:
-    import bayesfric.laws  # noqa: F401  (importing the package registers every family)
 
 
 def law(

@@ -39,10 +39,10 @@ from importlib import metadata
 from pathlib import Path
 
 from bayesfric.errors import UserError
-from bayesfric.laws.base import REGISTRY, Law, LawDeclarationError, declared_in
+from bayesfric.laws.base import REGISTRY, Law, LawDeclarationError, declared_in, get_law
 
 __all__ = ["LawModuleError", "ENTRY_POINT_GROUP", "load_module", "load_modules", "load_entry_points",
-           "module_files", "user_roots"]
+           "module_files", "user_roots", "entry_point_law"]
 
 #: Entry-point group under which installed packages register laws.
 ENTRY_POINT_GROUP = "bayesfric.laws"
@@ -163,6 +163,13 @@ def load_entry_points() -> bool:
             raise LawModuleError(f"{where}: does not load: {_one_line(exc)}") from None
         _register(where, target)
     return True
+
+
+def entry_point_law(name: str) -> Law | None:
+    """The resolver (:func:`bayesfric.laws.base.register_resolver`) of installed packages' laws:
+    on the first name no law or resolver knows, load the entry points and look ``name`` up again;
+    None after that. :mod:`bayesfric.laws` registers it after every family's resolver."""
+    return get_law(name) if load_entry_points() else None
 
 
 def _register(where: str, target: object) -> None:
