@@ -32,6 +32,7 @@ from numpyro.infer import Predictive
 from scipy.stats import kstest
 
 from bayesfric.exported import program_jit
+from bayesfric.inference.pointwise import stored_draws
 from bayesfric.model import OBS_SITE, Program
 
 __all__ = [
@@ -239,9 +240,10 @@ def loo_pit_check(dt: xr.DataTree, *, ci_prob: float = 0.99, n_simulations: int 
     Notes
     -----
     LOO-PIT values are only approximately independent; the KS p-value is a screening number,
-    not an exact test. The band is the calibrated summary that arviz draws.
+    not an exact test. The band is the calibrated summary that arviz draws. A thinned fit
+    (:mod:`bayesfric.inference.pointwise`) is read on the draws it keeps, in float64.
     """
-    pit = np.asarray(az.loo_pit(dt, var_names=OBS_SITE)[OBS_SITE]).reshape(-1)
+    pit = np.asarray(az.loo_pit(stored_draws(dt), var_names=OBS_SITE)[OBS_SITE]).reshape(-1)
     ks = kstest(pit, "uniform")
     points, ecdf, lower, upper = ecdf_pit(pit, ci_prob, n_simulations, rng=np.random.default_rng(seed))
     within = bool(np.all((ecdf >= lower - 1e-12) & (ecdf <= upper + 1e-12)))
@@ -265,7 +267,7 @@ def prior_sensitivity(dt: xr.DataTree, threshold: float = 0.05) -> pd.DataFrame:
     if "log_prior" not in dt.children:
         raise ValueError("fit has no log_prior group; refit with a current bayesfric")
     with contextlib.redirect_stdout(io.StringIO()), _quiet(logging.getLogger("arviz_stats.psense")):
-        return az.psense_summary(dt, var_names=_parameters(dt), threshold=threshold)
+        return az.psense_summary(stored_draws(dt), var_names=_parameters(dt), threshold=threshold)
 
 
 @contextlib.contextmanager
@@ -289,6 +291,7 @@ def power_scaled_loo(dt: xr.DataTree, alpha: float):
     """
     if "log_prior" not in dt.children:
         raise ValueError("fit has no log_prior group; refit with a current bayesfric")
+    dt = stored_draws(dt)  # a thinned fit: the draws its log-likelihood holds, in float64
     log_prior = dt["log_prior"].to_dataset()
     total_prior = sum(log_prior[v] for v in log_prior.data_vars)
     log_lik = dt["log_likelihood"][OBS_SITE]
@@ -352,7 +355,8 @@ def ranking_sensitivity(
             warnings.filterwarnings("ignore", message="Estimated shape parameter of Pareto", category=UserWarning)
             results = {name: (power_scaled_loo(dt, alpha) if alpha != 1.0
                               else baseline[name] if baseline.get(name) is not None
-                              else az.loo(dt, var_name=OBS_SITE, pointwise=True)) for name, dt in fits.items()}
+                              else az.loo(stored_draws(dt), var_name=OBS_SITE, pointwise=True))
+                       for name, dt in fits.items()}
         elpd[alpha] = {name: float(r.elpd) for name, r in results.items()}
         max_k[alpha] = {name: float(np.max(r.pareto_k)) for name, r in results.items()}
         ranking[alpha] = sorted(elpd[alpha], key=lambda n: -elpd[alpha][n])

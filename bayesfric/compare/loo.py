@@ -11,6 +11,10 @@ result.
 
 ``p_loo = Σ_i (lppd_i − elpd_i)`` with ``lppd_i = log mean_s p(y_i | θ_s)`` from the full fit;
 ``se = sqrt(n · var(elpd_i))`` as in arviz-stats.
+
+A large fit keeps thinned pointwise draws (:mod:`bayesfric.inference.pointwise`): PSIS-LOO then
+runs on the draws it holds, in float64, with the posterior restricted to them
+(:func:`~bayesfric.inference.pointwise.stored_draws`), so S above is the number kept.
 """
 
 from __future__ import annotations
@@ -26,6 +30,7 @@ import xarray as xr
 
 from bayesfric.compare.refit import CVResult, RefitEngine, pointwise_lpd, program_from_fit
 from bayesfric.inference.diagnostics import verdict_of
+from bayesfric.inference.pointwise import stored_draws
 from bayesfric.model import OBS_SITE, Program
 
 __all__ = ["LooResult", "psis_loo", "loo_from_values", "K_THRESHOLD_RULE", "Penalty", "extrapolation_penalty"]
@@ -158,13 +163,13 @@ def _psis(fit: xr.DataTree):
     are refitted, or the result says they were not (``handling``, ``reliable``)."""
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", message="Estimated shape parameter of Pareto", category=UserWarning)
-        return az.loo(fit, pointwise=True, var_name=OBS_SITE)
+        return az.loo(stored_draws(fit), pointwise=True, var_name=OBS_SITE)
 
 
 def _result(fit: xr.DataTree, data, elpd_i: np.ndarray, threshold: float, high: np.ndarray, handling: str,
             refit_failed: list[int], refitted: bool) -> LooResult:
     """The :class:`LooResult` of ``fit`` from arviz-stats' ``data`` and the (refitted) ``elpd_i``."""
-    ll = np.asarray(fit["log_likelihood"][OBS_SITE].values)
+    ll = np.asarray(fit["log_likelihood"][OBS_SITE].values, dtype=float)  # a thinned fit's may be float32
     lppd_i = pointwise_lpd(ll.reshape((-1, ll.shape[-1])))
     n = elpd_i.size
     elpd, se = float(elpd_i.sum()), float(np.sqrt(n * elpd_i.var()))

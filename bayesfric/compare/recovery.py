@@ -30,6 +30,7 @@ from bayesfric.compare.checks import plausible_draws
 from bayesfric.compare.evidence import bridge_log_evidence, smc_log_evidence
 from bayesfric.datasets.synthetic import make_dataset, simulate
 from bayesfric.inference import fit, release_compiled_code
+from bayesfric.inference.pointwise import stored_draws
 from bayesfric.laws.base import Law
 from bayesfric.model import OBS_SITE, Noise, build_program
 from bayesfric.priors import DataScale, Prior
@@ -99,7 +100,7 @@ def _scores(
 ) -> float:
     """Higher is better, for every method."""
     if method == "loo":
-        return float(az.loo(program_fit, var_name=OBS_SITE).elpd)
+        return float(az.loo(stored_draws(program_fit), var_name=OBS_SITE).elpd)
     program = build_program(law, ds, priors=fit_kwargs.get("priors"), noise=fit_kwargs.get("noise"))
     if method == "evidence":
         return bridge_log_evidence(program, program_fit, seed=seed).log_z
