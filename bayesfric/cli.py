@@ -241,7 +241,7 @@ def _executor(args: argparse.Namespace) -> dict:
 
 
 def _cmd_study(args: argparse.Namespace) -> None:
-    from bayesfric.study import run_study
+    from bayesfric.study.runner import run_study
 
     _check_reports_root(args.out)
     run_study(args.file, out_root=args.out, quick=args.quick, **_executor(args))
@@ -296,7 +296,7 @@ def _cmd_size(args: argparse.Namespace) -> None:
 
 def _cmd_main(args: argparse.Namespace) -> None:
     from bayesfric.limits import process_problem
-    from bayesfric.study import run_flagship
+    from bayesfric.study.mainjob import run_flagship
 
     _check_reports_root(args.out)
     if args.jobs is not None and args.jobs < 1:

@@ -17,7 +17,7 @@ import time
 from pathlib import Path
 
 from bayesfric.report import summary
-from bayesfric.study import run_study
+from bayesfric.study.runner import run_study
 
 
 def main(study: str) -> None:

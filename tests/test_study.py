@@ -8,7 +8,8 @@ import pytest
 from bayesfric.cli import main
 from bayesfric.datasets.synthetic import simulate
 from bayesfric.laws import get_law
-from bayesfric.study import STUDIES_DIR, StudyError, load_study, run_study
+from bayesfric.study import STUDIES_DIR, StudyError, load_study
+from bayesfric.study.runner import run_study
 
 
 @pytest.fixture

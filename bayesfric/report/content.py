@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Any
 
 from bayesfric.report import findings as fd
 from bayesfric.report import sizing as sizing_report
+from bayesfric.report.blocks import FigureRef, Table
 from bayesfric.report.figures import provenance_label
 from bayesfric.report.ranking import extrapolation_table, loo_numbers, ranking_records, ranking_table
 from bayesfric.report.tables import parameter_rows, retry_note
@@ -32,26 +33,6 @@ SECTIONS = [
     ("trajectories", "Trajectories: predicted vs measured"), ("sizing", "Sizing"),
     ("parameters", "Parameters"), ("data", "Data and checks"), ("findings", "All findings"),
 ]
-
-
-@dataclass
-class Table:
-    """A caption, a header and rows of strings; ``warn``: row indices to mark."""
-
-    caption: str
-    header: list[str]
-    rows: list[list[str]]
-    warn: list[int] = field(default_factory=list)
-
-
-@dataclass(frozen=True)
-class FigureRef:
-    """A figure file (relative to the report folder), its section and what to read from it."""
-
-    section: str
-    path: str
-    caption: str
-    alt: str
 
 
 @dataclass

@@ -16,12 +16,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from bayesfric.report.blocks import Table
 from bayesfric.report.typeset import fmt
 from bayesfric.study import scores as sc
 from bayesfric.study.outcome import Checks
 
 if TYPE_CHECKING:
-    from bayesfric.report.content import Table
     from bayesfric.study.outcome import LawOutcome, StudyOutcome
 
 __all__ = ["rank_cells", "ranking_table", "ranking_records", "extrapolation_table", "score_text", "weight_text"]
@@ -83,8 +83,6 @@ def rank_cells(outcome: StudyOutcome) -> tuple[list[str], dict[str, str]]:
 
 def ranking_table(outcome: StudyOutcome) -> tuple[Table, list[str]]:
     """The ranking table of both documents, and the ranking order."""
-    from bayesfric.report.content import Table
-
     table, crits = outcome.table, sc.criteria(outcome)
     order, cells = rank_cells(outcome)
     weight_key = f"stacking {outcome.blocked[0]}" if outcome.blocked else "stacking LOO"
@@ -169,8 +167,6 @@ def extrapolation_table(outcome: StudyOutcome, order: list[str]) -> Table | None
     """"Inside vs outside the tested envelope": per blocked scheme, the elpd on its held-out points
     when the law trained on them (PSIS-LOO) and when it did not (the blocked fold), and the
     penalty per point between the two, each ± its standard error."""
-    from bayesfric.report.content import Table
-
     if not outcome.blocked:
         return None
     table = outcome.table

@@ -3,7 +3,7 @@
 Every figure is a bare matplotlib :class:`~matplotlib.figure.Figure` (Agg canvas, no pyplot
 state, the user's backend untouched), carries the data's provenance banner
 (:func:`bayesfric.report.figures.banner`) and units on its axes, and comes with a caption that
-says what to read from it (:class:`bayesfric.report.content.FigureRef`).
+says what to read from it (:class:`bayesfric.report.blocks.FigureRef`).
 
 Why not arviz-plots. arviz-plots 1.3 has ``plot_compare`` and ``plot_pair``, but its matplotlib
 backend makes every figure through ``matplotlib.pyplot.subplots`` (``arviz_plots/backend/
@@ -33,7 +33,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from bayesfric.quantities import QUANTITIES, UnitError, conversion
-from bayesfric.report.content import FigureRef
+from bayesfric.report.blocks import FigureRef
 from bayesfric.report.figures import banner, plot_sizing_fan, save
 from bayesfric.report.pit_figure import pit_caption, plot_loo_pit
 from bayesfric.report.ranking_figure import plot_ranking

@@ -18,8 +18,9 @@ import pytest
 from bayesfric.datasets.synthetic import simulate
 from bayesfric.laws import get_law
 from bayesfric.report.summary import write_reports
-from bayesfric.study import load_study, run_study
+from bayesfric.study import load_study
 from bayesfric.study.claims import evaluate_claims
+from bayesfric.study.runner import run_study
 from tests.report.browser import PHONE, WIDTH, find_chromium, inspect_page
 from tests.report.fakes import outcome
 
