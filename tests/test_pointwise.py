@@ -159,3 +159,17 @@ def test_log_likelihood_on_demand_matches_the_stored_full_one(fits, data):
     assert block.dims == ("chain", "draw", "obs") and block.shape == (2, 100, 30)
     np.testing.assert_allclose(block.values, full["log_likelihood"]["response"].values[:, :, 10:40],
                                rtol=1e-12, atol=1e-12)
+
+
+def test_psis_loo_over_every_draw_of_a_thinned_fit_by_blocks_of_rows(fits, data):
+    """The README's recipe: az.loo over blocks of rows, the log-likelihood computed on demand,
+    gives a thinned fit the PSIS-LOO of all its draws, as the full fit's stored one."""
+    full, thin = fits
+    posterior = thin["posterior"].to_dataset()
+    elpd_i = []
+    for start in range(0, ROWS, 50):
+        block = pointwise.log_likelihood(thin, data, obs=slice(start, start + 50))
+        part = xr.DataTree.from_dict({"posterior": posterior, "log_likelihood": block.to_dataset()})
+        elpd_i.append(az.loo(part, pointwise=True, var_name="response").elpd_i.values)
+    whole = az.loo(full, pointwise=True, var_name="response")
+    np.testing.assert_allclose(np.concatenate(elpd_i), whole.elpd_i.values, rtol=1e-10)

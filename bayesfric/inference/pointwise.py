@@ -39,7 +39,6 @@ of rows.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 from collections.abc import Mapping
@@ -314,10 +313,12 @@ def log_likelihood(fit: xr.DataTree, ds: xr.Dataset | None = None, *, program: P
     Computed from the posterior draws through the fit's program (``program``, or rebuilt from
     the fit's attrs and its data ``ds``), in chunks of at most :data:`CHUNK_NUMBERS` numbers,
     in float64; the result is ``(chain, draw, obs)`` for the rows asked (default: all, which for
-    a large fit is draws × rows: ask for blocks of rows). PSIS-LOO is pointwise, so a PSIS-LOO of
-    a thinned fit over all its draws is the sum of ``az.loo`` over blocks of rows, each on
-    ``xr.DataTree.from_dict({"posterior": fit.posterior.to_dataset(), "log_likelihood":
-    log_likelihood(fit, ds, obs=block).to_dataset(name="response")})``.
+    a large fit is draws × rows: ask for blocks of rows). Each call evaluates every row of every
+    draw (a law's row may depend on the rows before it) and keeps the ones asked, compiled once
+    per block length. PSIS-LOO is pointwise, so a PSIS-LOO of a thinned fit over all its draws
+    is ``az.loo`` over blocks of rows, each on ``xr.DataTree.from_dict({"posterior":
+    fit["posterior"].to_dataset(), "log_likelihood": log_likelihood(fit, ds, obs=block).to_dataset()})``,
+    with the blocks' ``elpd_i`` concatenated (README, *Large data*).
     """
     if program is None:
         if ds is None:
@@ -329,23 +330,17 @@ def log_likelihood(fit: xr.DataTree, ds: xr.Dataset | None = None, *, program: P
     post = fit["posterior"]
     n_chain, n_draw = post.sizes["chain"], post.sizes["draw"]
     flat = {k: np.asarray(post[k].values).reshape((n_chain * n_draw,) + post[k].shape[2:]) for k in post.data_vars}
-    chunk = max(1, CHUNK_NUMBERS // max(program.n_obs, 1))
+    chunk = min(max(1, CHUNK_NUMBERS // max(program.n_obs, 1)), n_chain * n_draw)
 
-    def table(draws):
-        return jax.lax.map(lambda d: _pointwise_ll(program, d)[rows], draws, batch_size=min(chunk, n_chain * n_draw))
+    def table(draws, at):
+        return jax.lax.map(lambda d: _pointwise_ll(program, d)[at], draws, batch_size=chunk)
 
-    values = np.asarray(program_jit(program, f"pointwise log_likelihood rows={_rows_key(rows)}", table)(flat))
+    # the rows are an argument: one compilation per block length, whichever rows
+    values = np.asarray(program_jit(program, f"pointwise log_likelihood chunk={chunk}", table)(flat, rows))
     obs_coord = fit["log_likelihood"]["obs"].values[rows] if "log_likelihood" in fit.children else rows
     return xr.DataArray(values.reshape(n_chain, n_draw, rows.size), dims=("chain", "draw", "obs"),
                         coords={"chain": post["chain"].values, "draw": post["draw"].values, "obs": obs_coord},
                         name=OBS_SITE)
-
-
-def _rows_key(rows: np.ndarray) -> str:
-    """A short key of a row selection (the compiled program closes over it)."""
-    if rows.size and np.array_equal(rows, np.arange(rows[0], rows[0] + rows.size)):
-        return f"{rows[0]}:{rows[0] + rows.size}"
-    return hashlib.sha256(rows.astype(np.int64).tobytes()).hexdigest()[:16]
 
 
 def log_mean_likelihood(pointwise: Any, flat: Mapping[str, jax.Array], rows: int) -> jax.Array:
