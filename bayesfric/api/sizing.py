@@ -137,10 +137,8 @@ def size(source: Any, at: Mapping[str, Any] | str | None = None, *, capacity: An
 
 
 def _size_fit(fit: xr.DataTree, asked: SizingQuestion | None, name: str, seed: int) -> SizingResult:
-    from bayesfric.sizing import size_fit
-    from bayesfric.sizing.single import fit_question
+    from bayesfric.sizing.single import answer_fit
 
     if asked is None:
         raise UserError("at: required with a fit, e.g. at={'velocity': (2, 'rad/s')}")
-    checked = fit_question(fit, asked, keys=_NO_KEYS, where=f"fit {name}")
-    return size_fit(fit, checked, name=name, seed=seed)
+    return answer_fit(fit, asked, name=name, keys=_NO_KEYS, where=f"fit {name}", seed=seed)

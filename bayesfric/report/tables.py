@@ -1,8 +1,9 @@
-"""Tables derived from law declarations and fits (used by the CLI, Markdown and HTML reports)."""
+"""Tables derived from law declarations, data sets and fits (used by the CLI, Markdown and HTML reports)."""
 
 from __future__ import annotations
 
 import json
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import arviz_stats
@@ -14,7 +15,8 @@ from bayesfric.laws.base import Law
 from bayesfric.quantities import QUANTITIES
 from bayesfric.report.typeset import fmt, unit
 
-__all__ = ["ParameterRow", "parameter_rows", "format_table", "law_rows", "unit_of", "noise_text", "fit_report"]
+__all__ = ["ParameterRow", "parameter_rows", "format_table", "law_rows", "unit_of", "noise_text", "fit_report",
+           "laws_listing", "datasets_listing"]
 
 _NOISE_UNITS = {"sigma": "response", "sigma_floor": "response", "nu": "1", "sigma_rel": "1", "group_sd": "1",
                 "rho": "1"}
@@ -190,3 +192,27 @@ def law_rows(law: Law) -> list[list[str]]:
         rows.append([law.name if i == 0 else "", ", ".join(law.operating_inputs) if i == 0 else "",
                      shape, p.unit, str(p.prior), p.source])
     return rows
+
+
+def laws_listing(laws: list[Law], markdown: bool = False) -> str:
+    """``bayesfric laws``: per family, a table of the laws' parameters (:func:`law_rows`), then one
+    line per law: its summary, source, response and whether it also runs on force data."""
+    from bayesfric.laws.variants import translation_problem
+
+    header = ["law", "inputs", "parameter", "unit", "prior", "source"]
+    out = []
+    for family in sorted({w.family for w in laws}):
+        members = [w for w in laws if w.family == family]
+        out += [f"\n== family {family} ==", format_table(header, [r for w in members for r in law_rows(w)], markdown)]
+        for w in members:
+            problem = translation_problem(w)
+            motion = "also force data (translational)" if problem is None else f"rotary only: {problem}"
+            out.append(f"  {w.name}: {w.summary}  [{w.source}; response {w.response}; {motion}]")
+    return "\n".join(out)
+
+
+def datasets_listing(datasets: Mapping[str, xr.Dataset]) -> str:
+    """``bayesfric data list``: one row per data set (by name): provenance, rows, response, source."""
+    rows = [[name, ds.attrs["provenance"], str(ds.sizes["obs"]), ds.attrs.get("response", ""),
+             ds.attrs.get("source", "")[:90]] for name, ds in datasets.items()]
+    return format_table(["data set", "provenance", "rows", "response", "source"], rows)

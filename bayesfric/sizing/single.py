@@ -17,7 +17,7 @@ from bayesfric.errors import UserError
 from bayesfric.inference import load_fit
 from bayesfric.sizing.points import SizingQuestion, check_question
 
-__all__ = ["read_fit", "fit_question"]
+__all__ = ["read_fit", "fit_question", "answer_fit"]
 
 
 def read_fit(path: str | Path) -> xr.DataTree:
@@ -72,3 +72,19 @@ def fit_question(fit: xr.DataTree, question: SizingQuestion, *, keys: Mapping[st
                         "path, so it cannot be sized at an operating point")
     return check_question(question, law.operating_inputs, law.operating_inputs, law.response, keys=keys,
                           inputs_of=f"law {law.name!r}")
+
+
+def answer_fit(fit: xr.DataTree, question: SizingQuestion, *, name: str, keys: Mapping[str, str] | None = None,
+               where: str = "the fit", seed: int = 0):
+    """The answer of one fit to ``question``: the question checked against the fit's law
+    (:func:`fit_question`, errors naming ``keys`` and ``where``), then
+    :func:`bayesfric.sizing.size_fit` (``name`` names the fit in the result).
+
+    Raises
+    ------
+    UserError
+        As :func:`fit_question`.
+    """
+    from bayesfric.sizing import size_fit
+
+    return size_fit(fit, fit_question(fit, question, keys=keys, where=where), name=name, seed=seed)

@@ -167,11 +167,11 @@ def test_variant_errors_name_their_option():
 
 
 def test_cli_fix_builds_the_fixed_variant():
-    from bayesfric.cli import _parse_fix
+    from bayesfric.commands import parse_fix
 
-    law = _parse_fix(["i=1.5", "F_start=0"], get_law("dahl"))
+    law = parse_fix(["i=1.5", "F_start=0"], get_law("dahl"))
     assert law.constants["i"].value == 1.5 and law.constants["F_start"].value == 0.0 and "i" not in law.params
-    assert _parse_fix(None, get_law("dahl")) is get_law("dahl")
+    assert parse_fix(None, get_law("dahl")) is get_law("dahl")
 
 
 def test_study_entry_builds_its_variant(tmp_path):
