@@ -173,3 +173,12 @@ def test_psis_loo_over_every_draw_of_a_thinned_fit_by_blocks_of_rows(fits, data)
         elpd_i.append(az.loo(part, pointwise=True, var_name="response").elpd_i.values)
     whole = az.loo(full, pointwise=True, var_name="response")
     np.testing.assert_allclose(np.concatenate(elpd_i), whole.elpd_i.values, rtol=1e-10)
+
+
+def test_the_fit_report_says_what_a_thinned_fit_keeps(fits):
+    from bayesfric.report.tables import fit_report
+
+    full, thin = fits
+    law = get_law("coulomb_viscous")
+    assert "kept per data row: 1 in 7 draws of each chain (30 of 200)" in fit_report(thin, law)
+    assert "kept per data row" not in fit_report(full, law)

@@ -171,7 +171,25 @@ def fit_report(dt: xr.DataTree, law: Law, markdown: bool = False) -> str:
         "",
         f"diagnostics: {verdict}{retry_note(dt)}",
     ]
+    if note := storage_note(dt):
+        lines.append(note)
     return "\n".join(lines)
+
+
+def storage_note(dt: xr.DataTree) -> str:
+    """One line saying which draws a thinned fit keeps per data row (:mod:`bayesfric.inference.pointwise`);
+    ``""`` for a fit that keeps every draw."""
+    try:
+        info = json.loads(dt.attrs.get("pointwise_storage") or "{}")
+    except (TypeError, ValueError):
+        return ""
+    if not info.get("thinned"):
+        return ""
+    kinds = sorted(set(info["dtypes"].values()))
+    return (f"kept per data row: 1 in {info['every']} draws of each chain ({info['kept_draws']} of "
+            f"{info['chains'] * info['draws']}) in log_likelihood and posterior_predictive, "
+            f"{info['prior_predictive_draws']} prior-predictive draws, {' / '.join(kinds)} "
+            f"({info['rows']} rows; bayesfric.inference.pointwise)")
 
 
 def retry_note(dt: xr.DataTree) -> str:
