@@ -46,12 +46,12 @@ def test_within_a_process_an_equal_program_reuses_the_compiled_function(cache, d
     first = _engine(data)
     files = sorted(cache.glob(f"*{exported.SUFFIX}"))
     second = NutsEngine(build_program(get_law("coulomb_viscous"), data.copy(deep=True)), **SMALL)
-    assert second.loaded and second._sampler is first._sampler
+    assert second.loaded and second._sampler.advance is first._sampler.advance
     assert first.compilations == 1 and second.compilations == 1  # the second counts its reuse
     assert sorted(cache.glob(f"*{exported.SUFFIX}")) == files
     exported.forget_compiled()  # between laws (release_compiled_code): read back from disk
     third = NutsEngine(build_program(get_law("coulomb_viscous"), data), **SMALL)
-    assert third.loaded and third._sampler is not first._sampler
+    assert third.loaded and third._sampler.advance is not first._sampler.advance
 
 
 def test_an_engine_on_equal_content_reads_the_same_program_back(cache, data):

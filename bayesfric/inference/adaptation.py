@@ -55,7 +55,7 @@ from blackjax.adaptation.mass_matrix import welford_algorithm
 from blackjax.adaptation.step_size import dual_averaging_adaptation
 from blackjax.adaptation.window_adaptation import build_schedule
 
-__all__ = ["ChainDraws", "sampling_schedule", "nuts_chain"]
+__all__ = ["ChainDraws", "sampling_schedule", "nuts_chain", "chain_start", "chain_steps", "step_keys"]
 
 
 class ChainDraws(NamedTuple):
@@ -114,10 +114,38 @@ def nuts_chain(key, z0, logdensity, schedule, init_imm, target_accept: float, de
     Welford estimator, regularised towards a thousandth of the current metric: the module
     notes). Returns every step's
     output; the caller keeps the sampling rows (inactive rows return zeros).
+
+    The same as :func:`chain_start` followed by :func:`chain_steps` over the whole schedule
+    with ``step_keys(key, len(schedule))``; a caller that wants to report progress runs
+    :func:`chain_steps` on consecutive slices of the schedule and keys instead (the same
+    draws: the chain's carry and its per-step keys do not depend on the slicing).
     """
+    carry = chain_start(z0, logdensity, init_imm)
+    _, out = chain_steps(carry, step_keys(key, schedule.shape[0]), schedule, logdensity, target_accept, depth)
+    return out
+
+
+def step_keys(key, steps: int) -> jax.Array:
+    """The per-step keys of a chain of ``steps`` scan steps (warm-up and sampling)."""
+    return jax.random.split(key, steps)
+
+
+def chain_start(z0, logdensity, init_imm) -> tuple:
+    """The carry of a chain before its first step: NUTS state at ``z0`` and fresh adaptation."""
+    mm_init = (_fisher_metric() if init_imm.ndim == 1 and DIAGONAL == "fisher"
+               else _scale_relative_metric(init_imm.ndim == 1))[0]
+    da_init = dual_averaging_adaptation(0.8)[0]  # the initial state does not depend on the target
+    adapt0 = _Adaptation(jnp.asarray(1.0, dtype=z0.dtype), init_imm, da_init(1.0), mm_init(z0.shape[0]))
+    # python scalars in blackjax's initial states become arrays: the carry is a function's output
+    return jax.tree.map(jnp.asarray, (blackjax.nuts.init(z0, logdensity), adapt0))
+
+
+def chain_steps(carry, keys, schedule, logdensity, target_accept: float, depth: int) -> tuple[tuple, ChainDraws]:
+    """Advance a chain's ``carry`` (:func:`chain_start`) by the rows of ``schedule`` with one key
+    per row; return the new carry and every step's output (inactive rows: zeros)."""
     da_init, da_update, da_final = dual_averaging_adaptation(target_accept)
-    mm_init, mm_update, mm_final = (_fisher_metric() if init_imm.ndim == 1 and DIAGONAL == "fisher"
-                                    else _scale_relative_metric(init_imm.ndim == 1))
+    _, mm_update, mm_final = (_fisher_metric() if carry[1].inverse_mass_matrix.ndim == 1 and DIAGONAL == "fisher"
+                              else _scale_relative_metric(carry[1].inverse_mass_matrix.ndim == 1))
     kernel = blackjax.nuts.build_kernel()
 
     def adapt_step(adapt: _Adaptation, row, position, grad, acceptance_rate) -> _Adaptation:
@@ -152,11 +180,7 @@ def nuts_chain(key, z0, logdensity, schedule, init_imm, target_accept: float, de
         k, row = xs
         return jax.lax.cond(row[2] == 1, lambda c: move(c, k, row), idle, carry)
 
-    mm0 = mm_init(z0.shape[0])
-    adapt0 = _Adaptation(jnp.asarray(1.0, dtype=z0.dtype), init_imm, da_init(1.0), mm0)
-    keys = jax.random.split(key, schedule.shape[0])
-    _, out = jax.lax.scan(step, (blackjax.nuts.init(z0, logdensity), adapt0), (keys, schedule))
-    return out
+    return jax.lax.scan(step, carry, (keys, schedule))
 
 
 #: The diagonal metric's estimator: "fisher" (positions and gradients, :func:`_fisher_metric`) or

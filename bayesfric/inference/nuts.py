@@ -3,12 +3,13 @@
 :func:`sample_nuts` builds the program's :class:`~bayesfric.inference.engine.NutsEngine`
 (blackjax NUTS with Stan's window adaptation on the program's one log density) and takes its
 full fit, so a fit and every fold refit of a law are draws of one sampler and one compiled
-program. The sampler runs as one compiled call, so ``progress`` can only say when it starts and
-ends; a study shows progress per stage instead.
+program. With ``progress`` the chains report as they go (warm-up and draws per chain, divergent
+transitions so far, time left: :mod:`bayesfric.inference.progress`), on stderr.
 """
 
 from __future__ import annotations
 
+import contextlib
 import sys
 import time
 
@@ -16,6 +17,7 @@ import xarray as xr
 
 from bayesfric.inference.engine import NutsEngine
 from bayesfric.inference.init import Init
+from bayesfric.inference.progress import reporting
 from bayesfric.model import Program
 
 __all__ = ["sample_nuts"]
@@ -54,7 +56,8 @@ def sample_nuts(
     if progress:
         print(f"sampling {program.law.name}: {chains} chains × ({tune} warm-up + {draws} draws), "
               "compiling first unless cached …", file=sys.stderr, flush=True)
-    dt = engine.fit(ds)
+    with reporting(f"{program.law.name} fit") if progress else contextlib.nullcontext():
+        dt = engine.fit(ds)
     if progress:
         print(f"sampled in {time.perf_counter() - start:.1f} s", file=sys.stderr, flush=True)
     return dt

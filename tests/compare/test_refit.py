@@ -181,11 +181,16 @@ def test_the_inputs_are_constants_and_the_response_an_argument(viscous_data):
     masks = np.ones((1, viscous_data.sizes["obs"]), dtype=bool)
     keys = np.zeros((1, engine.chain_batch, 2), dtype=np.uint32)  # one group of a fold's chains
     y = engine.program.response
-    starts = engine._starts()[:engine.chain_batch]
-    lowered = engine._sampler.lower(keys, masks, y, starts, engine._init_imm, engine._schedule, 0.9)
-    shapes = [tuple(a.shape) for a in lowered.in_avals[0]]
-    assert shapes == [keys.shape, masks.shape, y.shape, tuple(starts.shape),
-                      tuple(engine._init_imm.shape), engine._schedule.shape, ()]
+    starts = np.asarray(engine._starts()[:engine.chain_batch])
+    sampler = engine._sampler  # start, advance (the chains' chunks) and finish programs
+    lowered = sampler.start.lower(keys, masks, y, starts, engine._init_imm)
+    assert [tuple(a.shape) for a in lowered.in_avals[0]] == [keys.shape, masks.shape, y.shape, starts.shape,
+                                                              tuple(engine._init_imm.shape)]
+    leaves, step = sampler.start(keys, masks, y, starts, engine._init_imm)
+    rows = np.asarray(engine._schedule)[:sampler.chunk]
+    lowered = sampler.advance.lower(leaves, np.asarray(step)[:, :, :sampler.chunk], masks, y, rows, 0.9)
+    shapes = [tuple(a.shape) for a in jax.tree.leaves(lowered.in_avals[0])][len(leaves):]
+    assert shapes == [(1, engine.chain_batch, sampler.chunk, 2), masks.shape, y.shape, rows.shape, ()]
 
 
 def test_another_response_is_refitted_by_the_same_compiled_sampler(viscous_data):

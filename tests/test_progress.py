@@ -1,0 +1,161 @@
+"""Progress inside a fit (issue 29 item 4): the chains run in chunks of one compiled step function
+with the same draws as one call; ``bayesfric fit`` prints plain progress lines when stderr is not a
+terminal; the study's time left comes from per-law costs; reused units keep their cost."""
+
+import io
+import math
+
+import jax
+import numpy as np
+import pytest
+
+from bayesfric.datasets.synthetic import simulate
+from bayesfric.inference.adaptation import chain_start, chain_steps, nuts_chain, sampling_schedule, step_keys
+from bayesfric.inference.engine import NutsEngine
+from bayesfric.inference.progress import SamplingProgress, reporting
+from bayesfric.laws import get_law
+from bayesfric.model import build_program
+from bayesfric.study.executor import CostModel, Progress
+from bayesfric.study.store import RunStore
+from bayesfric.study.units import Unit
+
+SMALL = dict(draws=100, tune=150, chains=2, seed=3)
+META = """
+[dataset]
+name = "bench"
+title = "test bench"
+provenance = "measured"
+source = "unit test"
+
+[columns.speed]
+role = "input"
+quantity = "velocity"
+unit = "rad/s"
+
+[columns.torque]
+role = "response"
+quantity = "torque"
+unit = "N*m"
+"""
+
+
+@pytest.fixture(scope="module")
+def data():
+    law = get_law("coulomb_viscous")
+    return simulate(law, {"velocity": np.linspace(-2, 2, 24)}, {"T_C": 1.0, "c_v": 0.5}, sigma=0.05, seed=4)
+
+
+def test_a_chain_in_slices_draws_what_one_scan_draws():
+    """nuts_chain = chain_start + chain_steps over consecutive slices of the schedule and keys."""
+    precision = np.array([[2.0, 0.5], [0.5, 1.0]])
+
+    def logdensity(x):
+        return -0.5 * x @ precision @ x
+
+    schedule = sampling_schedule(150, 60)
+    key, z0, imm = jax.random.PRNGKey(5), np.array([1.0, -1.0]), np.ones(2)
+    whole = jax.jit(lambda: nuts_chain(key, z0, logdensity, schedule, imm, 0.8, 6))()
+    carry, keys, parts = chain_start(z0, logdensity, imm), step_keys(key, schedule.shape[0]), []
+    step = jax.jit(lambda c, k, rows: chain_steps(c, k, rows, logdensity, 0.8, 6))
+    for lo, hi in ((0, 70), (70, 71), (71, 210)):
+        carry, out = step(carry, keys[lo:hi], schedule[lo:hi])
+        parts.append(out.position)
+    np.testing.assert_array_equal(np.concatenate(parts), whole.position)
+
+
+def test_chunked_engine_draws_equal_one_call(data):
+    """Chunks of 37 rows (the last padded with idle rows) give the draws, statistics and lpd of
+    the whole schedule in one call, for a cold fit and warm-started folds; one compilation each."""
+    program = build_program(get_law("coulomb_viscous"), data)
+    chunked, whole = NutsEngine(program, chunk_steps=37, **SMALL), NutsEngine(program, chunk_steps=10**6, **SMALL)
+    assert chunked._sampler.chunk == 37 and whole._sampler.chunk == 250
+    masks = np.ones((2, program.n_obs), dtype=bool)
+    masks[1, :5] = False
+    a, b = chunked.run(masks, seed=2), whole.run(masks, seed=2)
+    for name in a.samples:
+        np.testing.assert_array_equal(a.samples[name], b.samples[name])
+    for name in a.stats:
+        np.testing.assert_array_equal(a.stats[name], b.stats[name])
+    np.testing.assert_allclose(a.lpd, b.lpd, rtol=1e-12)
+    fit = whole.fit(data)
+    warm_a, warm_b = chunked.warm_started(fit, 120).run(masks), whole.warm_started(fit, 120).run(masks)
+    np.testing.assert_array_equal(warm_a.samples["T_C"], warm_b.samples["T_C"])
+    assert chunked.compilations == 1 and whole.compilations == 1 and chunked._sampler.fallbacks == 0
+
+
+def test_plain_progress_lines_per_chain(data):
+    """Off a terminal: a line at the first report, the end of the warm-up and the end, per chain."""
+    stream = io.StringIO()
+    engine = NutsEngine(build_program(get_law("coulomb_viscous"), data), chunk_steps=50, retry_target_accept=None,
+                        **SMALL)
+    with reporting("cv fit", stream=stream, live=False, interval=1e9):
+        engine.run(np.ones((1, data.sizes["obs"]), dtype=bool))
+    lines = stream.getvalue().splitlines()
+    assert len(lines) == 3, lines  # the first report, the warm-up done, the end
+    assert lines[0].startswith("[cv fit] chain 1 warm-up ") and "chain 2 " in lines[0] and "divergent" in lines[0]
+    assert "chain 1 draws " in lines[1] and "chain 2 draws " in lines[1]  # every chain warmed up
+    assert "draws 100/100" in lines[2] and lines[2].endswith(", done")
+
+
+def test_progress_line_text_and_live_rewrite():
+    """Warm-up and draws per chain, folds done, divergences and time left; a terminal rewrites one line."""
+    stream = io.StringIO()
+    with reporting("law cv", stream=stream, live=True):
+        from bayesfric.inference.progress import current
+
+        shown = SamplingProgress(current(), folds=3, chains=2, idle=10, tune=100, draws=200)
+    shown.update(range(0, 1), range(0, 2), 60, np.zeros((1, 2)))
+    shown.first = (shown.first[0] - 10, 0)  # 10 s ago nothing was done
+    text = shown.line(shown.first[0] + 10, 100)
+    assert "folds done 0/3" in text and "fold 1 chain 1 warm-up 50/100" in text
+    assert "~" in text and "s left" in text
+    shown.update(range(0, 1), range(0, 2), 310, np.array([[1, 2]]))
+    assert shown.divergent.sum() == 3 and "3 divergent" in shown.line(shown.first[0] + 20, 600)
+    assert stream.getvalue().startswith("\r[law cv]")
+
+
+def test_fit_command_prints_progress_off_a_terminal(tmp_path, capsys, data, monkeypatch):
+    """``bayesfric fit`` without --quiet: plain progress lines on stderr (not a terminal here)."""
+    from bayesfric.cli import main
+
+    monkeypatch.setenv("BAYESFRIC_PROGRESS_S", "0")  # every chunk reports
+    csv = tmp_path / "bench.csv"
+    csv.write_text("speed,torque\n" + "\n".join(f"{v},{t}" for v, t in zip(
+        data["velocity"].values, data["torque"].values, strict=True)) + "\n")
+    (tmp_path / "bench.toml").write_text(META)
+    code = main(["fit", str(csv), "coulomb_viscous", "--out", str(tmp_path / "fit.nc"),
+                 "--draws", "100", "--tune", "150", "--chains", "2"])
+    err = capsys.readouterr().err
+    assert code == 0
+    lines = [line for line in err.splitlines() if line.startswith("[coulomb_viscous fit]")]
+    assert len(lines) >= 3, err
+    assert "warm-up" in err and "chain 2 draws 100/100" in lines[-1] and lines[-1].endswith(", done")
+
+
+def _unit(law, stage, key):
+    return Unit(law, stage, stage, key)
+
+
+def test_time_left_scales_with_each_laws_fit_cost():
+    """A law whose fit took 10× longer is expected to take 10× longer for its CV too."""
+    units = [_unit("cheap", "fit", "a"), _unit("cheap", "cv", "b"), _unit("dear", "fit", "c"),
+             _unit("dear", "cv", "d")]
+    costs = CostModel(units)
+    assert costs.left() is None
+    costs.done(units[0], 2.0)
+    costs.done(units[1], 6.0)  # cv = 3 × fit
+    assert costs.left() == pytest.approx(2.0 + 6.0)  # dear's fit unknown: the median fit
+    costs.done(units[2], 20.0)
+    assert costs.left() == pytest.approx(60.0)
+
+
+def test_a_reused_fit_reports_the_cost_it_saved(tmp_path):
+    store = RunStore(tmp_path)
+    store.put("k", "nc", b"x")
+    assert math.isnan(store.seconds("k", "nc"))  # stored by an older run
+    store.put_seconds("k", "nc", 12.5)
+    assert store.seconds("k", "nc") == 12.5
+    stream = io.StringIO()
+    progress = Progress(2, "s", stream, live=False, units=[_unit("law", "fit", "k"), _unit("law", "cv", "j")])
+    progress.step(_unit("law", "fit", "k"), "reused", 0.0, 12.5)
+    assert "reused (saved 12.5 s)" in stream.getvalue() and "~12 s left" in stream.getvalue()
