@@ -5,8 +5,9 @@ calibrated for the model-form error that a blocked fold measured?
 Each replicate simulates 30 speeds in 0.1–2 rad/s (normal noise, sd 0.3 N·m), fits the candidate
 laws ``coulomb_viscous`` and ``coulomb``, refits them on a blocked fold inside the data (train ≤
 1.0 rad/s, score the 16 points above: what a study does), weights them by stacking on that fold,
-measures each law's miss there, and sizes the range 2.5–4 rad/s (0.26–1.05 tested ranges beyond
-the data) through :func:`bayesfric.sizing.answer_question`, exactly as ``bayesfric size`` does.
+measures each law's miss there and its misfit at the data (:mod:`bayesfric.sizing.misfit`), and
+sizes the range 2.5–4 rad/s (0.26–1.05 tested ranges beyond the data) through
+:func:`bayesfric.sizing.answer_question`, exactly as ``bayesfric size`` does.
 
 Posteriors are **exact** rather than sampled: both candidates are linear in their coefficients, so
 with flat priors on them and ``p(σ²) ∝ 1/σ²`` the posterior is normal-inverse-χ² and is drawn
@@ -26,10 +27,12 @@ Asserted (R = 200): when the truth is a candidate, the calibrated band covers it
 85–95 % of replicates (consistent at 1 % false alarm) with median width ≤ 1.5× the within-model
 width at every reported point; in the first three non-candidate scenarios it covers the true
 curve in ≥ 85 % at every reported point (2.5, 3 and 4 rad/s). The Stribeck + gear power-law
-scenario falls short (74–80 %): its fold's miss is mostly within one standard error of zero, so
+scenario falls short (74–80.5 %): its fold's miss is mostly within one standard error of zero, so
 the rate is often estimated as 0 (see :mod:`bayesfric.sizing.calibration`); the test asserts
 only that calibration lifts its coverage well above the within-model one and prints the figure,
-which the README states. With the fold at 1.4 rad/s (ten held-out points) the sub-linear case
+which the README states. ``benchmarks/bench_calibration_frontier.py`` shows why no rule does much
+better at this data size: the fold's standardised miss has the same distribution as when the
+candidate is the truth. With the fold at 1.4 rad/s (ten held-out points) the sub-linear case
 fell short too (83 % at 3 rad/s, with the miss offset at 0.2). Figures: README, *Actuator sizing*.
 """
 
@@ -45,6 +48,7 @@ from bayesfric import compare, sizing
 from bayesfric.compare.heldout import HeldOut
 from bayesfric.datasets.synthetic import make_dataset
 from bayesfric.sizing.calibration import Scheme, measure_miss
+from bayesfric.sizing.misfit import local_misfit
 from tests.sizing_helpers import PASSED, hand_fit
 
 REPLICATES = 200
@@ -131,7 +135,9 @@ def calibrate(replicates: int = REPLICATES, seed: int = 2026) -> dict:
         for r in range(replicates):
             y = truth(SPEEDS) + rng.normal(0, SIGMA, SPEEDS.size)
             laws, scheme = sources(y, rng)
-            answer = sizing.answer_question(question, laws, {"velocity": SPEEDS}, schemes=[scheme], seed=r, fan=False)
+            misfits = {s.name: local_misfit(s.fit, {"velocity": SPEEDS}, y, r) for s in laws}  # as sizing.answer
+            answer = sizing.answer_question(question, laws, {"velocity": SPEEDS}, schemes=[scheme], seed=r, fan=False,
+                                            misfits=misfits)
             mix, cal = answer.average, answer.average.calibrated
             within.append((mix.mean_fn.q(0.05) <= mu) & (mu <= mix.mean_fn.q(0.95)))
             calibrated.append((cal.mean_fn.q(0.05) <= mu) & (mu <= cal.mean_fn.q(0.95)))

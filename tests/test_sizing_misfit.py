@@ -35,3 +35,34 @@ def test_signed_inputs_are_read_on_their_magnitude():
     x = np.array([-1.0, -0.5, 0.5, 1.0])
     m = LocalMisfit({"velocity": np.abs(x)}, {"velocity": (True, 1.0)}, r=np.full(4, 0.05), s=np.zeros(4))
     assert m.at({"velocity": np.array([-0.9, 0.9])}) == pytest.approx([0.05, 0.05])
+
+
+def test_the_shift_keeps_the_sign_of_the_bias():
+    x = np.linspace(0.0, 1.0, 50)
+    for bias in (0.04, -0.04):
+        m = LocalMisfit({"velocity": x}, {"velocity": (False, 1.0)}, r=np.full(x.size, bias), s=np.zeros(x.size))
+        shift = m.shift({"velocity": np.array([0.5, 3.0])})
+        assert shift == pytest.approx([bias, bias])
+        assert m.at({"velocity": np.array([0.5])})[0] == pytest.approx(abs(bias))
+
+
+def test_widen_moves_the_curve_by_the_shift_and_spreads_it():
+    from bayesfric.sizing.calibration import widen
+
+    mu = np.full((2, 4000, 2), [10.0, -10.0])  # a curve measured in both directions
+    new_mu, new_y, var = widen(mu, mu.copy(), np.array([0.05, 0.05]), np.random.default_rng(0),
+                               shift=np.array([0.02, 0.02]))
+    assert new_mu.mean(axis=(0, 1)) == pytest.approx([10.2, -10.2], abs=0.03)  # 2 % further from zero
+    assert new_mu.std(axis=(0, 1)) == pytest.approx([0.5, 0.5], rel=0.05)
+    assert var == pytest.approx(0.25)
+    assert np.array_equal(new_mu, new_y)
+
+
+def test_beyond_the_data_the_misfit_is_exactly_the_nearest_edges():
+    rng = np.random.default_rng(1)
+    x = np.linspace(0.1, 2.0, 30)
+    m = LocalMisfit({"velocity": x / 1.9}, {"velocity": (False, 1.9)}, r=rng.normal(0, 0.03, x.size),
+                    s=np.full(x.size, 0.03))
+    edge = m.shift({"velocity": np.array([2.0, 0.1])})
+    beyond = m.shift({"velocity": np.array([4.0, 9.0, 0.0])})
+    assert beyond == pytest.approx([edge[0], edge[0], edge[1]], rel=1e-12)

@@ -80,12 +80,15 @@ def _calibrate(answers: Sequence[LawAnswer], draws: Mapping[str, Draws], sources
 def _widened(src: LawSource, d: Draws, basis: Basis, schemes: Sequence[Scheme], grid, data,
              seed: int, misfit: LocalMisfit | None = None) -> tuple[Draws, np.ndarray]:
     """A law's draws with its measured model-form error added, and the discrepancy's relative sd
-    (the blocked folds' miss, floored by the law's misfit at the data nearest each point)."""
+    (the blocked folds' miss, floored by the law's misfit at the data nearest each point; that
+    misfit, signed, is also the discrepancy's mean: :mod:`bayesfric.sizing.misfit`)."""
     rel = relative_sd(grid, data, src.misses, schemes, basis.schemes, basis.fallback_rate, basis.uncovered)
+    shift = None
     if misfit is not None:
-        rel = np.maximum(rel, misfit.at(grid))
+        shift = misfit.shift(grid)
+        rel = np.maximum(rel, np.abs(shift))
     rng = np.random.default_rng([seed, zlib.crc32(("calibrated " + src.name).encode())])
-    mu, y, _ = widen(d.mu, d.y, rel, rng)
+    mu, y, _ = widen(d.mu, d.y, rel, rng, shift)
     return Draws(mu, y, d.noise_var), rel
 
 

@@ -63,8 +63,8 @@ What it assumes, and where it fails (measured, ``tests/test_sizing_calibration.p
 Inside the data
     The folds measure a miss beyond an envelope; a law's misfit at the data themselves (a curve
     biased near the edge of the tested range) is measured on the full fit's residuals by
-    :mod:`bayesfric.sizing.misfit` and floors the relative sd at each point
-    (:func:`bayesfric.sizing.answer._widened`).
+    :mod:`bayesfric.sizing.misfit`; it moves the law's curve by that bias (signed) and floors
+    the relative sd at each point (:func:`bayesfric.sizing.answer._widened`).
 
 Direction
     A point is weighed and widened only by schemes that extrapolate in its direction along an
@@ -254,9 +254,13 @@ def relative_sd(grid: Mapping[str, np.ndarray], data: Mapping[str, np.ndarray], 
     return np.sqrt(np.maximum(var, edge**2))
 
 
-def widen(mu: np.ndarray, y: np.ndarray, rel_sd: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, ...]:
+def widen(mu: np.ndarray, y: np.ndarray, rel_sd: np.ndarray, rng: np.random.Generator,
+          shift: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
     """Add the discrepancy to predictive draws ``(chain, draw, n)``: one standard normal per draw,
-    shared by the points, times ``rel_sd · |mu|``. Returns ``(mu, y, discrepancy variance)``."""
+    shared by the points, times ``rel_sd · |mu|``, plus the relative mean ``shift · mu`` where
+    given (a bias measured at the data, :mod:`bayesfric.sizing.misfit`).
+    Returns ``(mu, y, discrepancy variance)``."""
     z = rng.normal(size=mu.shape[:-1] + (1,))
     scale = rel_sd * np.abs(mu)
-    return mu + scale * z, y + scale * z, scale**2
+    delta = scale * z if shift is None else scale * z + np.asarray(shift) * mu
+    return mu + delta, y + delta, scale**2
