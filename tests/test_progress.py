@@ -18,6 +18,7 @@ from bayesfric.model import build_program
 from bayesfric.study.executor import CostModel, Progress
 from bayesfric.study.store import RunStore
 from bayesfric.study.units import Unit
+from tests.test_study import data_csv  # noqa: F401 - the fixture is used by name
 
 SMALL = dict(draws=100, tune=150, chains=2, seed=3)
 META = """
@@ -159,3 +160,50 @@ def test_a_reused_fit_reports_the_cost_it_saved(tmp_path):
     progress = Progress(2, "s", stream, live=False, units=[_unit("law", "fit", "k"), _unit("law", "cv", "j")])
     progress.step(_unit("law", "fit", "k"), "reused", 0.0, 12.5)
     assert "reused (saved 12.5 s)" in stream.getvalue() and "~12 s left" in stream.getvalue()
+
+
+STUDY = '''[study]
+name = "timed"
+[data]
+dataset = "bench.csv"
+[sampler]
+draws = 200
+tune = 200
+chains = 2
+[[laws]]
+name = "coulomb_viscous"
+[compare]
+loo = true
+evidence = false
+'''
+
+
+def test_a_resumed_study_reports_what_its_reused_units_cost(tmp_path, data_csv):  # noqa: F811
+    """Run, delete the report (the store stays), run again: every unit is reused, timings.csv has
+    the seconds each took when computed (finite, the fit's included), the footer says so, and the
+    plain lines show the chains' progress inside the fit."""
+    import csv as csvmod
+    import shutil
+
+    from bayesfric.study.runner import run_study
+
+    (tmp_path / "s.toml").write_text(STUDY)
+    out = io.StringIO()
+    import contextlib
+
+    with contextlib.redirect_stdout(out):
+        first: list = []
+        run_study(tmp_path / "s.toml", out_root=tmp_path / "reports", timings=first, live_progress=False)
+    assert "[timed coulomb_viscous fit] chain 1 " in out.getvalue()
+    computed = {r.stage: r.seconds for r in first}
+    assert all(r.status == "computed" for r in first)
+    shutil.rmtree(tmp_path / "reports" / "timed")
+    again: list = []
+    run_study(tmp_path / "s.toml", out_root=tmp_path / "reports", timings=again, live_progress=False)
+    assert {r.status for r in again} == {"reused"}
+    for row in again:
+        assert row.seconds == 0.0 and row.stored_seconds == pytest.approx(computed[row.stage], rel=1e-6, abs=1e-3)
+    with (tmp_path / "reports" / "timed" / "timings.csv").open(newline="") as fh:
+        assert all(math.isfinite(float(r["stored_seconds"])) for r in csvmod.DictReader(fh))
+    html = "".join(p.read_text() for p in (tmp_path / "reports" / "timed").glob("*.html"))
+    assert "reused from earlier runs: 3 units" in html and "of computing saved" in html

@@ -12,9 +12,15 @@ system shared with the client. Serial and parallel runs compute the same units f
 inputs and seeds, hence the same numbers.
 
 Progress: a tqdm bar (units done / total, the law and stage last finished, elapsed and estimated
-time left) on a terminal; plain lines when stdout is not one (CI logs). Every unit leaves a
-:class:`Timing` row (computed, reused or skipped, and seconds); :func:`timing_table` prints the
-per-stage summary and :func:`write_timings` the rows as CSV.
+time left) on a terminal; plain lines when stdout is not one (CI logs). Inside a unit run in this
+process the NUTS chains report too (:mod:`bayesfric.inference.progress`: warm-up and draws per
+chain, divergences, time left), in the bar's postfix or as plain lines; units on Dask workers
+report only when they end. The time left is the sum over the units still to run of their
+law's fit cost times their stage's cost per fit-second (:class:`CostModel`), both measured on the
+units done (a reused unit counts with the seconds it took when computed), not the mean unit.
+Every unit leaves a :class:`Timing` row (computed, reused or skipped, its seconds in this run, and
+what it cost when computed); :func:`timing_table` prints the per-stage summary and
+:func:`write_timings` the rows as CSV.
 """
 
 from __future__ import annotations
@@ -28,11 +34,13 @@ from collections.abc import Iterator
 from dataclasses import astuple, dataclass, fields
 from pathlib import Path
 
+import numpy as np
 from tqdm import tqdm
 
 from bayesfric.compare import verdict_of
 from bayesfric.csvout import write_csv
 from bayesfric.errors import UserError
+from bayesfric.inference.progress import reporting
 from bayesfric.study.store import RunStore, load_fit_bytes
 from bayesfric.study.units import COSTLY, LawJob, Unit, compute, compute_seconds
 
@@ -52,32 +60,108 @@ class Timing:
     label: str
     status: str
     seconds: float  # wall seconds spent in this run (0 for reused and skipped units)
-    stored_seconds: float  # what the unit cost when it was computed (NaN for fits)
+    stored_seconds: float  # what the unit cost when it was computed (NaN: skipped, or stored by an older run)
+
+
+class CostModel:
+    """Expected compute seconds of a unit from the units done: its law's fit seconds times its
+    stage's seconds per fit-second (median over the laws done), so a stateful law whose fit took
+    ten minutes is expected to take about as many times longer for its refits as for a static law.
+
+    Before any fit is done nothing is known (:meth:`left` returns None); a law whose fit is not
+    done yet is expected to cost the median fit; a stage not seen yet, the median ratio of all
+    stages seen (1 before any).
+    """
+
+    def __init__(self, units: list[Unit]):
+        self.pending = {u.key: u for u in units}
+        self.fit_s: dict[str, float] = {}  # law -> seconds of its fit (computed now or before)
+        self.ratios: dict[str, list[float]] = {}  # stage -> unit seconds / its law's fit seconds
+        self.waiting: list[tuple[Unit, float]] = []  # units done before their law's fit cost was known
+
+    def done(self, unit: Unit, cost: float) -> None:
+        """``unit`` finished (computed, reused or skipped) and cost ``cost`` seconds (NaN: unknown)."""
+        self.pending.pop(unit.key, None)
+        if not np.isfinite(cost):
+            return
+        if unit.stage == "fit":
+            self.fit_s[unit.law] = cost
+            for other, seconds in [w for w in self.waiting if w[0].law == unit.law]:
+                self._ratio(other, seconds)
+            self.waiting = [w for w in self.waiting if w[0].law != unit.law]
+        elif unit.law in self.fit_s:
+            self._ratio(unit, cost)
+        else:
+            self.waiting.append((unit, cost))
+
+    def _ratio(self, unit: Unit, seconds: float) -> None:
+        if self.fit_s[unit.law] > 0:
+            self.ratios.setdefault(unit.stage, []).append(seconds / self.fit_s[unit.law])
+
+    def expected(self, unit: Unit) -> float:
+        """Seconds ``unit`` is expected to take."""
+        fit = self.fit_s.get(unit.law, float(np.median(list(self.fit_s.values()))))
+        if unit.stage == "fit":
+            return fit
+        seen = self.ratios.get(unit.stage)
+        if seen:
+            return fit * float(np.median(seen))
+        every = [r for rs in self.ratios.values() for r in rs]
+        return fit * (float(np.median(every)) if every else 1.0)
+
+    def left(self) -> float | None:
+        """Seconds of the units not done yet, or None while no fit cost is known."""
+        if not self.fit_s:
+            return None
+        return float(sum(self.expected(u) for u in self.pending.values()))
 
 
 class Progress:
-    """Units done / total with the law and stage, elapsed and remaining time (tqdm, or plain lines)."""
+    """Units done / total with the law and stage, elapsed and remaining time (tqdm, or plain lines).
 
-    def __init__(self, total: int, name: str, stream=None, live: bool | None = None):
+    With ``units`` (every unit of the run) the time left comes from the :class:`CostModel`;
+    without, from the mean unit so far.
+    """
+
+    def __init__(self, total: int, name: str, stream=None, live: bool | None = None,
+                 units: list[Unit] | None = None):
         self.stream = stream or sys.stdout
         self.name, self.total, self.done = name, total, 0
         self.start = time.perf_counter()
+        self.costs = CostModel(units) if units is not None else None
         self.live = bool(getattr(self.stream, "isatty", lambda: False)()) if live is None else live
         self.bar = (tqdm(total=total, desc=name, unit="unit", file=self.stream, dynamic_ncols=True)
                     if self.live else None)
 
-    def step(self, unit: Unit, status: str, seconds: float) -> None:
-        """Count one unit as finished."""
+    def step(self, unit: Unit, status: str, seconds: float, cost: float = float("nan")) -> None:
+        """Count one unit as finished; ``cost`` is what it took when computed (a reused unit's saving)."""
         self.done += 1
+        if status == "computed":
+            cost = seconds
         what = f"{unit.law} {unit.label}: {status}" + (f" in {seconds:.1f} s" if status == "computed" else "")
+        if status == "reused" and np.isfinite(cost):
+            what += f" (saved {cost:.1f} s)"
+        if self.costs is not None:
+            self.costs.done(unit, cost)
         if self.bar is not None:
             self.bar.set_postfix_str(what, refresh=False)
             self.bar.update(1)
             return
         elapsed = time.perf_counter() - self.start
-        left = elapsed / self.done * (self.total - self.done)  # rough: units differ in cost
+        left = self.costs.left() if self.costs is not None else None
+        if left is None:
+            left = elapsed / self.done * (self.total - self.done)  # rough: units differ in cost
         print(f"[{self.name}] {self.done}/{self.total} {what} (elapsed {elapsed:.0f} s, ~{left:.0f} s left)",
               file=self.stream, flush=True)
+
+    def inside(self, unit: Unit):
+        """The reporting context of the chains inside ``unit`` (:func:`bayesfric.inference.progress.reporting`):
+        the bar's postfix on a terminal, plain lines on this progress's stream otherwise."""
+        label = f"{self.name} {unit.law} {unit.label}"
+        if self.bar is not None:
+            bar = self.bar
+            return reporting(label, stream=self.stream, live=True, sink=lambda text: bar.set_postfix_str(text))
+        return reporting(label, stream=self.stream, live=False)
 
     def close(self) -> None:
         if self.bar is not None:
@@ -115,10 +199,12 @@ def open_client(workers: int = 0, scheduler: str | None = None) -> Iterator[obje
 
 
 class _Serial:
-    """In-process executor with the interface :func:`run_units` needs; a law's units run together."""
+    """In-process executor with the interface :func:`run_units` needs; a law's units run together.
+    Each unit runs inside ``inside(unit)`` (its chains' progress)."""
 
-    def __init__(self):
+    def __init__(self, inside=None):
         self.queue: deque = deque()
+        self.inside = inside or (lambda unit: contextlib.nullcontext())
 
     def submit(self, job, unit, fit_payload, first: bool) -> None:
         (self.queue.appendleft if first else self.queue.append)((job, unit, fit_payload))
@@ -126,7 +212,8 @@ class _Serial:
     def completed(self) -> Iterator[tuple[LawJob, Unit, bytes, float]]:
         while self.queue:
             job, unit, fit_payload = self.queue.popleft()
-            payload, seconds = compute(job, unit, fit_payload)
+            with self.inside(unit):
+                payload, seconds = compute(job, unit, fit_payload)
             yield job, unit, payload, seconds
 
 
@@ -174,8 +261,9 @@ def run_units(plans: list[tuple[LawJob, Unit, list[Unit]]], store: RunStore, *, 
     timings : list of Timing
         One row per unit.
     """
-    executor = _Serial() if client is None else _Dask(client)
-    progress = Progress(sum(1 + len(rest) for _, _, rest in plans), study, stream, live)
+    every = [u for _, fit, rest in plans for u in [fit, *rest]]
+    progress = Progress(len(every), study, stream, live, units=every)
+    executor = _Serial(progress.inside) if client is None else _Dask(client)
     payloads: dict[str, bytes] = {}
     skipped: dict[str, list[Unit]] = {job.spec.name: [] for job, _, _ in plans}
     timings: list[Timing] = []
@@ -183,9 +271,14 @@ def run_units(plans: list[tuple[LawJob, Unit, list[Unit]]], store: RunStore, *, 
 
     def finished(job: LawJob, unit: Unit, payload: bytes, status: str, seconds: float) -> None:
         payloads[unit.key] = payload
-        timings.append(Timing(study, unit.law, unit.stage, unit.label, status, seconds,
-                              compute_seconds(unit, payload) if status == "reused" else seconds))
-        progress.step(unit, status, seconds)
+        if status == "computed":
+            cost = seconds
+        elif unit.kind == "nc":  # a fit's seconds lie beside it in the store
+            cost = store.seconds(unit.key, unit.kind)
+        else:
+            cost = compute_seconds(unit, payload)
+        timings.append(Timing(study, unit.law, unit.stage, unit.label, status, seconds, cost))
+        progress.step(unit, status, seconds, cost)
         if unit.stage != "fit":
             return
         passed = verdict_of(load_fit_bytes(payload)).passed
@@ -212,6 +305,8 @@ def run_units(plans: list[tuple[LawJob, Unit, list[Unit]]], store: RunStore, *, 
                 executor.submit(job, fit, None, first=False)
         for job, unit, payload, seconds in executor.completed():
             store.put(unit.key, unit.kind, payload)
+            if unit.kind == "nc":
+                store.put_seconds(unit.key, unit.kind, seconds)
             finished(job, unit, payload, "computed", seconds)
     finally:
         progress.close()

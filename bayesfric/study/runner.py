@@ -25,6 +25,7 @@ import contextlib
 import dataclasses
 import hashlib
 import json
+import math
 import time
 from pathlib import Path
 
@@ -288,6 +289,15 @@ def _run_laws(study: Study, ds, work: Path, plans: list, schemes, *, out_root: P
     return outcomes
 
 
+def _unit_seconds(rows: list) -> dict:
+    """Seconds the units computed in this run took, and what the reused ones cost when computed
+    (the report's footer: a resumed run's wall time alone hides the real cost)."""
+    reused = [r.stored_seconds for r in rows if r.status == "reused"]
+    return dict(computed=float(sum(r.seconds for r in rows if r.status == "computed")), reused=len(reused),
+                saved=float(sum(s for s in reused if math.isfinite(s))),
+                unknown=sum(not math.isfinite(s) for s in reused))
+
+
 def _assign_weights(out: StudyOutcome) -> None:
     """Stacking and pseudo-BMA+ weights from LOO, stacking from the first blocked scheme, and the
     prior sensitivity of the LOO ranking. Failed fits are excluded unless the study says otherwise."""
@@ -462,6 +472,7 @@ def _write_study(prepared, out_root: Path, quick: bool, fresh: bool, client, tim
         outcome.table = score_table(outcome)
         outcome.claims = evaluate_claims(study.claims, outcome, outcome.table)
         outcome.seconds = time.perf_counter() - start
+        outcome.extra["unit_seconds"] = _unit_seconds(rows)
         from bayesfric.report.summary import write_reports  # here: bayesfric.report reads bayesfric.study
 
         write_reports(outcome, work)

@@ -9,7 +9,10 @@ constants, the content of the selected data, the scheme's masks, the sampler set
 A unit whose key is in the store is read back instead of computed.
 
 Layout: ``<root>/<key>.nc`` (a full fit, NetCDF) or ``<root>/<key>.npz`` (every other unit: its
-arrays plus one JSON record). ``root`` is :func:`store_folder`: ``$BAYESFRIC_STORE_DIR/<study>``
+arrays plus one JSON record, which holds the unit's compute seconds). A fit's compute seconds
+lie beside it in ``<root>/<key>.nc.json`` (:meth:`RunStore.put_seconds`), outside the NetCDF
+bytes so a fit's file stays a function of its inputs; a reused unit reports what it saved.
+``root`` is :func:`store_folder`: ``$BAYESFRIC_STORE_DIR/<study>``
 if that variable is set, else ``<reports root>/.store/<study>``; below the reports root it is
 reached through real folders only, never a symbolic link. Each entry is one file written
 atomically (temporary file in the same folder, then ``os.replace``), so a run killed at any moment
@@ -160,6 +163,18 @@ class RunStore:
         path = self.path(key, kind)
         _atomic_write(path, payload)
         return path
+
+    def put_seconds(self, key: str, kind: str, seconds: float) -> None:
+        """Record beside the entry the wall seconds it took to compute (for a fit, whose NetCDF
+        bytes hold no record of their own)."""
+        _atomic_write(self.folder / f"{key}.{kind}.json", json.dumps({"compute_s": float(seconds)}).encode())
+
+    def seconds(self, key: str, kind: str) -> float:
+        """The seconds recorded by :meth:`put_seconds`; NaN if none (a store of an older run)."""
+        try:
+            return float(json.loads((self.folder / f"{key}.{kind}.json").read_text())["compute_s"])
+        except (OSError, ValueError, KeyError, TypeError):
+            return float("nan")
 
 
 def _pid_alive(pid: int) -> bool:

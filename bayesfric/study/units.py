@@ -216,7 +216,8 @@ def compute(job: LawJob, unit: Unit, fit_payload: bytes | None = None) -> tuple[
 
 
 def compute_seconds(unit: Unit, payload: bytes) -> float:
-    """Wall seconds the stored unit took when it was computed (NaN for a fit: not recorded)."""
+    """Wall seconds the stored unit took when it was computed (NaN for a fit: its seconds lie beside
+    it in the store, :meth:`bayesfric.study.store.RunStore.seconds`)."""
     if unit.kind == "nc":
         return float("nan")
     return float(unpack_record(payload)[0].get("compute_s", float("nan")))
