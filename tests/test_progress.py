@@ -85,17 +85,22 @@ def test_chunked_engine_draws_equal_one_call(data):
 
 
 def test_plain_progress_lines_per_chain(data):
-    """Off a terminal: a line at the first report, the end of the warm-up and the end, per chain."""
+    """Off a terminal: lines at most one per interval (here every chunk), the last at the end; a
+    run shorter than the interval prints nothing."""
     stream = io.StringIO()
     engine = NutsEngine(build_program(get_law("coulomb_viscous"), data), chunk_steps=50, retry_target_accept=None,
                         **SMALL)
-    with reporting("cv fit", stream=stream, live=False, interval=1e9):
+    with reporting("cv fit", stream=stream, live=False, interval=0):
         engine.run(np.ones((1, data.sizes["obs"]), dtype=bool))
     lines = stream.getvalue().splitlines()
-    assert len(lines) == 3, lines  # the first report, the warm-up done, the end
-    assert lines[0].startswith("[cv fit] chain 1 warm-up ") and "chain 2 " in lines[0] and "divergent" in lines[0]
-    assert "chain 1 draws " in lines[1] and "chain 2 draws " in lines[1]  # every chain warmed up
-    assert "draws 100/100" in lines[2] and lines[2].endswith(", done")
+    assert len(lines) == 10, lines  # 5 chunks of 50 rows per chain, 2 chains
+    assert lines[0].startswith("[cv fit] chain 1 ") and "chain 2 " in lines[0] and "0 divergent" in lines[0]
+    assert "warm-up 50/150" in lines[0] and "s left" in lines[-2]
+    assert lines[-1].endswith(", done") and "chain 1 draws 100/100 · chain 2 draws 100/100" in lines[-1]
+    quiet = io.StringIO()
+    with reporting("cv fit", stream=quiet, live=False, interval=1e9):
+        engine.run(np.ones((1, data.sizes["obs"]), dtype=bool))
+    assert quiet.getvalue() == ""
 
 
 def test_progress_line_text_and_live_rewrite():
@@ -178,7 +183,7 @@ evidence = false
 '''
 
 
-def test_a_resumed_study_reports_what_its_reused_units_cost(tmp_path, data_csv):  # noqa: F811
+def test_a_resumed_study_reports_what_its_reused_units_cost(tmp_path, data_csv, monkeypatch):  # noqa: F811
     """Run, delete the report (the store stays), run again: every unit is reused, timings.csv has
     the seconds each took when computed (finite, the fit's included), the footer says so, and the
     plain lines show the chains' progress inside the fit."""
@@ -188,6 +193,7 @@ def test_a_resumed_study_reports_what_its_reused_units_cost(tmp_path, data_csv):
     from bayesfric.study.runner import run_study
 
     (tmp_path / "s.toml").write_text(STUDY)
+    monkeypatch.setenv("BAYESFRIC_PROGRESS_S", "0")  # every chunk reports
     out = io.StringIO()
     import contextlib
 

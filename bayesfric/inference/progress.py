@@ -9,9 +9,10 @@ study): the library stays quiet by default.
 
 * **On a terminal** one line is rewritten in place (at most every :data:`LIVE_INTERVAL_S`), or,
   inside a study whose own tqdm bar is on screen, the bar's postfix shows it.
-* **Otherwise** (a log, CI, a pipe) plain lines: one at the first report, one when every chain
-  has finished its warm-up, one when the run ends, and in between at most one every
-  :data:`PLAIN_INTERVAL_S` seconds (``BAYESFRIC_PROGRESS_S`` overrides it).
+* **Otherwise** (a log, CI, a pipe) plain lines, at most one every :data:`PLAIN_INTERVAL_S`
+  seconds (``BAYESFRIC_PROGRESS_S`` overrides it), the first after that long, and a last one
+  when a run that printed any ends: a fit shorter than the interval adds nothing to a log (a
+  study has many short units), a long one says where it stands every interval.
 
 A line reads, for a fit with four chains::
 
@@ -110,8 +111,9 @@ class SamplingProgress:
         self.lock = threading.Lock()
         self.start = time.perf_counter()
         self.first: tuple[float, int] | None = None  # (time, active steps) at the first report
-        self.shown = -np.inf
-        self.warmed = False
+        # plain lines: the first after one interval; a terminal's line at once
+        self.shown = -np.inf if target is None or target.live else self.start
+        self.printed = False
         self.width = 0
 
     def _active(self) -> np.ndarray:
@@ -131,13 +133,10 @@ class SamplingProgress:
             done = int(self._active().sum())
             if self.first is None:
                 self.first = (now, done)
-            warmed = bool((self.rows >= self.idle + self.tune).all())
             finished = bool((self.rows >= self.idle + self.tune + self.draws).all())
-            event = (warmed and not self.warmed) or finished
-            self.warmed = self.warmed or warmed
             gap = LIVE_INTERVAL_S if self.target.live else self.target.interval
-            if event or now - self.shown >= gap:
-                self.shown = now
+            if (finished and self.printed) or now - self.shown >= gap:
+                self.shown, self.printed = now, True
                 self._show(self.line(now, done), final=finished)
 
     def line(self, now: float, done: int) -> str:
