@@ -31,14 +31,18 @@ SEEDS = ("robot_joint", "pitch_bearing", "dahl_duplex", "unwinder", "drum_rollou
 
 
 def time_law(engine: NutsEngine) -> list[dict]:
-    """Lower, compile and run the engine's sampler once per optimisation level."""
-    program = engine.program
+    """Lower, compile and run the engine's chain step (the whole schedule in one chunk: the engine
+    is built with ``chunk_steps`` at least its schedule) once per optimisation level."""
+    program, sampler = engine.program, engine._sampler
+    assert sampler.chunk == sampler.rows, "build the engine with chunk_steps >= tune + draws"
     keys = np.asarray(jnp.stack([jax.random.split(jax.random.PRNGKey(1), engine.chains)]))
-    args = (keys, np.ones((1, program.n_obs), bool), program.response, np.asarray(engine._init_z),
-            np.asarray(engine._init_imm), np.asarray(engine._schedule), np.asarray(engine.target_accept))
+    masks = np.ones((1, program.n_obs), bool)
+    leaves, step = sampler.start(keys, masks, program.response, np.asarray(engine._starts()),
+                                 np.asarray(engine._init_imm))
+    args = (leaves, step, masks, program.response, np.asarray(engine._schedule), np.asarray(engine.target_accept))
     rows = []
     for options in LEVELS:
-        jitted = jax.jit(engine._sample_batch, compiler_options=options or None)
+        jitted = jax.jit(sampler._advance, compiler_options=options or None)
         t0 = time.perf_counter()
         lowered = jitted.lower(*args)
         t1 = time.perf_counter()
@@ -48,7 +52,7 @@ def time_law(engine: NutsEngine) -> list[dict]:
         t3 = time.perf_counter()
         rows.append(dict(level=options.get("xla_backend_optimization_level", "default"), trace=round(t1 - t0, 2),
                          compile=round(t2 - t1, 2), run=round(t3 - t2, 2),
-                         steps_per_draw=round(float(np.asarray(out[1]["n_steps"]).mean()), 1)))
+                         steps_per_draw=round(float(np.asarray(out[1]["n_steps"])[:, :, engine.tune:].mean()), 1)))
     return rows
 
 
@@ -61,7 +65,8 @@ def main(studies: list[str]) -> None:
                 program = build_program(spec.build(), ds, priors=spec.priors, noise=study.noise,
                                         constants=spec.constants)
                 engine = NutsEngine(program, draws=settings["draws"], tune=settings["tune"],
-                                    chains=settings.get("chains", 4), seed=1)
+                                    chains=settings.get("chains", 4), seed=1, chain_batch=settings.get("chains", 4),
+                                    chunk_steps=10**9)
                 for row in time_law(engine):
                     print(json.dumps(dict(study=name, law=spec.name, **row)), flush=True)
                 release_compiled_code()
