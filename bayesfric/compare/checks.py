@@ -267,7 +267,7 @@ def prior_sensitivity(dt: xr.DataTree, threshold: float = 0.05) -> pd.DataFrame:
     if "log_prior" not in dt.children:
         raise ValueError("fit has no log_prior group; refit with a current bayesfric")
     with contextlib.redirect_stdout(io.StringIO()), _quiet(logging.getLogger("arviz_stats.psense")):
-        return az.psense_summary(stored_draws(dt), var_names=_parameters(dt), threshold=threshold)
+        return az.psense_summary(stored_draws(dt, ("log_likelihood",)), var_names=_parameters(dt), threshold=threshold)
 
 
 @contextlib.contextmanager
@@ -291,7 +291,7 @@ def power_scaled_loo(dt: xr.DataTree, alpha: float):
     """
     if "log_prior" not in dt.children:
         raise ValueError("fit has no log_prior group; refit with a current bayesfric")
-    dt = stored_draws(dt)  # a thinned fit: the draws its log-likelihood holds, in float64
+    dt = stored_draws(dt, ("log_likelihood",))  # a thinned fit: the draws its log-likelihood holds, in float64
     log_prior = dt["log_prior"].to_dataset()
     total_prior = sum(log_prior[v] for v in log_prior.data_vars)
     log_lik = dt["log_likelihood"][OBS_SITE]
@@ -355,7 +355,7 @@ def ranking_sensitivity(
             warnings.filterwarnings("ignore", message="Estimated shape parameter of Pareto", category=UserWarning)
             results = {name: (power_scaled_loo(dt, alpha) if alpha != 1.0
                               else baseline[name] if baseline.get(name) is not None
-                              else az.loo(stored_draws(dt), var_name=OBS_SITE, pointwise=True))
+                              else az.loo(stored_draws(dt, ("log_likelihood",)), var_name=OBS_SITE, pointwise=True))
                        for name, dt in fits.items()}
         elpd[alpha] = {name: float(r.elpd) for name, r in results.items()}
         max_k[alpha] = {name: float(np.max(r.pareto_k)) for name, r in results.items()}

@@ -163,7 +163,7 @@ def _psis(fit: xr.DataTree):
     are refitted, or the result says they were not (``handling``, ``reliable``)."""
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", message="Estimated shape parameter of Pareto", category=UserWarning)
-        return az.loo(stored_draws(fit), pointwise=True, var_name=OBS_SITE)
+        return az.loo(stored_draws(fit, ("log_likelihood",)), pointwise=True, var_name=OBS_SITE)
 
 
 def _result(fit: xr.DataTree, data, elpd_i: np.ndarray, threshold: float, high: np.ndarray, handling: str,

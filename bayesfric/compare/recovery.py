@@ -100,7 +100,7 @@ def _scores(
 ) -> float:
     """Higher is better, for every method."""
     if method == "loo":
-        return float(az.loo(stored_draws(program_fit), var_name=OBS_SITE).elpd)
+        return float(az.loo(stored_draws(program_fit, ("log_likelihood",)), var_name=OBS_SITE).elpd)
     program = build_program(law, ds, priors=fit_kwargs.get("priors"), noise=fit_kwargs.get("noise"))
     if method == "evidence":
         return bridge_log_evidence(program, program_fit, seed=seed).log_z

@@ -283,13 +283,14 @@ def thinned_tables(program: Program, info: Storage, flat: dict, key_pp, key_prio
 
 
 # -- reading a fit --------------------------------------------------------------------------------
-def stored_draws(fit: xr.DataTree) -> xr.DataTree:
+def stored_draws(fit: xr.DataTree, cast: tuple[str, ...] = ("log_likelihood", "posterior_predictive")
+                 ) -> xr.DataTree:
     """The fit restricted to the draws its pointwise groups hold, those groups in float64.
 
     For a fit that keeps every draw (small fits, and fits from before thinning) this is ``fit``
     itself. For a thinned one, a shallow copy whose ``posterior``, ``sample_stats`` and
-    ``log_prior`` hold only the kept draws and whose ``log_likelihood`` and
-    ``posterior_predictive`` are float64 copies: what arviz-stats' ``loo``, ``loo_pit`` and
+    ``log_prior`` hold only the kept draws and whose groups ``cast`` are float64 copies (the
+    others as stored): what arviz-stats' ``loo`` (``cast=("log_likelihood",)``), ``loo_pit`` and
     ``psense`` need to see (their relative efficiency and weights computed on the same draws).
     """
     info = storage_of(fit)
@@ -300,7 +301,7 @@ def stored_draws(fit: xr.DataTree) -> xr.DataTree:
     for group in ("posterior", "sample_stats", "log_prior"):
         if group in fit.children:
             view[group] = fit[group].to_dataset().sel(draw=draws)
-    for group in ("log_likelihood", "posterior_predictive"):
+    for group in cast:
         if group in fit.children:
             view[group] = fit[group].to_dataset().astype(np.float64)
     return view
