@@ -213,3 +213,12 @@ def test_a_resumed_study_reports_what_its_reused_units_cost(tmp_path, data_csv, 
         assert all(math.isfinite(float(r["stored_seconds"])) for r in csvmod.DictReader(fh))
     html = "".join(p.read_text() for p in (tmp_path / "reports" / "timed").glob("*.html"))
     assert "reused from earlier runs: 3 units" in html and "of computing saved" in html
+
+
+def test_a_terminal_bar_shows_the_costed_time_left():
+    stream = io.StringIO()
+    units = [_unit("a", "fit", "k"), _unit("a", "cv", "j"), _unit("b", "fit", "m")]
+    progress = Progress(3, "st", stream, live=True, units=units)
+    progress.step(units[0], "computed", 3.0)
+    progress.close()
+    assert "st (~6 s left)" in stream.getvalue()  # a's cv (1 × its fit) and b's fit (the median fit)

@@ -143,12 +143,14 @@ class Progress:
             what += f" (saved {cost:.1f} s)"
         if self.costs is not None:
             self.costs.done(unit, cost)
-        if self.bar is not None:
+        left = self.costs.left() if self.costs is not None else None
+        if self.bar is not None:  # tqdm's own estimate counts units; the description has the costed one
+            if left is not None:
+                self.bar.set_description_str(f"{self.name} (~{left:.0f} s left)", refresh=False)
             self.bar.set_postfix_str(what, refresh=False)
             self.bar.update(1)
             return
         elapsed = time.perf_counter() - self.start
-        left = self.costs.left() if self.costs is not None else None
         if left is None:
             left = elapsed / self.done * (self.total - self.done)  # rough: units differ in cost
         print(f"[{self.name}] {self.done}/{self.total} {what} (elapsed {elapsed:.0f} s, ~{left:.0f} s left)",
