@@ -426,7 +426,8 @@ class NutsEngine:
                 shown.update(range(lo, lo + b), range(c, c + cb), rows, divergent)
 
             constrained, stats, lpd = self._sampler(keys[lo:lo + b, c:c + cb], padded[lo:lo + b],
-                                                    self.program.response, starts[c:c + cb], *fixed, report=report)
+                                                    self.program.response, starts[c:c + cb], *fixed,
+                                                    report=report if shown.target is not None else None)
             return constrained, stats, lpd
 
         work = [(lo, c) for lo in range(0, padded.shape[0], b) for c in range(0, self.chains, cb)]
