@@ -222,3 +222,22 @@ def test_a_terminal_bar_shows_the_costed_time_left():
     progress.step(units[0], "computed", 3.0)
     progress.close()
     assert "st (~6 s left)" in stream.getvalue()  # a's cv (1 × its fit) and b's fit (the median fit)
+
+
+def test_engines_of_other_warm_up_lengths_do_not_share_start_programs(monkeypatch, tmp_path, data):
+    """The start program splits each chain's key into one key per schedule row: its disk key
+    must say how many rows (the warm-up length is no argument shape of it)."""
+    import bayesfric.exported as exported
+
+    monkeypatch.setenv("BAYESFRIC_CACHE_DIR", str(tmp_path))
+    monkeypatch.delenv("BAYESFRIC_NO_CACHE", raising=False)
+    program = build_program(get_law("coulomb_viscous"), data)
+    keys = np.zeros((1, 1, 2), dtype=np.uint32)
+    for tune in (150, 200):
+        exported.forget_compiled()
+        engine = NutsEngine(program, **(SMALL | dict(tune=tune)))
+        starts = np.asarray(engine._starts())[:1]
+        _, step = engine._sampler.start(keys, np.ones((1, program.n_obs), bool), program.response, starts,
+                                        engine._init_imm)
+        assert np.asarray(step).shape[2] == tune + SMALL["draws"]
+    exported.forget_compiled()

@@ -78,7 +78,7 @@ class ChunkedSampler:
         start_args = (keys, masks, response, starts, init_imm)
         carry_shapes, keys_shape = jax.eval_shape(self._start_tree, *start_args)
         self.treedef = jax.tree.structure(carry_shapes)
-        self.start, _ = exported_jit(self._start, parts | dict(what="chunked start"),
+        self.start, _ = exported_jit(self._start, parts | dict(what="chunked start", rows=self.rows),
                                      start_args, ahead=True)
         chunk_keys = jax.ShapeDtypeStruct((n_folds, n_chains, self.chunk) + keys_shape.shape[3:], keys_shape.dtype)
         chunk_rows = jax.ShapeDtypeStruct((self.chunk,) + schedule.shape[1:], schedule.dtype)
