@@ -39,6 +39,8 @@ of rows.
 
 from __future__ import annotations
 
+import ctypes
+import ctypes.util
 import json
 import math
 from collections.abc import Mapping
@@ -59,7 +61,7 @@ from bayesfric.model import OBS_SITE, Program
 __all__ = [
     "FULL_NUMBERS", "STORED_NUMBERS", "CHUNK_NUMBERS", "LOG_LIKELIHOOD_TOLERANCE", "PREDICTIVE_TOLERANCE",
     "Storage", "storage", "storage_of", "thinned_tables_jit", "thinned_tables", "stored_draws", "log_likelihood",
-    "log_mean_likelihood",
+    "log_mean_likelihood", "trim_memory",
 ]
 
 #: Draws × rows (all chains) up to which a fit keeps every draw in float64, as before.
@@ -268,7 +270,11 @@ def thinned_tables_jit(program: Program, info: Storage, low: tuple[bool, bool, b
 def thinned_tables(program: Program, info: Storage, flat: dict, key_pp, key_prior, tables: Any = None):
     """Run the thinned tables and settle each group's dtype: float32 where the rounding stays
     within the tolerances, else that group again in float64. Returns the tables (as
-    :func:`_thinned_tables`, without the rounding figures) and group -> dtype name."""
+    :func:`_thinned_tables`, without the rounding figures) and group -> dtype name.
+
+    The C heap's free memory is given back first (:func:`trim_memory`): the tables are the
+    fit's last large allocation, after the sampler's."""
+    trim_memory()
     tables = thinned_tables_jit(program, info) if tables is None else tables
     ll, log_prior, pp, prior, prior_pp, moved = tables(flat, key_pp, key_prior)
     moved = np.asarray(moved)
@@ -280,6 +286,22 @@ def thinned_tables(program: Program, info: Storage, flat: dict, key_pp, key_prio
             (again[0], again[2], again[4]), (ll, pp, prior_pp), ok, strict=True))
     dtypes = {g: "float32" if fine else "float64" for g, fine in zip(GROUPS, ok, strict=True)}
     return (ll, log_prior, pp, prior, prior_pp), dtypes
+
+
+def trim_memory() -> bool:
+    """Give the C heap's free pages back to the system (glibc's ``malloc_trim(0)``); False where
+    there is no such call (not glibc).
+
+    The compiled sampler's calls run on threads, and glibc keeps what they freed in each
+    thread's own heap, where the main thread's next allocations do not reuse it: at 10⁶ rows
+    (2 chains × 60 draws, 2026-11-25) a fit held 1.00 GB resident after sampling, 0.65 GB after
+    the trim, and peaked at 1.16 GB instead of 1.69 GB while its tables were computed.
+    """
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
+        return bool(libc.malloc_trim(0))
+    except (OSError, AttributeError, TypeError):
+        return False
 
 
 # -- reading a fit --------------------------------------------------------------------------------
