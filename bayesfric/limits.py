@@ -37,7 +37,8 @@ from pathlib import Path
 from typing import Any
 
 __all__ = [
-    "STEP_STATS", "ROW_NUMBERS", "SHARE", "PROCESS_BYTES", "RESERVED_BYTES", "available_memory", "physical_memory",
+    "STEP_STATS", "ROW_NUMBERS", "FULL_NUMBERS", "STORED_NUMBERS", "CHUNK_NUMBERS",
+    "SHARE", "PROCESS_BYTES", "RESERVED_BYTES", "available_memory", "physical_memory",
     "fit_bytes", "pointwise_bytes", "program_size", "sampler_problem", "smc_problem", "max_processes",
     "process_problem", "LOAD_FACTOR", "load_problem",
 ]
@@ -46,6 +47,13 @@ __all__ = [
 STEP_STATS = 8
 #: Numbers per kept draw and data row: log-likelihood, posterior predictive, a transient copy.
 ROW_NUMBERS = 3
+#: Draws × rows (all chains) up to which a fit keeps every draw of its pointwise groups in
+#: float64 (:mod:`bayesfric.inference.pointwise`, which uses these three numbers).
+FULL_NUMBERS = 2**24
+#: Numbers one pointwise group may hold above :data:`FULL_NUMBERS` (128 MiB as float32).
+STORED_NUMBERS = 2**25
+#: Numbers computed per chunk (draws × rows): 32 MiB of float64 per intermediate array.
+CHUNK_NUMBERS = 2**22
 #: Share of the available memory one fit may claim.
 SHARE = 0.5
 #: Memory of one study process or Dask worker: the seed studies peaked at 1.3-1.7 GB resident each
@@ -94,8 +102,6 @@ def pointwise_bytes(*, chains: int, kept: int, rows: int) -> int:
     groups of at most ``STORED_NUMBERS``, in the worst case both as float32 and again as float64
     (values that float32 would round too far), plus the chunks being computed (four arrays of
     ``CHUNK_NUMBERS`` in float64)."""
-    from bayesfric.inference.pointwise import CHUNK_NUMBERS, FULL_NUMBERS, STORED_NUMBERS
-
     if chains * kept * rows <= FULL_NUMBERS:
         return 8 * ROW_NUMBERS * chains * kept * rows
     return (4 + 8) * 3 * STORED_NUMBERS + 8 * 4 * CHUNK_NUMBERS

@@ -29,6 +29,7 @@ one compiled program (see :mod:`bayesfric.compare`).
 
 from __future__ import annotations
 
+import json
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, Literal
@@ -44,12 +45,12 @@ from bayesfric.datasets.loader import OBS_DIM, DataError
 from bayesfric.datasets.views import data_scale, law_inputs, response_se, response_values, trajectory_starts
 from bayesfric.density import OBS_SITE, Density, build_density
 from bayesfric.laws.base import Law
-from bayesfric.laws.variants import for_data
+from bayesfric.laws.variants import for_data, law_of_fit
 from bayesfric.noise import AR1Residuals
 from bayesfric.priors import DataScale, Prior, PriorError, resolve_all
 from bayesfric.runtime import configure
 
-__all__ = ["Noise", "Program", "build_program", "OBS_SITE", "NOISE_PRIORS"]
+__all__ = ["Noise", "Program", "build_program", "program_from_fit", "OBS_SITE", "NOISE_PRIORS"]
 
 
 #: Default priors of the noise-model parameters (data-scaled where they carry the response unit).
@@ -310,3 +311,20 @@ def build_program(
         chain_start=chain_start,
         response_se=se,
     )
+
+
+def program_from_fit(fit: xr.DataTree, ds: xr.Dataset) -> Program:
+    """Rebuild the program of a fit from its provenance attrs (law, priors, noise, constants).
+
+    Fits saved before the known noise sigma was recorded in the ``noise`` attr cannot be rebuilt
+    when they used one; pass the fit's program explicitly for those.
+    """
+    noise = json.loads(fit.attrs["noise"])
+    priors = json.loads(fit.attrs["priors"])
+    sigma = noise.get("sigma")
+    if noise["kind"] == "normal" and "sigma" not in priors and sigma is None:
+        raise ValueError(f"fit of {fit.attrs['law']!r} used a known noise sigma, which its attrs "
+                         "do not record; pass the fit's program (or engine) explicitly")
+    return build_program(law_of_fit(fit.attrs), ds, priors=priors,
+                         noise=Noise(kind=noise["kind"], group=noise.get("group"), sigma=sigma),
+                         constants=json.loads(fit.attrs["constants"]))

@@ -19,20 +19,17 @@ and scores computed from it are reported with the flag, never silently used as i
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 
 import jax
 import jax.numpy as jnp
 import numpy as np
-import xarray as xr
 
 from bayesfric.compare.folds import Folds
 from bayesfric.compare.heldout import HeldOut, heldout_predictive
 from bayesfric.inference.diagnostics import Verdict
 from bayesfric.inference.engine import FoldFits, NutsEngine
-from bayesfric.laws.variants import law_of_fit
-from bayesfric.model import Noise, Program, build_program
+from bayesfric.model import program_from_fit  # re-exported: it lives below compare, in model
 
 #: The compiled NUTS engine of a law, by the name the comparison code has always used.
 RefitEngine = NutsEngine
@@ -50,23 +47,6 @@ def pointwise_lpd(log_lik: np.ndarray) -> np.ndarray:
     ll = jnp.asarray(log_lik)
     ll = ll.reshape((-1, ll.shape[-1]))
     return np.asarray(jax.scipy.special.logsumexp(ll, axis=0) - jnp.log(ll.shape[0]))
-
-
-def program_from_fit(fit: xr.DataTree, ds: xr.Dataset) -> Program:
-    """Rebuild the program of a fit from its provenance attrs (law, priors, noise, constants).
-
-    Fits saved before the known noise sigma was recorded in the ``noise`` attr cannot be rebuilt
-    when they used one; pass the fit's program explicitly for those.
-    """
-    noise = json.loads(fit.attrs["noise"])
-    priors = json.loads(fit.attrs["priors"])
-    sigma = noise.get("sigma")
-    if noise["kind"] == "normal" and "sigma" not in priors and sigma is None:
-        raise ValueError(f"fit of {fit.attrs['law']!r} used a known noise sigma, which its attrs "
-                         "do not record; pass the fit's program (or engine) explicitly")
-    return build_program(law_of_fit(fit.attrs), ds, priors=priors,
-                         noise=Noise(kind=noise["kind"], group=noise.get("group"), sigma=sigma),
-                         constants=json.loads(fit.attrs["constants"]))
 
 
 @dataclass

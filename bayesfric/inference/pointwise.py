@@ -56,7 +56,8 @@ from numpyro.handlers import mask, seed, substitute, trace
 from numpyro.infer import log_likelihood as numpyro_log_likelihood
 
 from bayesfric.exported import program_jit
-from bayesfric.model import OBS_SITE, Program
+from bayesfric.limits import CHUNK_NUMBERS, FULL_NUMBERS, STORED_NUMBERS
+from bayesfric.model import OBS_SITE, Program, program_from_fit
 
 __all__ = [
     "FULL_NUMBERS", "STORED_NUMBERS", "CHUNK_NUMBERS", "LOG_LIKELIHOOD_TOLERANCE", "PREDICTIVE_TOLERANCE",
@@ -64,12 +65,8 @@ __all__ = [
     "log_mean_likelihood", "trim_memory",
 ]
 
-#: Draws × rows (all chains) up to which a fit keeps every draw in float64, as before.
-FULL_NUMBERS = 2**24
-#: Numbers one pointwise group may hold above :data:`FULL_NUMBERS` (128 MiB as float32).
-STORED_NUMBERS = 2**25
-#: Numbers computed per chunk (draws × rows): 32 MiB of float64 per intermediate array.
-CHUNK_NUMBERS = 2**22
+# FULL_NUMBERS, STORED_NUMBERS and CHUNK_NUMBERS are declared in bayesfric.limits (the memory
+# rule reads them too), re-exported here.
 #: Largest change (nats) rounding to float32 may make to a stored log-likelihood value.
 LOG_LIKELIHOOD_TOLERANCE = 1e-4
 #: Largest change rounding to float32 may make to a predictive draw, in its row's predictive sd.
@@ -346,8 +343,6 @@ def log_likelihood(fit: xr.DataTree, ds: xr.Dataset | None = None, *, program: P
     if program is None:
         if ds is None:
             raise ValueError("log_likelihood needs the fit's data (ds) or its program")
-        from bayesfric.compare.refit import program_from_fit
-
         program = program_from_fit(fit, ds)
     rows = np.arange(program.n_obs)[slice(None) if obs is None else obs]
     post = fit["posterior"]
