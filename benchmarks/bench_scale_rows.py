@@ -3,7 +3,7 @@
 Usage::
 
     .venv/bin/python benchmarks/bench_scale_rows.py [--rows 1000 10000 100000] [--chains 4]
-        [--draws 1000] [--tune 1000] [--sides bayesfric stan nutpie]
+        [--draws 1000] [--tune 1000] [--sides bayesfric stan nutpie] [--save] [--cold]
 
 Data: SIMULATED steady-state Stribeck friction (``bayesfric.datasets.synthetic.simulate``; T_C = 2,
 dT_s = 1, v_s = 0.1 rad/s, δ = 0.8, σ = 0.1 N·m; speeds log-uniform on 0.01–4 rad/s in both
@@ -24,9 +24,12 @@ Sides, each a fresh whole process timed by this parent, interleaved per size:
 Reported per size and side: wall seconds of the process, leapfrog steps per draw (mean over all
 draws and chains), divergences, peak RSS (the child's ``ru_maxrss``) and the posterior means; the
 bayesfric children time the sampling call alone as well (``fit`` also assembles pointwise
-log-likelihood and predictive draws for every row, which is what memory grows with: issue 30 item
-2). Each bayesfric side runs twice per size with one cache folder (the first fills JAX's persistent
-compilation cache; the second, warm, is the one reported). Writes
+log-likelihood and predictive draws, which is what memory grew with: issue 30 item 2). With
+``--save`` a bayesfric child also writes its fit (``bayesfric.inference.save_fit``, as ``bayesfric fit
+--out`` does) and reports the file's size, its peak RSS then covering the write too; the fit's
+``pointwise_storage`` attr (what it keeps per row) is reported with it. Each bayesfric side runs
+twice per size with one cache folder (the first fills JAX's persistent compilation cache; the
+second, warm, is the one reported; ``--cold`` runs once). Writes
 ``reports/benchmarks/bench_scale_rows.json``.
 """
 
@@ -93,11 +96,19 @@ def bayesfric_child(args: argparse.Namespace) -> None:
     dt = fit(get_law("stribeck"), ds, seed=args.seed, draws=args.draws, tune=args.tune, chains=args.chains)
     seconds = time.perf_counter() - start
     stats, post = dt["sample_stats"], dt["posterior"]
+    saved = {}
+    if args.save:
+        from bayesfric.inference import save_fit
+
+        with tempfile.TemporaryDirectory(prefix="bench_scale_rows_fit_") as tmp:
+            path = save_fit(dt, Path(tmp) / "fit.nc")
+            saved = {"fit_file_mb": path.stat().st_size / 1e6,
+                     "pointwise_storage": json.loads(dt.attrs.get("pointwise_storage", "null"))}
     print(json.dumps({"fit_seconds": seconds, "steps_per_draw": float(stats["n_steps"].mean()),
                       "divergent": int(stats["diverging"].sum()),
                       "means": {k: float(post[k].mean()) for k in TRUTH},
                       "sds": {k: float(post[k].std()) for k in TRUTH},
-                      "peak_rss_gb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20}))
+                      "peak_rss_gb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20, **saved}))
 
 
 def nutpie_spec(rows: int, folder: Path) -> Path:
@@ -118,6 +129,8 @@ def run(side: str, rows: int, folder: Path, args: argparse.Namespace) -> dict:
     """One timed whole-process run of ``side`` at ``rows`` rows."""
     env = dict(os.environ, BAYESFRIC_CACHE_DIR=str(folder / f"cache_{side}"))
     sampling = ["--draws", str(args.draws), "--tune", str(args.tune), "--chains", str(args.chains)]
+    if args.save and side != "nutpie":
+        sampling.append("--save")
     if side == "nutpie":
         spec = nutpie_spec(rows, folder)
         cmd = [sys.executable, str(REPO / "benchmarks" / "bench_vs_pymc.py"), "--child", "pymc", "--spec", str(spec),
@@ -148,6 +161,7 @@ def main() -> None:
     parser.add_argument("--tune", type=int, default=1000)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--cold", action="store_true", help="skip the cache-filling run (large sizes)")
+    parser.add_argument("--save", action="store_true", help="bayesfric sides also write the fit; report its size")
     parser.add_argument("--child", choices=["bayesfric", "stan", "fisher"], help=argparse.SUPPRESS)
     parser.add_argument("--one", type=int, dest="rows_one", help=argparse.SUPPRESS)
     args = parser.parse_args()
@@ -164,6 +178,7 @@ def main() -> None:
                 results.append(row)
                 print(f"{rows:>8} {side:<9} wall {row['wall_seconds']:7.1f} s  steps/draw "
                       f"{row['steps_per_draw']:5.1f}  rss {row.get('peak_rss_gb', float('nan')):5.2f} GB  "
+                      + (f"file {row['fit_file_mb']:7.1f} MB  " if "fit_file_mb" in row else "") +
                       f"means {', '.join(f'{k}={v:.4g}' for k, v in row['means'].items())}", flush=True)
     OUT.parent.mkdir(parents=True, exist_ok=True)
     OUT.write_text(json.dumps({"settings": vars(args), "results": results}, indent=1))
