@@ -31,8 +31,8 @@ scenario falls short (74–80.5 %): its fold's miss is mostly within one standar
 the rate is often estimated as 0 (see :mod:`bayesfric.sizing.calibration`); the test asserts
 only that calibration lifts its coverage well above the within-model one and prints the figure,
 which the README states. ``benchmarks/bench_calibration_frontier.py`` shows why no rule does much
-better at this data size: the fold's standardised miss has the same distribution as when the
-candidate is the truth. With the fold at 1.4 rad/s (ten held-out points) the sub-linear case
+better at this data size: the fold's standardised miss hardly differs from when the candidate is
+the truth (AUC 0.62 between the two). With the fold at 1.4 rad/s (ten held-out points) the sub-linear case
 fell short too (83 % at 3 rad/s, with the miss offset at 0.2). Figures: README, *Actuator sizing*.
 """
 
