@@ -131,7 +131,7 @@ class Study(config.Study):
     >>> bayesfric.Study("bench", "robot_joint", laws=["stribeck"], sampler={"draws": 0})
     Traceback (most recent call last):
     ...
-    bayesfric.study.config.StudyError: Study('bench'): [sampler] draws: must be an integer ≥ 1, got integer 0
+    bayesfric.study.spec.StudyError: Study('bench'): [sampler] draws: must be an integer ≥ 1, got integer 0
     """
 
     def __init__(self, name: str, data: str | Path, *, laws: Sequence[str | Law | Mapping[str, Any]],
