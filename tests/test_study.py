@@ -97,6 +97,34 @@ def test_end_to_end_tiny_study(tmp_path, data_csv):
     assert "SIMULATED data" in text and "## Ranking" in text and "weight[stacking LOO]" in rows[0]
     hidden = [p.name for p in folder.parent.iterdir() if p.name.startswith(".")]
     assert hidden == [".store"]  # the run store (README); no temporary folder left
+    _results_tree_holds_the_csv_numbers(folder, rows)
+
+
+def _results_tree_holds_the_csv_numbers(folder, ranking):
+    """results.nc opens with xarray and holds the numbers the CSV files show (issue 31 item 1)."""
+    import xarray as xr
+
+    with xr.open_datatree(folder / "results.nc") as tree:
+        scores = tree["scores"].to_dataset()
+        with (folder / "scores.csv").open() as fh:
+            table = list(csv.DictReader(fh))
+        assert scores.sizes["law"] == 2 and scores.sizes["criterion"] == len({(r["metric"], r["scheme"]) for r in table})
+        for r in table:
+            crit = r["metric"] if not r["scheme"] else f"{r['metric']}[{r['scheme']}]"
+            cell = scores.sel(law=r["law"], criterion=crit)
+            assert float(cell.estimate) == pytest.approx(float(r["estimate"]), rel=1e-9, abs=1e-12)
+            assert bool(cell.reliable) == (r["reliable"] == "True") and str(cell.reason.values) == r["reason"]
+        pointwise = tree["pointwise"].to_dataset()
+        for law in ("coulomb", "coulomb_viscous"):  # pointwise LOO sums to the law's elpd_loo
+            total = float(pointwise.elpd.sel(criterion="elpd_loo", law=law).sum())
+            assert total == pytest.approx(float(scores.estimate.sel(law=law, criterion="elpd_loo")), rel=1e-9)
+        weights = tree["weights"].to_dataset()
+        assert float(weights.weight.sel(weighting="stacking LOO").sum()) == pytest.approx(1.0, abs=1e-6)
+        ranked = tree["ranking"].to_dataset()
+        assert list(ranked.law.values) == [r["law"] for r in ranking]
+        fit = tree["fits/coulomb_viscous"]
+        assert fit.attrs["fit_file"] == "fits/coulomb_viscous.nc" and "c_v" in fit["posterior"].data_vars
+        assert "log_likelihood" not in fit.children  # per-row groups stay in the fit file
 
 
 def test_evidence_pair_end_to_end(tmp_path, data_csv):

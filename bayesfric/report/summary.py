@@ -27,6 +27,7 @@ from bayesfric.csvout import write_csv
 from bayesfric.report import sizing as sizing_report
 from bayesfric.report.content import Table, build, ranking_records
 from bayesfric.report.findings import Finding
+from bayesfric.report.results import result_tree, write_results
 from bayesfric.report.study_figures import draw
 from bayesfric.report.tables import format_table, parameter_rows
 
@@ -134,16 +135,19 @@ def _claim_records(out: StudyOutcome) -> list[dict]:
 
 def write_reports(out: StudyOutcome, folder: Path) -> None:
     """Write the figures, summary.md, report.html, ranking.csv, scores.csv, parameters.csv,
-    claims.csv (with ``[[claims]]``) and sizing.csv (with sizing questions) into ``folder`` (the
+    claims.csv (with ``[[claims]]``), sizing.csv (with sizing questions) and results.nc (the same
+    results as one DataTree, :mod:`bayesfric.report.results`) into ``folder`` (the
     runner's work folder, installed atomically afterwards)."""
     figures, fans = draw(out, folder)
     content = build(out, figures, {i: f"figures/{p.name}" for i, p in fans.items()})
     (folder / "summary.md").write_text(render(content, folder, markdown=True), encoding="utf-8")
     (folder / "report.html").write_text(render(content, folder, markdown=False), encoding="utf-8")
-    write_csv(folder / "ranking.csv", ranking_records(out))
-    write_csv(folder / "scores.csv", out.table)  # every CSV: text cells neutralised (bayesfric.csvout)
-    write_csv(folder / "parameters.csv", _parameter_records(out))
+    tables = {"ranking": ranking_records(out), "parameters": _parameter_records(out)}
     if out.claims:
-        write_csv(folder / "claims.csv", _claim_records(out))
+        tables["claims"] = _claim_records(out)
     if out.sizing is not None:
-        write_csv(folder / "sizing.csv", sizing_report.records(out.sizing))
+        tables["sizing"] = sizing_report.records(out.sizing)
+    write_csv(folder / "scores.csv", out.table)  # every CSV: text cells neutralised (bayesfric.csvout)
+    for name, rows in tables.items():
+        write_csv(folder / f"{name}.csv", rows)
+    write_results(result_tree(out, tables), folder)  # the same numbers as one DataTree: results.nc
