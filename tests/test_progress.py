@@ -241,3 +241,35 @@ def test_engines_of_other_warm_up_lengths_do_not_share_start_programs(monkeypatc
                                         engine._init_imm)
         assert np.asarray(step).shape[2] == tune + SMALL["draws"]
     exported.forget_compiled()
+
+
+def test_emcee_reports_its_ensemble_and_moves_as_run_mcmc_does(data):
+    """emcee (the second backend) reports warm-up and kept steps of its one ensemble, without a
+    divergence count; stepping it in reported slices gives run_mcmc's chain step for step."""
+    import emcee
+
+    from bayesfric.inference.ensemble import REPORT_EVERY, _steps, sample_emcee
+
+    def log_prob(x):
+        return -0.5 * np.sum(x**2, axis=-1)
+
+    def sampler():
+        s = emcee.EnsembleSampler(8, 2, log_prob, vectorize=True)
+        s.random_state = np.random.RandomState(1).get_state()
+        return s
+
+    p0 = np.random.default_rng(0).standard_normal((8, 2))
+    direct, sliced = sampler(), sampler()
+    direct.run_mcmc(p0, 120)
+    _steps(sliced, p0, 120, SamplingProgress(None, 1, 1, 0, 0, 120), 0)
+    np.testing.assert_array_equal(direct.get_chain(), sliced.get_chain())
+    stream = io.StringIO()
+    program = build_program(get_law("coulomb_viscous"), data)
+    with reporting("cv fit", stream=stream, live=False, interval=0):
+        sample_emcee(program, data, draws=REPORT_EVERY, tune=2 * REPORT_EVERY, walkers=8, thin=10, seed=2)
+    lines = stream.getvalue().splitlines()
+    tune, draws = 2 * REPORT_EVERY, REPORT_EVERY
+    assert lines[0].startswith(f"[cv fit] ensemble of 8 walkers warm-up {REPORT_EVERY}/{tune} · "), lines
+    assert lines[1].startswith(f"[cv fit] ensemble of 8 walkers draws 0/{draws} · ")  # warm-up done
+    assert lines[-1].startswith(f"[cv fit] ensemble of 8 walkers draws {draws}/{draws} · ")
+    assert lines[-1].endswith(", done") and len(lines) == 3 and not any("divergent" in x for x in lines)

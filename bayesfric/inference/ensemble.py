@@ -1,7 +1,14 @@
 """emcee backend: affine-invariant ensemble moves on the JAX-jitted log density of the same
-numpyro program, in the unconstrained space numpyro uses for NUTS."""
+numpyro program, in the unconstrained space numpyro uses for NUTS.
+
+Progress: the ensemble reports its warm-up and kept steps like a NUTS chain
+(:mod:`bayesfric.inference.progress`: ``[law fit] ensemble of 32 walkers draws 420/2500 · 14 s
+elapsed, ~21 s left``) inside every study unit and ``bayesfric fit --sampler emcee``.
+"""
 
 from __future__ import annotations
+
+import contextlib
 
 import jax
 import jax.numpy as jnp
@@ -10,9 +17,14 @@ import xarray as xr
 from scipy.optimize import minimize
 
 from bayesfric.inference.datatree import assemble
+from bayesfric.inference.progress import SamplingProgress, current, reporting
 from bayesfric.model import Program
 
-__all__ = ["sample_emcee"]
+__all__ = ["sample_emcee", "REPORT_EVERY"]
+
+#: Ensemble steps between two progress reports (one report costs microseconds; a step of 32
+#: walkers on a small data set about 0.1 ms).
+REPORT_EVERY = 50
 
 
 def _map_point(value_and_grad, x0: np.ndarray) -> np.ndarray:
@@ -24,6 +36,17 @@ def _map_point(value_and_grad, x0: np.ndarray) -> np.ndarray:
 
     result = minimize(fun, x0, jac=True, method="L-BFGS-B")
     return result.x if np.all(np.isfinite(result.x)) else x0
+
+
+def _steps(sampler, state, steps: int, shown: SamplingProgress, done: int):
+    """``steps`` ensemble moves from ``state`` (what ``run_mcmc`` does, step for step), telling
+    ``shown`` every :data:`REPORT_EVERY` steps; returns the last state."""
+    moves = sampler.sample(state, iterations=steps)
+    for i in range(1, steps + 1):
+        state = next(moves)
+        if i % REPORT_EVERY == 0 or i == steps:
+            shown.update(range(1), range(1), done + i, np.zeros((1, 1), dtype=int))
+    return state
 
 
 def sample_emcee(
@@ -62,9 +85,12 @@ def sample_emcee(
     moves = [(emcee.moves.DEMove(), 0.8), (emcee.moves.DESnookerMove(), 0.2)]
     sampler = emcee.EnsembleSampler(n_walkers, ndim, log_prob, vectorize=True, moves=moves)
     sampler.random_state = np.random.RandomState(seed).get_state()  # reproducible moves
-    state = sampler.run_mcmc(p0, tune, progress=progress)
-    sampler.reset()
-    sampler.run_mcmc(state, draws, progress=progress, thin_by=1)
+    with reporting(f"{program.law.name} fit") if progress else contextlib.nullcontext():
+        shown = SamplingProgress(current(), 1, 1, 0, tune, draws, unit=f"ensemble of {n_walkers} walkers",
+                                 divergences=False)
+        state = _steps(sampler, p0, tune, shown, 0)
+        sampler.reset()
+        _steps(sampler, state, draws, shown, tune)
     chain = sampler.get_chain(thin=thin)  # (steps, walkers, ndim)
     chain = np.swapaxes(chain, 0, 1)  # (walkers, steps, ndim)
     w, s, _ = chain.shape

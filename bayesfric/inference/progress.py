@@ -100,10 +100,17 @@ class SamplingProgress:
     idle, tune, draws : int
         Schedule rows per chain: ``idle`` inactive warm-up rows (a warm or short cold start),
         then ``tune`` active warm-up rows, then ``draws`` sampling rows.
+    unit : str
+        What a chain is called (``"chain"``; emcee's one ``"ensemble of 32 walkers"``, named
+        without a number when there is one).
+    divergences : bool
+        Whether the sampler has divergent transitions to count (NUTS yes, emcee no).
     """
 
-    def __init__(self, target: _Target | None, folds: int, chains: int, idle: int, tune: int, draws: int):
+    def __init__(self, target: _Target | None, folds: int, chains: int, idle: int, tune: int, draws: int,
+                 unit: str = "chain", divergences: bool = True):
         self.target = target
+        self.unit, self.divergences = unit, divergences
         self.folds, self.chains = folds, chains
         self.idle, self.tune, self.draws = idle, tune, draws
         self.rows = np.zeros((folds, chains), dtype=int)  # schedule rows done per chain
@@ -152,12 +159,15 @@ class SamplingProgress:
         chains = []
         for f in running[:2] if self.folds > 1 else range(self.folds):
             for c in range(self.chains):
-                where = f"fold {f + 1} chain {c + 1}" if self.folds > 1 else f"chain {c + 1}"
+                where = f"{self.unit} {c + 1}" if self.chains > 1 or self.unit == "chain" else self.unit
+                where = f"fold {f + 1} {where}" if self.folds > 1 else where
                 a = active[f, c]
                 state = f"warm-up {a}/{self.tune}" if a < self.tune else f"draws {a - self.tune}/{self.draws}"
                 chains.append(f"{where} {state}")
         text = " ".join(parts) + (" " + " · ".join(chains) if chains else "")
-        text += f" · {int(self.divergent.sum())} divergent · {now - self.start:.0f} s elapsed"
+        if self.divergences:
+            text += f" · {int(self.divergent.sum())} divergent"
+        text += f" · {now - self.start:.0f} s elapsed"
         if done >= total:
             return text + ", done"
         if self.first is not None and now > self.first[0] and done > self.first[1]:
