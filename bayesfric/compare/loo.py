@@ -15,6 +15,11 @@ result.
 A large fit keeps thinned pointwise draws (:mod:`bayesfric.inference.pointwise`): PSIS-LOO then
 runs on the draws it holds, in float64, with the posterior restricted to them
 (:func:`~bayesfric.inference.pointwise.stored_draws`), so S above is the number kept.
+
+Above :data:`~bayesfric.limits.LOO_SUBSAMPLE_ROWS` data rows PSIS-LOO is **subsampled**
+(:mod:`bayesfric.compare.loo_subsample`, arviz-stats' ``loo_subsample``): the high-k points of
+the subsample are refitted as above, and the elpd, its se and its subsampling se come from the
+difference estimator. Below the limit nothing changes.
 """
 
 from __future__ import annotations
@@ -28,6 +33,7 @@ import arviz as az
 import numpy as np
 import xarray as xr
 
+from bayesfric.compare.loo_subsample import Subsample, describe, estimate, is_subsampled, subsample_psis
 from bayesfric.compare.refit import CVResult, RefitEngine, pointwise_lpd, program_from_fit
 from bayesfric.inference.diagnostics import verdict_of
 from bayesfric.inference.pointwise import stored_draws
@@ -67,6 +73,11 @@ class LooResult:
     psis : arviz_stats.ELPDDataLOO or None
         arviz-stats' plain PSIS-LOO of the fit, before any substitution (the α = 1 baseline of
         :func:`bayesfric.compare.checks.ranking_sensitivity`).
+    subsample : Subsample or None
+        Above :data:`~bayesfric.limits.LOO_SUBSAMPLE_ROWS` rows, the rows scored exactly; the
+        other rows' ``elpd_i`` are the approximation and their ``pareto_k`` NaN.
+    subsampling_se : float
+        The part of ``se`` due to subsampling (0 when every row was scored).
     """
 
     law: str
@@ -83,6 +94,8 @@ class LooResult:
     elpd_data: object
     refitted: bool = True
     psis: object = None
+    subsample: Subsample | None = None
+    subsampling_se: float = 0.0
 
     @property
     def n_high_k(self) -> int:
@@ -95,8 +108,14 @@ class LooResult:
 
     def __str__(self) -> str:
         flag = "" if self.reliable else "  [FLAGGED: unreliable]"
+        sub = f"; {self.subsampled}" if self.subsample is not None else ""
         return (f"{self.law}: elpd_loo {self.elpd:.2f} ± {self.se:.2f}, p_loo {self.p_loo:.1f}, "
-                f"{self.n_high_k} k̂ > {self.k_threshold:.2f} ({self.handling}){flag}")
+                f"{self.n_high_k} k̂ > {self.k_threshold:.2f} ({self.handling}){sub}{flag}")
+
+    @property
+    def subsampled(self) -> str:
+        """``"subsampled: n of N rows, subsampling se X (...)"``, or ``""`` when every row was scored."""
+        return describe(self.subsample, self.subsampling_se) if self.subsample is not None else ""
 
 
 def psis_loo(
@@ -130,8 +149,8 @@ def psis_loo(
         If high-k points exist and no data were given to refit them, ``refitted`` is False,
         ``handling`` says so and the result is flagged unreliable.
     """
-    data = _psis(fit)
-    pareto_k = np.asarray(data.pareto_k.values, dtype=float).ravel()
+    data, sub = subsample_psis(fit, program, ds) if is_subsampled(fit) else (_psis(fit), None)
+    pareto_k = np.asarray(data.pareto_k.values, dtype=float).ravel()  # NaN off a subsample
     elpd_i = np.asarray(data.elpd_i.values, dtype=float).ravel()
     threshold = float(data.good_k)
     high = np.flatnonzero(pareto_k > threshold)
@@ -155,7 +174,7 @@ def psis_loo(
         handling = f"exact refits leaving out each of {high.size} point(s)"
         if refit_failed:
             handling += f"; refits of {refit_failed} failed the gate"
-    return _result(fit, data, elpd_i, threshold, high, handling, refit_failed, refitted)
+    return _result(fit, data, elpd_i, threshold, high, handling, refit_failed, refitted, sub)
 
 
 def _psis(fit: xr.DataTree):
@@ -167,15 +186,24 @@ def _psis(fit: xr.DataTree):
 
 
 def _result(fit: xr.DataTree, data, elpd_i: np.ndarray, threshold: float, high: np.ndarray, handling: str,
-            refit_failed: list[int], refitted: bool) -> LooResult:
-    """The :class:`LooResult` of ``fit`` from arviz-stats' ``data`` and the (refitted) ``elpd_i``."""
-    ll = np.asarray(fit["log_likelihood"][OBS_SITE].values, dtype=float)  # a thinned fit's may be float32
-    lppd_i = pointwise_lpd(ll.reshape((-1, ll.shape[-1])))
-    n = elpd_i.size
-    elpd, se = float(elpd_i.sum()), float(np.sqrt(n * elpd_i.var()))
-    p_loo = float((lppd_i - elpd_i).sum())
+            refit_failed: list[int], refitted: bool, sub: Subsample | None = None) -> LooResult:
+    """The :class:`LooResult` of ``fit`` from arviz-stats' ``data`` and the (refitted) ``elpd_i``
+    (of the subsample's rows only, when ``sub`` is given: the others are approximated)."""
+    sub_se, extra = 0.0, {}
+    if sub is None:
+        ll = np.asarray(fit["log_likelihood"][OBS_SITE].values, dtype=float)  # a thinned fit's may be float32
+        lppd_i = pointwise_lpd(ll.reshape((-1, ll.shape[-1])))
+        n = elpd_i.size
+        elpd, se = float(elpd_i.sum()), float(np.sqrt(n * elpd_i.var()))
+        p_loo = float((lppd_i - elpd_i).sum())
+    else:
+        exact = np.asarray(elpd_i, dtype=float)[sub.rows]  # PSIS or exact-refit values
+        elpd, se, sub_se, p_loo = estimate(fit, sub, exact)
+        elpd_i = sub.approx.copy()
+        elpd_i[sub.rows] = exact
+        extra = {"subsampling_se": sub_se}
     updated = dataclasses.replace(
-        data, elpd=elpd, se=se, p=p_loo,
+        data, elpd=elpd, se=se, p=p_loo, **extra,
         elpd_i=data.elpd_i.copy(data=elpd_i.reshape(data.elpd_i.shape)),
         warning=bool(high.size) and (bool(refit_failed) or not refitted),
     )
@@ -185,7 +213,7 @@ def _result(fit: xr.DataTree, data, elpd_i: np.ndarray, threshold: float, high: 
         pareto_k=np.asarray(data.pareto_k.values, dtype=float).ravel(),
         k_threshold=threshold, high_k=high, handling=handling, refit_failed=refit_failed,
         fit_passed=verdict_of(fit).passed if "diagnostics" in fit.attrs else False,
-        elpd_data=updated, refitted=refitted, psis=data,
+        elpd_data=updated, refitted=refitted, psis=data, subsample=sub, subsampling_se=sub_se,
     )
 
 
@@ -196,11 +224,11 @@ def loo_from_values(fit: xr.DataTree, elpd_i: np.ndarray, handling: str, refit_f
     The Pareto-smoothed part is recomputed from the fit (deterministic, cheap); only the exact
     refits' values come from the store (:mod:`bayesfric.study.units`).
     """
-    data = _psis(fit)
+    data, sub = subsample_psis(fit) if is_subsampled(fit) else (_psis(fit), None)
     threshold = float(data.good_k)
     high = np.flatnonzero(np.asarray(data.pareto_k.values, dtype=float).ravel() > threshold)
     return _result(fit, data, np.asarray(elpd_i, dtype=float), threshold, high, handling, list(refit_failed),
-                   refitted)
+                   refitted, sub)
 
 
 @dataclass(frozen=True)
@@ -209,7 +237,9 @@ class Penalty:
 
     ``per_point = mean_i (elpd_loo_i − elpd_blocked_i)`` over the blocked scheme's held-out
     points (the SAME points for both terms), ``se = sd_i(·) / sqrt(n_points)``. Positive: the
-    law predicts the outer envelope worse when it has not seen it than LOO suggests.
+    law predicts the outer envelope worse when it has not seen it than LOO suggests. A subsampled
+    LOO (:mod:`~bayesfric.compare.loo_subsample`) scores only its subsample exactly: the penalty
+    then runs over the held-out points in the subsample (``n_points`` says how many).
     """
 
     law: str
@@ -235,7 +265,12 @@ def extrapolation_penalty(loo: LooResult, blocked: CVResult) -> Penalty:
     """
     if loo.law != blocked.law or loo.elpd_i.size != blocked.elpd_i.size:
         raise ValueError("LOO and blocked CV must be of the same law on the same data")
-    diff = loo.elpd_i[blocked.heldout] - blocked.elpd_i[blocked.heldout]
+    points = np.asarray(blocked.heldout, dtype=bool).copy()
+    if loo.subsample is not None:  # the approximated rows are no LOO values
+        exact = np.zeros_like(points)
+        exact[loo.subsample.rows] = True
+        points &= exact
+    diff = loo.elpd_i[points] - blocked.elpd_i[points]
     return Penalty(loo.law, blocked.scheme, float(diff.mean()),
                    float(diff.std(ddof=1) / np.sqrt(diff.size)) if diff.size > 1 else float("nan"),
                    int(diff.size), loo.reliable and blocked.reliable)

@@ -108,7 +108,18 @@ def ranking_table(outcome: StudyOutcome) -> tuple[Table, list[str]]:
                "column = not ranked, with the reason (a fold or the fit failed the diagnostics gate, or the evidence "
                "estimators disagree), and only ranked laws are numbered. Every number, with p_loo, Pareto k and all "
                "weights: ranking.csv and scores.csv.")
-    return Table(caption, header, rows, warn), order
+    return Table(caption + subsample_note(outcome), header, rows, warn), order
+
+
+def subsample_note(outcome: StudyOutcome) -> str:
+    """Where PSIS-LOO was subsampled (data above ``limits.LOO_SUBSAMPLE_ROWS`` rows), one sentence
+    per study naming each law's ``subsampled: n of N rows, subsampling se X`` ("" otherwise)."""
+    parts = [f"{w.name} {w.loo.subsampled}" for w in outcome.laws if w.loo is not None and w.loo.subsample is not None]
+    if not parts:
+        return ""
+    return (" PSIS-LOO is subsampled on data this large (arviz-stats loo_subsample: the rows not scored enter by "
+            "an approximation; the elpd's ± includes the subsampling se, and the stacking weights read the "
+            "approximated rows): " + "; ".join(parts) + ".")
 
 
 def ranking_records(outcome: StudyOutcome) -> list[dict]:
@@ -151,7 +162,11 @@ def loo_numbers(w: LawOutcome) -> dict:
     """p_loo, the number of high-k points and the largest Pareto k of a law's PSIS-LOO (NaN: not run)."""
     if w.loo is None:
         return dict(p_loo=math.nan, n_high_k=0, pareto_k_max=math.nan)
-    return dict(p_loo=w.loo.p_loo, n_high_k=w.loo.n_high_k, pareto_k_max=float(np.max(w.loo.pareto_k)))
+    numbers = dict(p_loo=w.loo.p_loo, n_high_k=w.loo.n_high_k, pareto_k_max=float(np.nanmax(w.loo.pareto_k)))
+    if w.loo.subsample is not None:  # only then: a study on smaller data keeps its columns
+        numbers.update(loo_rows_scored=w.loo.subsample.size, loo_rows=w.loo.subsample.n_rows,
+                       elpd_loo_subsampling_se=w.loo.subsampling_se)
+    return numbers
 
 
 def _loo_on(w: LawOutcome, held: np.ndarray | None) -> tuple[float, float]:
@@ -159,8 +174,23 @@ def _loo_on(w: LawOutcome, held: np.ndarray | None) -> tuple[float, float]:
     ``sqrt(n var(elpd_i))`` (what the law scores there having trained on them)."""
     if w.loo is None or held is None or not held.any():
         return math.nan, math.nan
+    if w.loo.subsample is not None:
+        return _subsampled_loo_on(w, held)
     values = np.asarray(w.loo.elpd_i, dtype=float)[held]
     return float(values.sum()), float(math.sqrt(values.size * values.var(ddof=1))) if values.size > 1 else math.nan
+
+
+def _subsampled_loo_on(w: LawOutcome, held: np.ndarray) -> tuple[float, float]:
+    """:func:`_loo_on` of a subsampled PSIS-LOO: the held-out rows it scored exactly stand for all
+    ``n`` held-out rows (sum ``n · mean``), the se adding the subsampling part ``n · sd / sqrt(m)``."""
+    exact = np.zeros(held.size, dtype=bool)
+    exact[w.loo.subsample.rows] = True
+    values = np.asarray(w.loo.elpd_i, dtype=float)[held & exact]
+    n, m = int(held.sum()), values.size
+    if m < 2:
+        return math.nan, math.nan
+    var = values.var(ddof=1)
+    return float(n * values.mean()), float(math.sqrt(n * var + n * n * var / m * (1 - m / n)))
 
 
 def extrapolation_table(outcome: StudyOutcome, order: list[str]) -> Table | None:
