@@ -1,0 +1,72 @@
+"""Subsampled PSIS-LOO above LOO_SUBSAMPLE_ROWS (issue 30, item 3): on a data set where the full
+PSIS-LOO is also computed, the subsampled elpd lies within a few subsampling se of it, the se are
+reported, and the result rebuilds from stored values as a study does."""
+
+import numpy as np
+import pytest
+
+from bayesfric.compare import loo_subsample as sub_mod
+from bayesfric.compare.loo import extrapolation_penalty, loo_from_values, psis_loo
+from bayesfric.compare.refit import CVResult
+from bayesfric.datasets.synthetic import simulate
+from bayesfric.inference import fit
+from bayesfric.laws import get_law
+
+ROWS, LIMIT, SIZE = 800, 500, 200
+
+
+@pytest.fixture(scope="module")
+def data():
+    rng = np.random.default_rng(11)
+    v = rng.choice([-1.0, 1.0], ROWS) * np.exp(rng.uniform(np.log(0.05), np.log(3.0), ROWS))
+    return simulate(get_law("coulomb_viscous"), {"velocity": v}, {"T_C": 2.0, "c_v": 0.5}, sigma=0.1, seed=5)
+
+
+@pytest.fixture(scope="module")
+def results(data):
+    """The full PSIS-LOO and the subsampled one (limit lowered to 500 rows, 200 scored) of one fit."""
+    dt = fit(get_law("coulomb_viscous"), data, draws=300, tune=300, chains=2, seed=1)
+    full = psis_loo(dt, data)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(sub_mod, "LOO_SUBSAMPLE_ROWS", LIMIT)
+        mp.setattr(sub_mod, "LOO_SUBSAMPLE_SIZE", SIZE)
+        sub = psis_loo(dt, data)
+        again = loo_from_values(dt, sub.elpd_i, sub.handling, sub.refit_failed, sub.refitted)
+        no_data = psis_loo(dt)  # the program rebuilt from the fit alone: the same plpd
+    return dt, full, sub, again, no_data
+
+
+def test_subsampled_elpd_is_within_a_few_subsampling_se_of_the_full_one(results):
+    _, full, sub, _, _ = results
+    assert full.subsample is None and full.subsampling_se == 0.0
+    assert sub.subsample is not None and sub.subsample.size == SIZE and sub.subsample.n_rows == ROWS
+    assert sub.subsample.method == "plpd"
+    assert 0 < sub.subsampling_se <= sub.se
+    assert abs(sub.elpd - full.elpd) < 4 * sub.subsampling_se + 1e-6, (sub.elpd, full.elpd, sub.subsampling_se)
+    assert abs(sub.se - full.se) < 0.2 * full.se
+    assert abs(sub.p_loo - full.p_loo) < 2.0
+    # exact rows carry the same PSIS values as the full run (same draws); the rest the approximation
+    rows = sub.subsample.rows
+    np.testing.assert_allclose(sub.elpd_i[rows], full.elpd_i[rows], rtol=0, atol=1e-8)
+    assert np.isfinite(sub.elpd_i).all() and np.isnan(np.delete(sub.pareto_k, rows)).all()
+    assert sub.elpd_data.subsampling_se == pytest.approx(sub.subsampling_se)
+
+
+def test_the_subsample_is_stated_and_rebuilds_from_stored_values(results):
+    _, _, sub, again, no_data = results
+    assert f"subsampled: {SIZE} of {ROWS} rows, subsampling se" in str(sub)
+    assert sub.subsampled.startswith(f"subsampled: {SIZE} of {ROWS} rows")
+    assert again.elpd == pytest.approx(sub.elpd) and again.subsampling_se == pytest.approx(sub.subsampling_se)
+    np.testing.assert_array_equal(again.subsample.rows, sub.subsample.rows)
+    assert no_data.elpd == pytest.approx(sub.elpd, abs=1e-6)
+
+
+def test_a_penalty_on_a_subsampled_loo_uses_only_the_rows_scored_exactly(results):
+    _, _, sub, _, _ = results
+    heldout = np.zeros(ROWS, dtype=bool)
+    heldout[: ROWS // 2] = True
+    blocked = CVResult(law=sub.law, scheme="blocked", elpd=0.0, se=0.0, elpd_i=sub.elpd_i - 0.5,
+                       heldout=heldout, verdicts=[], seconds=0.0)
+    penalty = extrapolation_penalty(sub, blocked)
+    assert penalty.n_points == int(heldout[sub.subsample.rows].sum())
+    assert penalty.per_point == pytest.approx(0.5)
