@@ -273,3 +273,25 @@ def test_emcee_reports_its_ensemble_and_moves_as_run_mcmc_does(data):
     assert lines[1].startswith(f"[cv fit] ensemble of 8 walkers draws 0/{draws} · ")  # warm-up done
     assert lines[-1].startswith(f"[cv fit] ensemble of 8 walkers draws {draws}/{draws} · ")
     assert lines[-1].endswith(", done") and len(lines) == 3 and not any("divergent" in x for x in lines)
+
+
+def test_a_unit_on_a_dask_worker_reports_its_chains(monkeypatch, capsys):
+    """On a Dask worker a unit's chains report in plain lines on the worker's stderr, labelled with
+    the study, law and unit (the executor submits compute_reporting, not compute)."""
+    from types import SimpleNamespace
+
+    from bayesfric.inference.progress import current
+    from bayesfric.study import executor
+
+    def fake_compute(job, unit, fit_payload):
+        shown = SamplingProgress(current(), folds=1, chains=2, idle=0, tune=10, draws=20)
+        shown.update(range(1), range(2), 30, np.zeros((1, 2)))
+        return b"payload", 1.5
+
+    monkeypatch.setattr(executor, "compute", fake_compute)
+    monkeypatch.setenv("BAYESFRIC_PROGRESS_S", "0")
+    unit = SimpleNamespace(law="stribeck", label="fit")
+    assert executor.compute_reporting("tiny", None, unit, None) == (b"payload", 1.5)
+    err = capsys.readouterr().err.splitlines()
+    assert err and err[-1].startswith("[tiny stribeck fit] chain 1 draws 20/20 · chain 2 draws 20/20")
+    assert err[-1].endswith(", done")

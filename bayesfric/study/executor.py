@@ -219,13 +219,21 @@ class _Serial:
             yield job, unit, payload, seconds
 
 
+def compute_reporting(study: str, job: LawJob, unit: Unit, fit_payload) -> tuple[bytes, float]:
+    """:func:`compute` on a Dask worker, its chains reporting in plain lines on the worker's stderr
+    (a local cluster's workers share the terminal; a remote worker's lines go to its log), one
+    every :data:`bayesfric.inference.progress.PLAIN_INTERVAL_S` seconds, none for a short unit."""
+    with reporting(f"{study} {unit.law} {unit.label}", live=False):
+        return compute(job, unit, fit_payload)
+
+
 class _Dask:
     """Units as Dask futures; the fit's bytes are scattered once and shared by the law's units."""
 
-    def __init__(self, client):
+    def __init__(self, client, study: str = ""):
         from distributed import as_completed
 
-        self.client = client
+        self.client, self.study = client, study
         self.pending = as_completed()
         self.meta: dict = {}
         self.shared: dict[int, object] = {}
@@ -236,7 +244,7 @@ class _Dask:
             if ident not in self.shared:
                 self.shared[ident] = self.client.scatter(fit_payload)
             fit_payload = self.shared[ident]
-        future = self.client.submit(compute, job, unit, fit_payload, pure=False,
+        future = self.client.submit(compute_reporting, self.study, job, unit, fit_payload, pure=False,
                                     key=f"{unit.law}-{unit.stage}-{unit.key[:12]}")
         self.meta[future.key] = (job, unit)
         self.pending.add(future)
@@ -265,7 +273,7 @@ def run_units(plans: list[tuple[LawJob, Unit, list[Unit]]], store: RunStore, *, 
     """
     every = [u for _, fit, rest in plans for u in [fit, *rest]]
     progress = Progress(len(every), study, stream, live, units=every)
-    executor = _Serial(progress.inside) if client is None else _Dask(client)
+    executor = _Serial(progress.inside) if client is None else _Dask(client, study)
     payloads: dict[str, bytes] = {}
     skipped: dict[str, list[Unit]] = {job.spec.name: [] for job, _, _ in plans}
     timings: list[Timing] = []
