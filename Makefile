@@ -11,12 +11,16 @@ venv:
 main: venv
 	.venv/bin/python -m bayesfric main
 
+# Both cores (or up to four): pytest-xdist runs whole test files per worker (--dist loadfile), so a
+# file's module-scoped fixtures and compiled programs are built once; workers share the compile cache.
+PYTEST_PARALLEL := -n auto --maxprocesses 4 --dist loadfile
+
 test: venv
 	.venv/bin/python -m ruff check bayesfric tests benchmarks data examples
-	.venv/bin/python -m pytest -q
+	.venv/bin/python -m pytest -q $(PYTEST_PARALLEL)
 
 test-fast: venv
-	.venv/bin/python -m pytest -q -m "not slow"
+	.venv/bin/python -m pytest -q -m "not slow" $(PYTEST_PARALLEL)
 
 lint: venv
 	.venv/bin/python -m ruff check bayesfric tests benchmarks data examples
