@@ -29,6 +29,7 @@ one compiled program (see :mod:`bayesfric.compare`).
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -44,13 +45,15 @@ import xarray as xr
 from bayesfric.datasets.loader import OBS_DIM, DataError
 from bayesfric.datasets.views import data_scale, law_inputs, response_se, response_values, trajectory_starts
 from bayesfric.density import OBS_SITE, Density, build_density
-from bayesfric.laws.base import Law
+from bayesfric.laws.base import TRAJECTORY_START, Law
+from bayesfric.laws.plugins import law_files
 from bayesfric.laws.variants import for_data, law_of_fit
 from bayesfric.noise import AR1Residuals
 from bayesfric.priors import DataScale, Prior, PriorError, resolve_all
 from bayesfric.runtime import configure
 
-__all__ = ["Noise", "Program", "build_program", "program_from_fit", "OBS_SITE", "NOISE_PRIORS"]
+__all__ = ["Noise", "Program", "build_program", "program_from_fit", "program_of_fit", "program_record", "OBS_SITE",
+           "NOISE_PRIORS"]
 
 
 #: Default priors of the noise-model parameters (data-scaled where they carry the response unit).
@@ -221,6 +224,25 @@ class Program:
             return dist.Normal(mu, values["sigma"] / jnp.sqrt(1.0 - rho**2))
         return dist.Normal(mu, jnp.sqrt((values["sigma_rel"] * mu) ** 2 + values["sigma_floor"] ** 2 + extra))
 
+    def at(self, points: Mapping[str, Any]) -> Program:
+        """This program (law, priors, constants, noise model) at new operating points, without data.
+
+        The response is zeros; with partial-pooled groups every point belongs to one new group
+        (``"new unit"``); with ``ar1`` noise every point starts its own trajectory (the
+        stationary marginal). Sizing draws its predictions from it.
+
+        Parameters
+        ----------
+        points : mapping of str to array
+            Every input the law reads, by name, as SI values of the same length.
+        """
+        n = len(next(iter(points.values())))
+        grouped = self.noise.group is not None
+        return dataclasses.replace(
+            self, inputs={k: np.asarray(points[k], dtype=float) for k in self.law.inputs}, response=np.zeros(n),
+            group_index=np.zeros(n, dtype=int) if grouped else None, group_labels=["new unit"] if grouped else [],
+            chain_start=np.ones(n, dtype=bool) if self.noise.kind == "ar1" else None, response_se=None)
+
     def parameter_names(self) -> list[str]:
         """Law parameters, derived quantities, then noise parameters (report order)."""
         return list(self.law.params) + list(self.law.derived) + list(self.noise.sites())
@@ -313,18 +335,91 @@ def build_program(
     )
 
 
+def program_record(program: Program) -> dict[str, str]:
+    """What a fit records of its program (NetCDF-safe strings), enough to rebuild it exactly
+    (:func:`program_of_fit`): the law's name and variant recipe, the files of the user's law code
+    (:func:`bayesfric.laws.plugins.law_files`), the noise model, the declared and resolved
+    priors, the constants and the data scale the priors were resolved on."""
+    law = program.law
+    return {
+        "law": law.name,
+        "law_recipe": json.dumps(dict(law.recipe)) if law.recipe else "",  # laws.variants
+        "law_source": law.source,
+        "law_family": law.family,
+        "law_files": json.dumps(list(law_files(law))),
+        "noise": json.dumps({"kind": program.noise.kind, "group": program.noise.group, "sigma": program.noise.sigma}),
+        "priors": json.dumps({k: p.to_dict() for k, p in program.priors.items()}),
+        "priors_resolved": json.dumps({k: str(p) for k, p in program.resolved.items()}),
+        "constants": json.dumps(program.constants),
+        "data_scale": json.dumps({"response": program.scale.response, "inputs": dict(program.scale.inputs)}),
+    }
+
+
+def program_data(program: Program) -> dict[str, np.ndarray]:
+    """The per-row arrays besides inputs and response that a fit keeps in ``constant_data`` so
+    its program can be rebuilt (:func:`program_of_fit`): ``chain_start`` (ar1 noise) and
+    ``response_se`` (reduced data), where the program has them."""
+    out = {"chain_start": program.chain_start, "response_se": program.response_se}
+    return {k: np.asarray(v) for k, v in out.items() if v is not None}
+
+
+def _noise_of(attrs: Mapping[str, Any]) -> Noise:
+    noise, priors = json.loads(attrs["noise"]), json.loads(attrs["priors"])
+    sigma = noise.get("sigma")
+    if noise["kind"] == "normal" and "sigma" not in priors and sigma is None:
+        raise ValueError(f"fit of {attrs['law']!r} used a known noise sigma, which its attrs "
+                         "do not record; pass the fit's program (or engine) explicitly")
+    return Noise(kind=noise["kind"], group=noise.get("group"), sigma=sigma)
+
+
+def program_of_fit(fit: xr.DataTree) -> Program:
+    """The program that produced ``fit``, rebuilt from the fit alone (:func:`program_record`).
+
+    The law is rebuilt from its name and recipe (variants included), after loading the user's
+    law files the fit names; priors, noise model and constants are the recorded ones, resolved
+    on the recorded data scale; inputs, response, groups, trajectory starts and standard errors
+    are the fit's ``constant_data`` and ``observed_data``. Group labels come back as text.
+
+    Raises
+    ------
+    KeyError
+        The law is no longer known (not registered, not in a recorded law file).
+    bayesfric.laws.plugins.LawModuleError
+        A recorded law file is gone or no longer loads.
+    ValueError
+        A fit of an older version that used a known noise sigma without recording it.
+    """
+    attrs = fit.attrs
+    law, noise = law_of_fit(attrs), _noise_of(attrs)
+    declared = {k: Prior.from_dict(v) for k, v in json.loads(attrs["priors"]).items()}
+    data = fit["constant_data"].to_dataset()
+    inputs = {k: np.asarray(data[k].values, dtype=bool if k == TRAJECTORY_START else float)
+              for k in law.inputs if k in data}  # all of them in a fit; a fit made by hand may lack some
+    response = np.asarray(fit["observed_data"][OBS_SITE].values, dtype=float)
+    if "data_scale" in attrs:
+        recorded = json.loads(attrs["data_scale"])
+        scale = DataScale(float(recorded["response"]), {k: float(v) for k, v in recorded["inputs"].items()})
+    else:  # fits before the scale was recorded: the law's inputs give every scale its priors read
+        scale = DataScale.of(response, {k: v for k, v in inputs.items() if k != TRAJECTORY_START})
+    group_index, labels = None, []
+    if noise.group is not None and "group_index" in data:  # (a fit made by hand may lack them)
+        group_index = np.asarray(data["group_index"].values, dtype=int)
+        labels = [str(g) for g in fit["posterior"]["group"].values]
+    kept = {k: np.asarray(data[k].values) for k in ("chain_start", "response_se") if k in data}
+    return Program(law=law, noise=noise, priors=declared, resolved=resolve_all(declared, scale),
+                   constants={k: float(v) for k, v in json.loads(attrs["constants"]).items()}, scale=scale,
+                   inputs=inputs, response=response, group_index=group_index, group_labels=labels,
+                   chain_start=kept["chain_start"].astype(bool) if "chain_start" in kept else None,
+                   response_se=kept["response_se"].astype(float) if "response_se" in kept else None)
+
+
 def program_from_fit(fit: xr.DataTree, ds: xr.Dataset) -> Program:
-    """Rebuild the program of a fit from its provenance attrs (law, priors, noise, constants).
+    """Rebuild the program of a fit on the data set ``ds`` (the fit's own, or another with the
+    same inputs) from its provenance attrs (law, priors, noise, constants); the priors are
+    resolved on ``ds``. :func:`program_of_fit` rebuilds it from the fit alone.
 
     Fits saved before the known noise sigma was recorded in the ``noise`` attr cannot be rebuilt
     when they used one; pass the fit's program explicitly for those.
     """
-    noise = json.loads(fit.attrs["noise"])
-    priors = json.loads(fit.attrs["priors"])
-    sigma = noise.get("sigma")
-    if noise["kind"] == "normal" and "sigma" not in priors and sigma is None:
-        raise ValueError(f"fit of {fit.attrs['law']!r} used a known noise sigma, which its attrs "
-                         "do not record; pass the fit's program (or engine) explicitly")
-    return build_program(law_of_fit(fit.attrs), ds, priors=priors,
-                         noise=Noise(kind=noise["kind"], group=noise.get("group"), sigma=sigma),
+    return build_program(law_of_fit(fit.attrs), ds, priors=json.loads(fit.attrs["priors"]), noise=_noise_of(fit.attrs),
                          constants=json.loads(fit.attrs["constants"]))

@@ -5,6 +5,7 @@
 :func:`law`              a registered law, or a plain function declared as one
 :class:`Param`, `Prior`  the pieces of a full law declaration (:func:`bayesfric.laws.law`)
 :func:`fit`              one law on one data set -> arviz ``DataTree``
+:func:`load_fit`         a saved fit -> ``(DataTree, Program)``: the program that produced it
 :func:`compare_laws`     fits ranked by PSIS-LOO with stacking weights -> ``pandas.DataFrame``
 :func:`size`             friction a drive must deliver at untested points (+ P(|T| > capacity))
 :class:`Study`, `run`    a full comparison study (blocked extrapolation, evidence, sizing,
@@ -15,10 +16,12 @@ Every argument is checked where it is given; a bad one raises a one-line
 :class:`~bayesfric.errors.UserError` naming it (the CLI prints the same line and exits 2).
 """
 
+from bayesfric.api.fitfile import load_fit
 from bayesfric.api.fitting import compare_laws, fit, law, load_data
 from bayesfric.api.sizing import size
 from bayesfric.api.studies import Study, StudyResult, run
 from bayesfric.laws.base import Param
 from bayesfric.priors import Prior
 
-__all__ = ["load_data", "law", "Param", "Prior", "fit", "compare_laws", "size", "Study", "StudyResult", "run"]
+__all__ = ["load_data", "law", "Param", "Prior", "fit", "load_fit", "compare_laws", "size", "Study", "StudyResult",
+           "run"]

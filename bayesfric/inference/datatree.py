@@ -18,7 +18,7 @@ from bayesfric.datasets.loader import OBS_DIM
 from bayesfric.exported import program_jit
 from bayesfric.inference import pointwise
 from bayesfric.inference.diagnostics import check
-from bayesfric.model import OBS_SITE, Program
+from bayesfric.model import OBS_SITE, Program, program_data, program_record
 
 __all__ = ["assemble", "provenance", "log_prior_draws", "draw_tables_jit", "tables_jit", "draw_tables_args"]
 
@@ -37,15 +37,7 @@ def _chains(flat: dict[str, Any], n_chains: int) -> dict[str, np.ndarray]:
 def provenance(program: Program, ds: xr.Dataset, sampler: str, settings: dict, seed: int) -> dict:
     """Provenance attrs stored on every fit (strings and numbers only, NetCDF-safe)."""
     return {
-        "law": program.law.name,
-        "law_recipe": json.dumps(dict(program.law.recipe)) if program.law.recipe else "",  # laws.variants
-        "law_source": program.law.source,
-        "law_family": program.law.family,
-        "noise": json.dumps({"kind": program.noise.kind, "group": program.noise.group,
-                             "sigma": program.noise.sigma}),
-        "priors": json.dumps({k: p.to_dict() for k, p in program.priors.items()}),
-        "priors_resolved": json.dumps({k: str(p) for k, p in program.resolved.items()}),
-        "constants": json.dumps(program.constants),
+        **program_record(program),  # what rebuilds the program (bayesfric.model.program_of_fit)
         "dataset": str(ds.attrs.get("name", "")),
         "data_provenance": str(ds.attrs.get("provenance", "")),
         "data_source": str(ds.attrs.get("source", "")),
@@ -153,7 +145,7 @@ def assemble(
         posterior.setdefault(name, np.asarray(value).reshape((n_chains, -1) + np.shape(value)[1:]))
 
     obs = np.arange(program.n_obs)
-    constant = {k: np.asarray(v, dtype=float) for k, v in program.inputs.items()}
+    constant = {k: np.asarray(v, dtype=float) for k, v in program.inputs.items()} | program_data(program)
     dims = {OBS_SITE: [OBS_DIM], **{k: [OBS_DIM] for k in constant}}
     dims.update(program.site_dims())
     coords: dict[str, Any] = {OBS_DIM: obs}

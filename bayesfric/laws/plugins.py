@@ -26,29 +26,42 @@ registry (:func:`bayesfric.laws.base.get_law`) or every law is listed
 Every problem -- a missing file, a file that fails to import, a law name defined twice -- is a
 :class:`LawModuleError`: one line naming the file (or entry point), and the registry is left as
 it was before the failed file.
+
+**Unregistered laws** (:func:`unregistered_law`, a resolver of
+:func:`~bayesfric.laws.base.get_law`). A law declared without registering it
+(``bayesfric.law(fn, units=...)``, ``simple_law(..., register=False)``) is still found by its
+name: one that a loaded law file defines at its top level, else the latest declared in this
+process (:func:`remember`). It is not listed with the registered laws, and a registered law of
+the same name takes precedence. A fit records the files its law's code comes from
+(:func:`law_files`: a law file, or the file of a module imported by name); :func:`load_recorded`
+loads them again wherever the fit is read, so a fit of a user's law rebuilds in a fresh process.
 """
 
 from __future__ import annotations
 
 import hashlib
 import inspect
+import json
 import sys
 import types
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from importlib import metadata
 from pathlib import Path
 
 from bayesfric.errors import UserError
-from bayesfric.laws.base import REGISTRY, Law, LawDeclarationError, declared_in, get_law
+from bayesfric.laws.base import REGISTRY, Law, LawDeclarationError, declared_in, get_law, register_resolver
 
 __all__ = ["LawModuleError", "ENTRY_POINT_GROUP", "load_module", "load_modules", "load_entry_points",
-           "module_files", "user_roots", "entry_point_law"]
+           "module_files", "user_roots", "entry_point_law", "remember", "unregistered_law", "law_file",
+           "law_files", "load_recorded"]
 
 #: Entry-point group under which installed packages register laws.
 ENTRY_POINT_GROUP = "bayesfric.laws"
 
 #: Law files loaded in this process: resolved path -> module.
 _LOADED: dict[Path, types.ModuleType] = {}
+#: Laws declared in this process without registering them: name -> the latest (:func:`remember`).
+_DECLARED: dict[str, Law] = {}
 #: Whether this process has loaded the entry points (once; see :func:`load_entry_points`).
 _ENTRY_POINTS: dict[str, bool] = {"loaded": False}
 
@@ -88,6 +101,9 @@ def load_module(path: str | Path, label: str | None = None) -> types.ModuleType:
     resolved = Path(path).resolve()
     if resolved in _LOADED:
         return _LOADED[resolved]
+    if (imported := _imported(resolved)) is not None:  # imported by name already: that module, not a copy
+        _LOADED[resolved] = imported
+        return imported
     if not resolved.is_file():
         problem = "no such file" if not resolved.exists() else "not a file"
         raise LawModuleError(f"{given}: law module: {problem} (looked for {resolved})")
@@ -121,6 +137,18 @@ def load_module(path: str | Path, label: str | None = None) -> types.ModuleType:
     return module
 
 
+def _imported(path: Path) -> types.ModuleType | None:
+    """The module of this process imported (by name) from the file ``path``, if any (this
+    module's own copies of law files are not: they are what :data:`_LOADED` holds)."""
+    for name, module in list(sys.modules.items()):
+        found = getattr(module, "__file__", None)
+        if name.startswith("_bayesfric_law_file_"):
+            continue
+        if isinstance(found, str) and found.endswith(".py") and Path(found).resolve() == path:
+            return module
+    return None
+
+
 def load_modules(paths: Sequence[str | Path]) -> list[types.ModuleType]:
     """:func:`load_module` of every path, in order (each at most once per process)."""
     return [load_module(p) for p in paths]
@@ -135,6 +163,64 @@ def user_roots() -> tuple[Path, ...]:
 def module_files() -> tuple[Path, ...]:
     """The law files loaded in this process, in the order they were loaded."""
     return tuple(_LOADED)
+
+
+def remember(law: Law) -> Law:
+    """Make an unregistered ``law`` findable by its name in this process (:func:`unregistered_law`);
+    a later law of the same name replaces it. Returns ``law``."""
+    _DECLARED[law.name] = law
+    return law
+
+
+def unregistered_law(name: str) -> Law | None:
+    """The resolver of laws that are declared but not registered (module docstring): a
+    :class:`~bayesfric.laws.base.Law` named ``name`` at the top level of a loaded law file (the
+    latest file first), else the latest one :func:`remember` was given; None if neither."""
+    for module in reversed(list(_LOADED.values())):
+        for value in vars(module).values():
+            if isinstance(value, Law) and value.name == name:
+                return value
+    return _DECLARED.get(name)
+
+
+def law_file(law: Law) -> Path | None:
+    """The file that declares ``law``'s own function, if it can be loaded again elsewhere: a law
+    file (:func:`load_module`), or a module imported by name (not ``__main__``, not this package).
+    None for the package's laws, variants' composed functions and functions of a notebook or script."""
+    module = sys.modules.get(getattr(law.fn, "__module__", "") or "")
+    if module is None or module.__name__ == "__main__" or module.__name__.split(".")[0] == "bayesfric":
+        return None
+    for path, loaded in _LOADED.items():
+        if loaded is module:
+            return path
+    found = getattr(module, "__file__", None)
+    return Path(found).resolve() if found and found.endswith(".py") else None
+
+
+def law_files(law: Law) -> tuple[str, ...]:
+    """Absolute paths of the files ``law``'s code comes from (:func:`law_file` of the law, of its
+    base law and of every law it adds), in that order, each once; what a fit records."""
+    names = (law.base_name, *law.recipe.get("add", ()))
+    parts = [law, *(w for n in names if (w := REGISTRY.get(n) or unregistered_law(n)) is not None)]
+    files: list[str] = []
+    for part in parts:
+        if (path := law_file(part)) is not None and str(path) not in files:
+            files.append(str(path))
+    return tuple(files)
+
+
+def load_recorded(attrs: Mapping[str, object]) -> None:
+    """Load the law files a fit records (``attrs["law_files"]``, :func:`law_files`) that this
+    process has neither loaded nor imported, so its law can be rebuilt by name.
+
+    Raises
+    ------
+    LawModuleError
+        A recorded file that is gone or no longer loads (the fit's law cannot be rebuilt).
+    """
+    for path in json.loads(str(attrs.get("law_files") or "[]")):
+        if Path(path) not in _LOADED:  # a file imported by name is taken as it is (load_module)
+            load_module(path, label=f"law file of the fit ({path})")
 
 
 def load_entry_points() -> bool:
@@ -208,3 +294,6 @@ def _where(exc: BaseException, path: Path) -> str:
             line = tb.tb_lineno
         tb = tb.tb_next
     return f" (line {line})" if line is not None else ""
+
+
+register_resolver(unregistered_law)  # laws declared but not registered, found by name (module docstring)

@@ -41,6 +41,7 @@ from pathlib import Path
 from typing import Any
 
 from bayesfric.laws.base import REGISTRY, Constant, Law, LawDeclarationError, Param, declare, declared_in
+from bayesfric.laws.plugins import remember
 from bayesfric.priors import Prior
 from bayesfric.quantities import QUANTITIES, RESPONSES, parse_unit
 
@@ -83,7 +84,10 @@ def simple_law(
     inputs : tuple of str, optional
         The inputs, when arguments named after a quantity should be parameters instead.
     register : bool
-        Register the law under its name (so studies can name it), as :func:`bayesfric.laws.law` does.
+        Register the law under its name, as :func:`bayesfric.laws.law` does (listed with the
+        package's laws; a name is registered once per process). Unregistered, it is still found
+        by its name in this process, and in any process that loads the file declaring it
+        (:func:`bayesfric.laws.plugins.unregistered_law`), so studies and fits can use it either way.
     **options
         Further keywords of :func:`bayesfric.laws.base.declare` (``notes``, ``derived``,
         ``sign_definite``, ``rotary_only``, ``constants`` meanings are their names).
@@ -119,6 +123,8 @@ def simple_law(
             raise LawDeclarationError(f"{where}: a law named {name!r} is already registered "
                                       f"(in {declared_in(REGISTRY[name].fn)}): a law name is defined once")
         REGISTRY[name] = law
+    else:  # found by name in this process, not registered (bayesfric.laws.plugins.unregistered_law)
+        remember(law)
     return law
 
 

@@ -55,6 +55,7 @@ from typing import Any
 from bayesfric.errors import DataError
 from bayesfric.laws import transforms as ops
 from bayesfric.laws.base import REGISTRY, Law, LawDeclarationError, VariantError, get_law, set_variant_builder
+from bayesfric.laws.plugins import load_recorded
 from bayesfric.laws.terms import all_terms
 from bayesfric.laws.transforms import TRANSLATIONAL, translation_problem, translational_unit
 
@@ -194,7 +195,9 @@ def alias(name: str, recipe: Mapping[str, Any], notes: str = "") -> Law:
 
 
 def law_of_fit(attrs: Mapping[str, Any]) -> Law:
-    """The law of a stored fit: its recipe if it was a variant, else the registered name."""
+    """The law of a stored fit: its recipe if it was a variant, else the registered name. The
+    user's law files the fit records are loaded first (:func:`bayesfric.laws.plugins.load_recorded`)."""
+    load_recorded(attrs)
     recipe = attrs.get("law_recipe")
     if recipe:
         recipe = json.loads(recipe)

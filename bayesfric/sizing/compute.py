@@ -4,8 +4,8 @@ extrapolation. Pure computation: fits + weights in, a :class:`SizingResult` out;
 ``sizing.csv``, the fan figure and the CLI only render it.
 
 Per law and point
-    The fit's program is rebuilt on the query points (:func:`bayesfric.compare.program_from_fit`
-    on an in-memory dataset) and the law's **mean function** is evaluated per posterior draw
+    The fit's program (:func:`bayesfric.model.program_of_fit`) is moved to the query points
+    (:meth:`bayesfric.model.Program.at`) and the law's **mean function** is evaluated per posterior draw
     (``jax.vmap``): its spread is *parameter uncertainty*. With partial-pooled group offsets a
     new, unseen unit (series, blade, run) is sized: one offset per draw from N(0, group_sd),
     multiplying the mean function at every point of the question (``mu · exp(b)``, as in the
@@ -57,7 +57,6 @@ Energy (pitch drives, seed 000 §1)
 
 from __future__ import annotations
 
-import json
 import math
 import zlib
 from collections.abc import Mapping, Sequence
@@ -68,9 +67,7 @@ import jax.numpy as jnp
 import numpy as np
 import xarray as xr
 
-from bayesfric.datasets.synthetic import make_dataset
 from bayesfric.inference.diagnostics import import_statistics
-from bayesfric.laws.variants import law_of_fit
 from bayesfric.sizing.basis import LOO, Basis
 from bayesfric.sizing.calibration import Miss
 from bayesfric.sizing.points import SizingError, SizingQuestion
@@ -288,9 +285,10 @@ def predict(fit: xr.DataTree, grid: Mapping[str, np.ndarray], seed: int = 0) -> 
     SizingError
         The fit's law is a trajectory (stateful) law, or ``grid`` lacks an input it reads.
     """
-    from bayesfric.compare.refit import program_from_fit
+    from bayesfric.model import program_of_fit
 
-    law = law_of_fit(fit.attrs)
+    program = program_of_fit(fit)
+    law = program.law
     if law.trajectory:
         raise SizingError("", f"law {law.name!r} is a trajectory (stateful) law: its friction depends on the "
                               "path, so it cannot be sized at an operating point")
@@ -298,15 +296,8 @@ def predict(fit: xr.DataTree, grid: Mapping[str, np.ndarray], seed: int = 0) -> 
     if missing:
         raise SizingError("", f"law {law.name!r} reads {', '.join(missing)}, which the point does not give")
     n = len(next(iter(grid.values())))
-    noise = json.loads(fit.attrs["noise"])
-    groups = {noise["group"]: np.array(["new unit"] * n)} if noise.get("group") else {}
-    trajectory = None
-    if noise["kind"] == "ar1":  # every point its own trajectory: sized at the stationary marginal
-        trajectory, groups = "sizing_point", groups | {"sizing_point": np.arange(n)}
-    query = make_dataset({k: np.asarray(grid[k], dtype=float) for k in law.operating_inputs}, np.zeros(n),
-                         response_quantity=law.response, groups=groups or None, trajectory=trajectory,
-                         name="sizing points")
-    program = program_from_fit(fit, query)
+    # a new unit of a grouped fit; with ar1 noise each point its own trajectory (stationary marginal)
+    program = program.at({k: grid[k] for k in law.operating_inputs})
     post = fit["posterior"].to_dataset()
     chains, draws = post.sizes["chain"], post.sizes["draw"]
     s = chains * draws
@@ -321,7 +312,7 @@ def predict(fit: xr.DataTree, grid: Mapping[str, np.ndarray], seed: int = 0) -> 
     mu = np.broadcast_to(mu, (s, n)).copy()
     _check_magnitude(law, grid, mu)
     rng = np.random.default_rng([seed, zlib.crc32(law.name.encode())])
-    if noise.get("group"):
+    if program.noise.group is not None:
         mu *= np.exp(rng.normal(0.0, 1.0, (s, 1)) * flat("group_sd")[:, None])
     # The fit's own observation distribution (Program.observation: the likelihood's, ar1 at its
     # stationary marginal). One standardised noise draw per posterior draw, shared by the
