@@ -35,6 +35,7 @@ from numpyro.infer import Predictive
 from scipy.special import logsumexp
 from scipy.stats import multivariate_normal
 
+from bayesfric.limits import CHUNK_NUMBERS
 from bayesfric.model import Program
 
 __all__ = [
@@ -78,6 +79,27 @@ class EstimatorAgreement:
 def _finite(x: np.ndarray) -> np.ndarray:
     x = np.asarray(x, dtype=float)
     return np.where(np.isfinite(x), x, -np.inf)
+
+
+def chunked(log_joint_batch, rows: int):
+    """``log_joint_batch`` (a compiled function of ``(n, dim)`` points) over chunks of at most
+    ``CHUNK_NUMBERS // rows`` points, the last one padded to the same shape (one compilation):
+    the log density of every point needs points × rows numbers at once otherwise (8000 importance
+    draws × 10⁵ rows: 6.4 GB per intermediate array). One call, as before, while it fits."""
+    size = max(1, CHUNK_NUMBERS // max(1, rows))
+
+    def run(x) -> np.ndarray:
+        x = np.asarray(x)
+        if x.shape[0] <= size:
+            return np.asarray(log_joint_batch(jnp.asarray(x)))
+        out = []
+        for a in range(0, x.shape[0], size):
+            part = x[a:a + size]
+            padded = np.concatenate([part, np.repeat(part[:1], size - part.shape[0], axis=0)])
+            out.append(np.asarray(log_joint_batch(jnp.asarray(padded)))[: part.shape[0]])
+        return np.concatenate(out)
+
+    return run
 
 
 # -- bridge sampling ------------------------------------------------------------------------------
@@ -145,7 +167,7 @@ def bridge_log_evidence(
     rng = np.random.default_rng(seed)
     proposal_draws = np.atleast_2d(proposal.rvs(size=n2, random_state=rng)).reshape(n2, density.dim)
 
-    log_joint = density.log_joint_batch
+    log_joint = chunked(density.log_joint_batch, program.n_obs)
     flat_bridge = bridge_half.reshape(-1, density.dim)
     q11 = _finite(log_joint(jnp.asarray(flat_bridge)))  # unnormalised posterior at posterior draws
     q12 = proposal.logpdf(flat_bridge).reshape(-1)  # proposal at posterior draws
@@ -265,63 +287,16 @@ def smc_log_evidence(
     if mass_matrix not in ("dense", "diagonal"):
         raise ValueError(f"mass_matrix must be 'dense' or 'diagonal', not {mass_matrix!r}")
     density = program.density(seed)
-    kwargs = dict(program.model_kwargs, response=None)
+    step_fn, init_fn, fixed, kernel_text = _move_kernel(kernel, integration_steps, max_doublings)
 
     def log_likelihood(x):
         return jnp.sum(density.log_likelihood(x))
 
-    def prior_particles(key):
-        predictive = Predictive(program.model, num_samples=particles, return_sites=density.sites)
-        draws = predictive(key, **kwargs)
-        return density.to_unconstrained({k: draws[k] for k in density.sites})
-
-    if kernel == "nuts":
-        step_fn = partial(blackjax.nuts.build_kernel(), max_num_doublings=max_doublings)
-        init_fn = blackjax.nuts.init
-        fixed = {}
-        kernel_text = f"NUTS, ≤ 2^{max_doublings} leapfrog steps"
-    elif kernel == "hmc":
-        step_fn, init_fn = blackjax.hmc.build_kernel(), blackjax.hmc.init
-        fixed = {"num_integration_steps": integration_steps}
-        kernel_text = f"HMC, {integration_steps} leapfrog steps"
-    else:
-        raise ValueError(f"kernel must be 'nuts' or 'hmc', not {kernel!r}")
     smc_kernel = adaptive_tempered.build_kernel(density.log_prior, log_likelihood, step_fn, init_fn,
                                                 resampling.systematic, target_ess)
-
-    def move_parameters(x, log_weights, step):
-        w = jax.nn.softmax(log_weights)
-        centred = x - w @ x
-        if mass_matrix == "dense":
-            cov = (centred * w[:, None]).T @ centred
-            cov = cov + 1e-10 * jnp.eye(x.shape[1]) * jnp.maximum(jnp.trace(cov), 1e-12)
-        else:
-            cov = jnp.diag(w @ centred**2)
-        return extend_params({"inverse_mass_matrix": cov, "step_size": step, **fixed})
-
-    def one_run(key):
-        key_prior, key_smc = jax.random.split(key)
-        x0 = prior_particles(key_prior)
-        uniform = jnp.zeros(particles)
-
-        def not_done(carry):
-            return carry[0].tempering_param < 1.0
-
-        def step(carry):
-            state, params, key, log_z, n = carry
-            key, sub = jax.random.split(key)
-            state, info = smc_kernel(sub, state, mcmc_steps, params)
-            accept = jnp.mean(info.update_info.acceptance_rate)
-            new_step = jnp.clip(params["step_size"][0] * jnp.exp(accept - target_accept), 1e-3, 2.0)
-            params = move_parameters(state.particles, jnp.log(state.weights), new_step)
-            return state, params, key, log_z + info.log_likelihood_increment, n + 1
-
-        state0 = adaptive_tempered.init(x0)
-        carry = (state0, move_parameters(x0, uniform, jnp.asarray(step_size)), key_smc, jnp.zeros(()),
-                 jnp.zeros((), dtype=jnp.int32))
-        _, params, _, log_z, n = jax.lax.while_loop(not_done, step, carry)
-        return log_z, n, params["step_size"][0]
-
+    move_parameters = partial(_move_parameters, dense=mass_matrix == "dense", fixed=fixed)
+    one_run = partial(_one_run, smc_kernel, move_parameters, partial(_prior_particles, program, density, particles),
+                      particles=particles, mcmc_steps=mcmc_steps, step_size=step_size, target_accept=target_accept)
     keys = jax.random.split(jax.random.PRNGKey(seed), runs)
     log_zs, steps, final_steps = jax.jit(jax.vmap(one_run))(keys)
     log_zs = np.asarray(log_zs, dtype=float)
@@ -336,6 +311,63 @@ def smc_log_evidence(
     }
     error = float(np.std(log_zs, ddof=1) / np.sqrt(runs))
     return Evidence(float(np.mean(log_zs)), error, "smc", diagnostics)
+
+
+def _move_kernel(kernel: str, integration_steps: int, max_doublings: int) -> tuple:
+    """The SMC move's blackjax step and init functions, its fixed parameters and its description."""
+    if kernel == "nuts":
+        step_fn = partial(blackjax.nuts.build_kernel(), max_num_doublings=max_doublings)
+        return step_fn, blackjax.nuts.init, {}, f"NUTS, ≤ 2^{max_doublings} leapfrog steps"
+    if kernel == "hmc":
+        return (blackjax.hmc.build_kernel(), blackjax.hmc.init, {"num_integration_steps": integration_steps},
+                f"HMC, {integration_steps} leapfrog steps")
+    raise ValueError(f"kernel must be 'nuts' or 'hmc', not {kernel!r}")
+
+
+def _prior_particles(program: Program, density, particles: int, key):
+    """``particles`` prior draws of the program's sites, in numpyro's unconstrained space."""
+    predictive = Predictive(program.model, num_samples=particles, return_sites=density.sites)
+    draws = predictive(key, **dict(program.model_kwargs, response=None))
+    return density.to_unconstrained({k: draws[k] for k in density.sites})
+
+
+def _move_parameters(x, log_weights, step, *, dense: bool, fixed: dict):
+    """The moves' parameters from the weighted particles: their (dense or diagonal) covariance as
+    inverse mass matrix, the step size and the kernel's fixed parameters."""
+    w = jax.nn.softmax(log_weights)
+    centred = x - w @ x
+    if dense:
+        cov = (centred * w[:, None]).T @ centred
+        cov = cov + 1e-10 * jnp.eye(x.shape[1]) * jnp.maximum(jnp.trace(cov), 1e-12)
+    else:
+        cov = jnp.diag(w @ centred**2)
+    return extend_params({"inverse_mass_matrix": cov, "step_size": step, **fixed})
+
+
+def _one_run(smc_kernel, move_parameters, prior_particles, key, *, particles: int, mcmc_steps: int,
+             step_size: float, target_accept: float):
+    """One tempered run from prior draws to β = 1: its log Z, tempering steps and final step size."""
+    key_prior, key_smc = jax.random.split(key)
+    x0 = prior_particles(key_prior)
+    uniform = jnp.zeros(particles)
+
+    def not_done(carry):
+        return carry[0].tempering_param < 1.0
+
+    def step(carry):
+        state, params, key, log_z, n = carry
+        key, sub = jax.random.split(key)
+        state, info = smc_kernel(sub, state, mcmc_steps, params)
+        accept = jnp.mean(info.update_info.acceptance_rate)
+        new_step = jnp.clip(params["step_size"][0] * jnp.exp(accept - target_accept), 1e-3, 2.0)
+        params = move_parameters(state.particles, jnp.log(state.weights), new_step)
+        return state, params, key, log_z + info.log_likelihood_increment, n + 1
+
+    state0 = adaptive_tempered.init(x0)
+    carry = (state0, move_parameters(x0, uniform, jnp.asarray(step_size)), key_smc, jnp.zeros(()),
+             jnp.zeros((), dtype=jnp.int32))
+    _, params, _, log_z, n = jax.lax.while_loop(not_done, step, carry)
+    return log_z, n, params["step_size"][0]
 
 
 def compare_estimators(a: Evidence, b: Evidence, *, z: float = 3.0, floor: float = 0.2) -> EstimatorAgreement:
