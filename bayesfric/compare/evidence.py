@@ -143,19 +143,9 @@ def bridge_log_evidence(
     arviz ESS of f2 over the chains (the same quantity, N / integrated autocorrelation time).
     """
     density = program.density(seed)
-    post = dt["posterior"].to_dataset()
-    missing = [s for s in density.sites if s not in post]
-    if missing:
-        raise ValueError(
-            f"fit posterior lacks latent site(s) {missing} of law {program.law.name!r}"
-        )
-    n_chains, n_draws = post.sizes["chain"], post.sizes["draw"]
+    x = _unconstrained_draws(program, density, dt)
+    n_chains, n_draws = x.shape[:2]
     half = n_draws // 2
-    if half < 20:
-        raise ValueError(f"bridge sampling needs at least 40 draws per chain, got {n_draws}")
-    constrained = {s: np.asarray(post[s].values).reshape((n_chains * n_draws,) + post[s].shape[2:])
-                   for s in density.sites}
-    x = np.asarray(density.to_unconstrained(constrained)).reshape(n_chains, n_draws, density.dim)
     fit_half = x[:, :half].reshape(-1, density.dim)
     bridge_half = x[:, half : 2 * half]  # (chain, half, dim)
     n1 = n_chains * half
@@ -180,24 +170,42 @@ def bridge_log_evidence(
     n_eff = float(np.median(np.asarray(ess)))
     n_eff = min(max(n_eff, 1.0), float(n1))
     log_z, n_iter = _meng_wong(q11 - q12, q21 - q22, n1, n2, n_eff, max_iter, tol)
-
-    # Frühwirth-Schnatter (2004) relative MSE of Z; all ratios computed in log space
-    s1, s2 = n1 / (n1 + n2), n2 / (n1 + n2)
-    lp_g, lg_g = q21 - log_z, q22  # normalised posterior and proposal at proposal draws
-    lp_p, lg_p = q11 - log_z, q12
-    f1 = np.exp(lp_g - np.logaddexp(np.log(s1) + lp_g, np.log(s2) + lg_g))
-    f2 = np.exp(lg_p - np.logaddexp(np.log(s1) + lp_p, np.log(s2) + lg_p))
-    ess_f2 = float(az.ess(xr.Dataset({"f": (("chain", "draw"), f2.reshape(n_chains, half))}),
-                          method="mean")["f"])
-    ess_f2 = min(max(ess_f2, 1.0), float(n1))
-    re2 = (np.var(f1, ddof=1) / (n2 * np.mean(f1) ** 2)
-           + np.var(f2, ddof=1) / (ess_f2 * np.mean(f2) ** 2))
+    re2 = _relative_mse(q11 - log_z, q12, q21 - log_z, q22, n1, n2, n_chains)
     diagnostics = {
         "n_posterior_bridge": n1, "n_proposal": n2, "n_posterior_fit": int(fit_half.shape[0]),
         "n_eff": n_eff, "iterations": n_iter, "relative_mse": float(re2), "dim": density.dim,
         "proposal": "multivariate normal in numpyro's unconstrained space",
     }
     return Evidence(float(log_z), float(np.sqrt(re2)), "bridge", diagnostics)
+
+
+def _unconstrained_draws(program: Program, density, dt: xr.DataTree) -> np.ndarray:
+    """The fit's posterior draws in numpyro's unconstrained space, ``(chain, draw, dim)``."""
+    post = dt["posterior"].to_dataset()
+    missing = [s for s in density.sites if s not in post]
+    if missing:
+        raise ValueError(
+            f"fit posterior lacks latent site(s) {missing} of law {program.law.name!r}"
+        )
+    n_chains, n_draws = post.sizes["chain"], post.sizes["draw"]
+    if n_draws // 2 < 20:
+        raise ValueError(f"bridge sampling needs at least 40 draws per chain, got {n_draws}")
+    constrained = {s: np.asarray(post[s].values).reshape((n_chains * n_draws,) + post[s].shape[2:])
+                   for s in density.sites}
+    return np.asarray(density.to_unconstrained(constrained)).reshape(n_chains, n_draws, density.dim)
+
+
+def _relative_mse(lp_p, lg_p, lp_g, lg_g, n1: int, n2: int, n_chains: int) -> float:
+    """Frühwirth-Schnatter (2004) relative MSE of Z (all ratios in log space): ``lp``/``lg`` are
+    the normalised posterior and the proposal at the posterior (``_p``) and proposal (``_g``) draws."""
+    s1, s2 = n1 / (n1 + n2), n2 / (n1 + n2)
+    f1 = np.exp(lp_g - np.logaddexp(np.log(s1) + lp_g, np.log(s2) + lg_g))
+    f2 = np.exp(lg_p - np.logaddexp(np.log(s1) + lp_p, np.log(s2) + lg_p))
+    ess_f2 = float(az.ess(xr.Dataset({"f": (("chain", "draw"), f2.reshape(n_chains, -1))}),
+                          method="mean")["f"])
+    ess_f2 = min(max(ess_f2, 1.0), float(n1))
+    return (np.var(f1, ddof=1) / (n2 * np.mean(f1) ** 2)
+            + np.var(f2, ddof=1) / (ess_f2 * np.mean(f2) ** 2))
 
 
 def _meng_wong(l1, l2, n1, n2, n_eff, max_iter, tol) -> tuple[float, int]:
