@@ -288,6 +288,23 @@ def law(
     return wrap
 
 
+def _check_param(where: str, pname: str, p: Param, inputs: tuple[str, ...]) -> None:
+    """A declared parameter: a :class:`Param` with a unit, meaning, source and a prior scaled
+    only by what the law reads."""
+    if not isinstance(p, Param):
+        raise LawDeclarationError(f"{where}: parameter {pname!r} is not a Param")
+    _check_unit(where, pname, p.unit)
+    if not p.meaning.strip() or not p.source.strip():
+        raise LawDeclarationError(f"{where}: parameter {pname!r} needs a meaning and a source")
+    if not isinstance(p.prior, Prior):
+        raise LawDeclarationError(f"{where}: parameter {pname!r} prior is not a Prior spec")
+    for key in p.prior.scaled_by:
+        if key != "response" and key not in inputs:
+            raise LawDeclarationError(
+                f"{where}: prior of {pname!r} is scaled by {key!r}, which the law does not read"
+            )
+
+
 def declare(
     fn: Callable[..., Any],
     *,
@@ -323,18 +340,7 @@ def declare(
         )
     _check_inputs(where, inputs, response, trajectory)
     for pname, p in params.items():
-        if not isinstance(p, Param):
-            raise LawDeclarationError(f"{where}: parameter {pname!r} is not a Param")
-        _check_unit(where, pname, p.unit)
-        if not p.meaning.strip() or not p.source.strip():
-            raise LawDeclarationError(f"{where}: parameter {pname!r} needs a meaning and a source")
-        if not isinstance(p.prior, Prior):
-            raise LawDeclarationError(f"{where}: parameter {pname!r} prior is not a Prior spec")
-        for key in p.prior.scaled_by:
-            if key != "response" and key not in inputs:
-                raise LawDeclarationError(
-                    f"{where}: prior of {pname!r} is scaled by {key!r}, which the law does not read"
-                )
+        _check_param(where, pname, p, inputs)
     for cname, c in consts.items():
         _check_unit(where, cname, c.unit)
     for dname, d in (derived or {}).items():
