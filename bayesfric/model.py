@@ -107,12 +107,14 @@ class Noise:
         return base + (("group_sd",) if self.group else ())
 
 
-@dataclass
+@dataclass(frozen=True)
 class Program:
     """A law bound to a dataset: the numpyro model plus the arrays it runs on.
 
     ``model(**model_kwargs)`` is the full-data program; pass ``mask=`` to train on a subset and
-    ``response=None`` to sample predictions.
+    ``response=None`` to sample predictions. Frozen: a program on other data or points is a new
+    one (``dataclasses.replace(program, response=...)``, :meth:`at`), never this one changed, so a
+    compiled function or density that closes over a program stays true to it.
     """
 
     law: Law

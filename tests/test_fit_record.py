@@ -126,3 +126,24 @@ def test_a_package_law_records_no_law_file():
     record = program_record(build_program(bayesfric.law("coulomb"), _data()))
     assert json.loads(record["law_files"]) == [] and json.loads(record["data_scale"])["response"] > 0
 
+
+def test_a_program_is_frozen_and_an_engine_on_another_response_scores_that_response():
+    """Program is frozen; NutsEngine.with_response's fit has the log-likelihood of the new
+    response (its compiled tables were shared with the original engine's, on the old one)."""
+    from scipy import stats
+
+    from bayesfric.inference.engine import NutsEngine
+
+    ds = _data()
+    program = build_program(bayesfric.law("coulomb_viscous"), ds)
+    with pytest.raises(AttributeError):
+        program.response = np.zeros(3)  # type: ignore[misc]
+    engine = NutsEngine(program, seed=1, **SHORT)
+    engine.fit(ds)
+    shifted = engine.with_response(program.response + 2.0)
+    fit = shifted.fit(ds)
+    post = fit["posterior"].to_dataset()
+    mu = post["T_C"].values[..., None] * np.sign(V) + post["c_v"].values[..., None] * V
+    expected = stats.norm.logpdf(program.response + 2.0, mu, post["sigma"].values[..., None])
+    np.testing.assert_allclose(fit["log_likelihood"]["response"].values, expected, rtol=1e-8)
+    np.testing.assert_array_equal(fit["observed_data"]["response"].values, program.response + 2.0)

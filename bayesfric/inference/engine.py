@@ -276,6 +276,7 @@ class NutsEngine:
             raise ValueError("response has non-finite values")
         view = copy.copy(self)
         view._program = replace(self._program, response=y)
+        view._tables = None  # the original's compiled fit tables close over its own response
         return view
 
     def warm_started(self, fit: xr.DataTree, warm_tune: int = 250) -> NutsEngine:
