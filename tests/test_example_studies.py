@@ -4,7 +4,7 @@ every check before writing, and their law entries are the variants they say they
 from __future__ import annotations
 
 from bayesfric.study import STUDIES_DIR, load_study
-from bayesfric.study.runner import _prepare
+from bayesfric.study.plan import _prepare
 
 EXAMPLES = STUDIES_DIR / "examples"
 

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from bayesfric.study import load_study
-from bayesfric.study.runner import _fold_schemes, _run_settings, load_study_data
+from bayesfric.study.plan import _fold_schemes, _run_settings, load_study_data
 from bayesfric.study.store import STORE_ENV, RunStore, pack_record, unpack_record
 from bayesfric.study.units import make_job, plan_law
 from tests.hostile.harness import assert_user_error

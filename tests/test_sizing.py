@@ -239,7 +239,7 @@ def tiny_study(sizing_text=SIZING, laws=("coulomb", "coulomb_viscous")):
 ])
 def test_sizing_entries_are_validated_before_anything_is_written(bench, text, fragment):
     from bayesfric.study import StudyError, load_study
-    from bayesfric.study.runner import _prepare
+    from bayesfric.study.plan import _prepare
 
     path = bench / "s.toml"
     path.write_text(tiny_study(text))

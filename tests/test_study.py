@@ -72,7 +72,7 @@ def test_shipped_studies_validate():
 
 def test_shipped_studies_pass_every_check_before_writing(tmp_path):
     """The stricter checks (data, programs, folds, report folder) accept every shipped study."""
-    from bayesfric.study.runner import _prepare
+    from bayesfric.study.plan import _prepare
 
     for f in sorted(STUDIES_DIR.glob("*.toml")):
         _prepare(f, tmp_path / "reports", quick=False)
@@ -108,7 +108,8 @@ def _results_tree_holds_the_csv_numbers(folder, ranking):
         scores = tree["scores"].to_dataset()
         with (folder / "scores.csv").open() as fh:
             table = list(csv.DictReader(fh))
-        assert scores.sizes["law"] == 2 and scores.sizes["criterion"] == len({(r["metric"], r["scheme"]) for r in table})
+        criteria = {(r["metric"], r["scheme"]) for r in table}
+        assert scores.sizes["law"] == 2 and scores.sizes["criterion"] == len(criteria)
         for r in table:
             crit = r["metric"] if not r["scheme"] else f"{r['metric']}[{r['scheme']}]"
             cell = scores.sel(law=r["law"], criterion=crit)
@@ -157,7 +158,7 @@ def test_evidence_pair_end_to_end(tmp_path, data_csv):
 def test_settings_per_sampler_and_quick_lowers_them_after_validation(tmp_path, data_csv, sampler, full, quick):
     """Each sampler gets its own settings (backend defaults filled); --quick only lowers them, and
     uses at most QUICK_KFOLD random folds."""
-    from bayesfric.study.runner import QUICK_KFOLD, _run_settings
+    from bayesfric.study.plan import QUICK_KFOLD, _run_settings
 
     text = study_text().replace("draws = 1000\ntune = 500\nchains = 2\n", sampler)
     (tmp_path / "s.toml").write_text(text.replace("evidence = false\n", "evidence = false\nkfold = 10\n"))
@@ -171,7 +172,7 @@ def test_settings_per_sampler_and_quick_lowers_them_after_validation(tmp_path, d
 def test_the_divergence_retry_is_a_sampler_key_that_reaches_the_engine(tmp_path, data_csv, line, engine_retry):
     """``[sampler] retry_target_accept`` sets the compiled engine's retry target; 0 switches it off."""
     from bayesfric.datasets import load_dataset, resolve
-    from bayesfric.study.runner import _run_settings
+    from bayesfric.study.plan import _run_settings
     from bayesfric.study.units import _base_engine, make_job
 
     text = study_text().replace("chains = 2\n", "chains = 2\n" + line)
@@ -186,7 +187,7 @@ def test_the_divergence_retry_is_a_sampler_key_that_reaches_the_engine(tmp_path,
 def test_the_mass_matrix_is_a_sampler_key_that_reaches_the_engine(tmp_path, data_csv, line, metric):
     """``[sampler] metric`` sets the compiled engine's metric (and so its unit keys)."""
     from bayesfric.datasets import load_dataset, resolve
-    from bayesfric.study.runner import _run_settings
+    from bayesfric.study.plan import _run_settings
     from bayesfric.study.units import _base_engine, make_job
 
     (tmp_path / "s.toml").write_text(study_text().replace("chains = 2\n", "chains = 2\n" + line))
@@ -199,7 +200,7 @@ def test_the_mass_matrix_is_a_sampler_key_that_reaches_the_engine(tmp_path, data
 
 def test_a_law_entry_sets_its_own_mass_matrix(tmp_path, data_csv):
     """``[[laws]] metric`` overrides ``[sampler] metric`` for that law only, and keys its units."""
-    from bayesfric.study.runner import _fold_schemes, _plan_laws, _run_settings, load_study_data
+    from bayesfric.study.plan import _fold_schemes, _plan_laws, _run_settings, load_study_data
 
     text = study_text()
     (tmp_path / "s.toml").write_text(text)

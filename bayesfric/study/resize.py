@@ -13,7 +13,7 @@ from bayesfric import sizing
 from bayesfric.errors import UserError
 from bayesfric.fsutil import is_marked
 from bayesfric.study.config import Study
-from bayesfric.study.runner import load_study_data, sizing_questions
+from bayesfric.study.plan import load_study_data, sizing_questions
 
 __all__ = ["size_from_report"]
 

@@ -1,0 +1,241 @@
+"""Everything a study run checks and plans before anything is written: the study against its
+data and laws (:func:`validate_against_data`), its sizing questions, its CV schemes, the run's
+settings (``--quick``), its claims, and each law's units (:func:`_plan_laws`).
+
+:func:`bayesfric.study.runner.run_study` calls :func:`_prepare` first; a problem is a
+:class:`~bayesfric.study.config.StudyError` naming the study file and the key, and nothing has
+been written.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from bayesfric import compare, fsutil, limits, sizing
+from bayesfric.datasets import DataError, load_dataset, resolve, select
+from bayesfric.laws.variants import for_data
+from bayesfric.model import build_program
+from bayesfric.priors import PriorError
+from bayesfric.quantities import QUANTITIES
+from bayesfric.study import units
+from bayesfric.study.claims import ClaimError, basis_problem, check_claim
+from bayesfric.study.config import Study, StudyError, load_study, sampler_settings, walkers_problem
+from bayesfric.study.store import store_folder
+
+__all__ = ["validate_against_data", "sizing_questions", "load_study_data", "QUICK", "QUICK_KFOLD"]
+
+#: ``--quick`` caps per sampler (a setting is lowered to its cap, never raised) and the cap on
+#: K-fold folds: a smoke test of the whole pipeline, not for decisions (reports say so).
+QUICK = {"nuts": {"draws": 300, "tune": 300, "chains": 2}, "emcee": {"draws": 1000, "tune": 1000, "thin": 10}}
+QUICK_KFOLD = 4
+#: Result keys of a law outcome that a CV scheme label must not shadow.
+_RESERVED_LABELS = ("loo", "bridge", "SMC")
+
+
+def validate_against_data(study: Study, ds) -> None:
+    """Data-dependent checks of a study, before anything is written.
+
+    Every key that names data must exist in it; every law must read inputs the data has and
+    predict its response; every law's program must build (priors scaled by inputs the data
+    has); random K-fold needs at most as many folds as points (or trajectories); emcee needs
+    at least 2 walkers per free parameter; the sampler and SMC settings must fit in memory
+    (:mod:`bayesfric.limits`).
+
+    Raises
+    ------
+    StudyError
+        One line naming the study file and the key.
+    """
+    where = str(study.path)
+    coords = {k for k, v in ds.coords.items()}
+    inputs = {k for k, v in ds.coords.items() if v.attrs.get("role") == "input"}
+    if study.noise.group and study.noise.group not in coords:
+        raise StudyError(f"{where}: [noise] group: {study.noise.group!r} is not a group of the data "
+                         f"({', '.join(sorted(coords))})")
+    if study.noise.kind == "ar1" and not ds.attrs.get("trajectory"):
+        raise StudyError(f"{where}: [noise] kind: 'ar1' needs ordered trajectories, but the data "
+                         "names no trajectory group")
+    if study.grouped and study.grouped not in coords:
+        raise StudyError(f"{where}: [compare] grouped: {study.grouped!r} is not a coordinate of the data "
+                         f"({', '.join(sorted(coords))})")
+    for i, b in enumerate(study.blocked):
+        if b.axis not in inputs:
+            raise StudyError(f"{where}: compare.blocked[{i}].axis: {b.axis!r} is not an input of the data "
+                             f"(inputs: {', '.join(sorted(inputs))})")
+    if study.kfold:
+        try:
+            compare.kfold_masks(ds, study.kfold)
+        except ValueError as exc:
+            raise StudyError(f"{where}: [compare] kfold: {exc}") from None
+    for i, spec in enumerate(study.laws):
+        try:  # the law as it runs on this data: its motion kind, without optional inputs it lacks
+            law = for_data(spec.build(), ds)
+        except DataError as exc:
+            raise StudyError(f"{where}: laws[{i}] ({spec.name}): {exc}") from None
+        missing = [f"{q} ({QUANTITIES[q].meaning})" for q in law.operating_inputs if q not in inputs]
+        if missing:
+            raise StudyError(f"{where}: laws[{i}] ({spec.name}) reads {'; '.join(missing)}, which the data lacks "
+                             f"(its inputs: {', '.join(sorted(inputs)) or 'none'})")
+        if law.response != ds.attrs["response"]:
+            raise StudyError(f"{where}: laws[{i}] ({spec.name}) predicts {law.response}, the data has "
+                             f"{ds.attrs['response']}")
+        try:
+            program = build_program(law, ds, priors=spec.priors, noise=study.noise, constants=spec.constants)
+        except PriorError as exc:  # exc.key: priors.<parameter>.<key in its spec>
+            key = f"laws[{i}].{exc.key}" if exc.key else f"laws[{i}]"
+            raise StudyError(f"{where}: {key}: {exc.problem} (law {spec.name!r})") from None
+        except DataError as exc:
+            raise StudyError(f"{where}: laws[{i}] ({spec.name}): {exc}") from None
+        _check_sizes(study, spec, program)
+    sizing_questions(study, ds)
+
+
+def _check_sizes(study: Study, spec, program) -> None:
+    """emcee walkers against the free parameters of one law's ``program``, and the memory its
+    sampler and SMC settings imply (:mod:`bayesfric.limits`), as the study file gives them."""
+    where, sampler = study.path, study.sampler
+    if sampler["name"] == "emcee" and (problem := walkers_problem(program, sampler["walkers"])):
+        raise StudyError(f"{where}: [sampler] walkers: {problem}")
+    size = limits.program_size(program)
+    if found := limits.sampler_problem(sampler["name"], sampler, *size):
+        raise StudyError(f"{where}: [sampler] {found[0]}: {found[1]} (law {spec.name!r})")
+    if study.smc and (found := limits.smc_problem(study.smc_particles, study.smc_runs, *size)):
+        raise StudyError(f"{where}: [compare] {found[0]}: {found[1]} (law {spec.name!r})")
+
+
+def sizing_questions(study: Study, ds, questions: list[sizing.SizingQuestion] | None = None,
+                     cli: bool = False, keys: dict[str, str] | None = None) -> list[sizing.SizingQuestion]:
+    """The study's ``[[sizing]]`` questions (or ``questions``) checked against the data and the laws.
+
+    Every input named must be an input of the data, every input a candidate law reads must be
+    given, a capacity must be of the data's response quantity, and no candidate law may be a
+    trajectory law. Returns the questions with their capacity parsed.
+
+    Raises
+    ------
+    StudyError
+        One line naming the study file and the key (``sizing[i].at.velocity``), or with ``cli``
+        the option (``--at velocity``) of a question given on the command line, or with ``keys``
+        the key they name (``at.velocity``: :func:`bayesfric.size`'s arguments).
+    """
+    where = str(study.path)
+    questions = study.sizing if questions is None else questions
+    if not questions:
+        return []
+    inputs = [k for k, v in ds.coords.items() if v.attrs.get("role") == "input"]
+    laws = [for_data(spec.build(), ds) for spec in study.laws]  # inputs as the laws read this data
+    for i, law in enumerate(laws):
+        if law.trajectory:
+            raise StudyError(f"{where}: laws[{i}] ({law.name}): a trajectory (stateful) law cannot be sized at an "
+                             "operating point; remove it or the [[sizing]] questions")
+    required = list(dict.fromkeys(q for law in laws for q in law.operating_inputs))
+    checked = []
+    for i, question in enumerate(questions):
+        try:
+            checked.append(sizing.check_question(question, inputs, required, ds.attrs["response"],
+                                                 keys=sizing.CLI_KEYS if cli else keys))
+        except sizing.SizingError as exc:
+            raise StudyError(str(exc) if cli or keys is not None else f"{where}: sizing[{i}].{exc}") from None
+    return checked
+
+
+def load_study_data(study: Study):
+    """The study's data set with its row selection; problems name the study file and key."""
+    try:
+        ds = load_dataset(resolve(study.dataset))
+    except DataError as exc:
+        raise StudyError(f"{study.path}: [data] dataset: {exc}") from None
+    try:
+        return select(ds, study.select)
+    except DataError as exc:
+        raise StudyError(f"{study.path}: [data] select: {exc}") from None
+
+
+def _fold_schemes(study: Study, ds, seed: int, kfold: int) -> list[tuple[str, object, str]]:
+    """(label, Folds, kind) for every CV scheme the study asks for; kind: kfold, grouped or blocked.
+
+    ``kfold`` is the number of random folds to use (the study's, or fewer under ``--quick``).
+    A scheme the data cannot support (one group level, a cut with no point on one side) is a
+    :class:`StudyError` naming its key (raised before anything is written).
+    """
+    where = str(study.path)
+    schemes = []
+    if kfold:
+        schemes.append((f"{kfold}-fold", compare.kfold_masks(ds, kfold, seed=seed), "kfold"))
+    if study.grouped:
+        try:
+            folds = compare.grouped_masks(ds, study.grouped)
+        except (DataError, ValueError) as exc:
+            raise StudyError(f"{where}: [compare] grouped: {exc}") from None
+        schemes.append((f"leave-one-{study.grouped}-out", folds, "grouped"))
+    for i, b in enumerate(study.blocked):
+        try:
+            folds = compare.blocked_masks(ds, b.axis, threshold=b.threshold, quantile=b.quantile,
+                                          direction=b.direction, future=b.future)
+        except (DataError, ValueError) as exc:
+            raise StudyError(f"{where}: compare.blocked[{i}]: {exc}") from None
+        schemes.append((b.label or folds.scheme, folds, "blocked"))
+    labels = [label for label, _, _ in schemes]
+    first = len(schemes) - len(study.blocked)
+    for i in range(first, len(schemes)):
+        if labels[i] in labels[:i] or labels[i] in _RESERVED_LABELS:
+            raise StudyError(f"{where}: compare.blocked[{i - first}].label: {labels[i]!r} names another result "
+                             "already; give each blocked fold its own label")
+    return schemes
+
+
+def _plan_laws(study: Study, ds, schemes, settings: dict, seed: int) -> list:
+    """(job, fit unit, following units) of every law, keyed by everything each depends on."""
+    sampler = study.sampler.get("name", "nuts")
+    plans = []
+    for spec in study.laws:
+        job = units.make_job(spec, study.noise, ds, sampler, spec.settings(settings), seed)
+        plans.append((job, *units.plan_law(job, study, schemes)))
+    return plans
+
+
+def _run_settings(study: Study, quick: bool) -> tuple[dict, int]:
+    """Backend settings and number of K-fold folds of this run: the study's (validated), or
+    under ``--quick`` lowered to the :data:`QUICK` caps and at most :data:`QUICK_KFOLD` folds."""
+    settings = sampler_settings(study.sampler)
+    if not quick:
+        return settings, study.kfold
+    caps = QUICK[study.sampler["name"]]
+    return settings | {k: min(settings[k], cap) for k, cap in caps.items() if k in settings}, \
+        min(study.kfold, QUICK_KFOLD)
+
+
+def _check_claims(study: Study, labels: list[str], ds) -> None:
+    """The ``[[claims]]`` checked against the study's laws as they run on ``ds``, its schemes and
+    evidence estimators, and their ``basis`` against the data's provenance
+    (:func:`bayesfric.study.claims.basis_problem`)."""
+    estimators = (["bridge", "importance"] + (["SMC"] if study.smc else [])) if study.evidence else []
+    laws = {spec.name: for_data(spec.build(), ds) for spec in study.laws} if study.claims else {}
+    provenance = str(ds.attrs.get("provenance", ""))
+    for i, claim in enumerate(study.claims):
+        try:
+            check_claim(claim, laws, labels, estimators)
+        except ClaimError as exc:
+            raise StudyError(f"{study.path}: claims[{i}].{exc}") from None
+        if problem := basis_problem(claim, provenance):
+            raise StudyError(f"{study.path}: claims[{i}].basis: {problem}")
+
+
+def _prepare(path: str | Path | Study, out_root: str | Path, quick: bool):
+    """Every check of a run, before anything is written: study, report folder, data, folds."""
+    study = path if isinstance(path, Study) else load_study(path)
+    fsutil.check_output_folder(out_root)  # a root problem is not the study's: reported as the path's
+    try:
+        final = fsutil.report_folder(out_root, study.name)
+    except fsutil.PathError as exc:
+        raise StudyError(f"{study.path}: [study] name: {exc}") from None
+    try:  # its folders below the reports root are real folders, as the report folder's are
+        store_folder(out_root, study.name)
+    except fsutil.PathError as exc:
+        raise StudyError(f"{study.path}: run store: {exc}") from None
+    ds = load_study_data(study)
+    validate_against_data(study, ds)
+    settings, kfold = _run_settings(study, quick)
+    schemes = _fold_schemes(study, ds, study.sampler["seed"], kfold)
+    _check_claims(study, [label for label, _, _ in schemes], ds)
+    return study, final, ds, settings, kfold, schemes, sizing_questions(study, ds)
