@@ -95,8 +95,11 @@ def law(law: str | Law | Callable[..., Any], /, *, units: Mapping[str, str] | No
     response : str
         For a function: ``"torque"`` or ``"force"``.
     register : bool
-        For a function: register it under its name, so a :class:`~bayesfric.Study` can list it
-        (a name is registered once per process) and a fit of it can be sized.
+        For a function: register it under its name (listed with the package's laws; a name is
+        registered once per process). Unregistered, it is still found by its name in this
+        process, and elsewhere through the file that declares it, so a :class:`~bayesfric.Study`
+        can take it as an object and a fit of it can be sized or read back
+        (:func:`bayesfric.load_fit`).
     **options
         For a function: further keywords of :func:`~bayesfric.laws.simple_law`.
 
@@ -122,7 +125,7 @@ def law(law: str | Law | Callable[..., Any], /, *, units: Mapping[str, str] | No
     >>> list(mine.params), mine.constants["v_eps"].value
     (['T_C'], 0.01)
     """
-    from bayesfric.laws import get_law, simple_law
+    from bayesfric.laws import REGISTRY, get_law, simple_law
 
     if isinstance(law, str | Law):
         given = [k for k, v in (("units", units), ("priors", priors), ("register", register or None)) if v]
@@ -139,6 +142,9 @@ def law(law: str | Law | Callable[..., Any], /, *, units: Mapping[str, str] | No
     if units is None:
         raise UserError("units: a law given as a function needs the SI unit of every parameter, "
                         "e.g. units={'T_C': 'N*m'}")
+    name = options.get("name") or getattr(law, "__name__", "")
+    if not register and name in REGISTRY:  # a fit of it would be read back as the registered law
+        raise UserError(f"name: {name!r} is a registered law's name: give yours another (name=...)")
     return simple_law(law, units=units, priors=priors, response=response, register=register, **options)
 
 

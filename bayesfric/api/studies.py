@@ -12,6 +12,7 @@ separate ``write_report`` until a study's result is one tree (issue 31, item 1).
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -39,21 +40,44 @@ def _plain(value: Any) -> Any:
     return str(value) if isinstance(value, Path) else value
 
 
-def _law_entry(where: str, i: int, entry: Any) -> dict[str, Any]:
-    from bayesfric.laws.base import REGISTRY
-
+def _law_entry(where: str, i: int, entry: Any, files: list[str]) -> dict[str, Any]:
+    """The ``[[laws]]`` table of one entry; a law object's file, if it is not registered, is
+    appended to ``files`` (the study's law files, so every process can load it)."""
     if isinstance(entry, str):
         return {"name": entry}
     if isinstance(entry, Law):
-        if REGISTRY.get(entry.name) is not entry:
-            raise config.StudyError(f"{where}: laws[{i}]: law {entry.name!r} is not registered: declare it with "
-                                    "bayesfric.law(fn, ..., register=True), or give a variant as a dict "
-                                    "(name, add, fixed, asymmetric)")
-        return {"name": entry.name}
+        return _law_object(f"{where}: laws[{i}]", entry, files)
     if isinstance(entry, Mapping):
         return _plain(entry)
-    raise config.StudyError(f"{where}: laws[{i}]: expected a law name, a registered Law or a dict of a [[laws]] "
+    raise config.StudyError(f"{where}: laws[{i}]: expected a law name, a Law or a dict of a [[laws]] "
                             f"entry, got {type(entry).__name__}")
+
+
+def _law_object(where: str, law: Law, files: list[str]) -> dict[str, Any]:
+    """A Law given as an object: registered (its name), a variant of one (its recipe as the
+    entry's keys, labelled by its name), or declared without registering (its name, and the file
+    that declares it, which the study's processes load: :func:`bayesfric.laws.plugins.law_file`)."""
+    from bayesfric.laws.base import REGISTRY
+    from bayesfric.laws.plugins import law_file, unregistered_law
+
+    if REGISTRY.get(law.name) is law:
+        return {"name": law.name}
+    if law.recipe:
+        if unknown := set(law.recipe) - {"base", "add", "fixed", "asymmetric"}:
+            raise config.StudyError(f"{where}: variant {law.name!r} ({', '.join(sorted(unknown))}) is made for "
+                                    "one data set; give the law it was made from")
+        label = re.sub(r"[^A-Za-z0-9_.-]", "_", law.name)  # a plain name: "a+offset" -> "a_offset"
+        return {"name": law.recipe["base"], "label": label} | {k: _plain(v) for k, v in law.recipe.items()
+                                                               if k != "base"}
+    if law.name in REGISTRY:
+        raise config.StudyError(f"{where}: law {law.name!r} is not the registered law of that name: "
+                                "declare yours under another name")
+    if (path := law_file(law)) is not None:
+        files.extend([str(path)] if str(path) not in files else [])
+    elif unregistered_law(law.name) is not law:
+        raise config.StudyError(f"{where}: law {law.name!r} cannot be found by its name: declare it with "
+                                "bayesfric.law(fn, ...) or in a law file")
+    return {"name": law.name}
 
 
 def _sizing_entry(where: str, i: int, entry: Any) -> dict[str, Any]:
@@ -98,8 +122,14 @@ class Study(config.Study):
     data : str or Path
         Built-in data set name or CSV path (relative to the working folder).
     laws : sequence
-        Each a registered name, a registered :class:`~bayesfric.laws.Law`, or a dict of a
-        ``[[laws]]`` entry (``{"name": "stribeck", "priors": {...}, "fixed": {...}}``).
+        Each a registered name, a :class:`~bayesfric.laws.Law`, or a dict of a ``[[laws]]`` entry
+        (``{"name": "stribeck", "priors": {...}, "fixed": {...}}``). A law object may be a
+        variant (``law("stribeck").fix(delta=1)``: its recipe becomes the entry, labelled by its
+        name with any character other than letters, digits, ``-``, ``_``, ``.`` as ``_``) or a law
+        declared without registering it (``bayesfric.law(fn, units=...)``): if a file declares
+        it, that file joins ``modules``, so ``--workers`` and Dask processes load it too; a law
+        declared in a notebook or script is found by its name in this process only (run the
+        study without workers, or move the law into a file).
     title, question : str, optional
         Report title and the question the study answers.
     select : mapping, optional
@@ -147,10 +177,13 @@ class Study(config.Study):
         if isinstance(data, xr.Dataset) or not isinstance(data, str | Path):
             raise config.StudyError(f"{where}: [data] dataset: a study reads its data itself: give a built-in "
                                     "name or a CSV path")
-        meta = {"name": name, "title": title, "question": question, "modules": _plain(list(modules)) or None}
+        files: list[str] = []  # the files of laws given as objects, declared but not registered
+        entries = [_law_entry(where, i, x, files) for i, x in enumerate(laws)]
+        meta = {"name": name, "title": title, "question": question,
+                "modules": _plain(list(modules)) + [f for f in files if f not in _plain(list(modules))] or None}
         raw = {"study": {k: v for k, v in meta.items() if v is not None},
                "data": {"dataset": str(data)} | ({"select": _plain(select)} if select else {}),
-               "laws": [_law_entry(where, i, x) for i, x in enumerate(laws)],
+               "laws": entries,
                "sizing": [_sizing_entry(where, i, x) for i, x in enumerate(sizing)],
                "claims": _plain(list(claims))}
         for key, value in (("noise", None if noise is None else _noise_table(where, noise)),

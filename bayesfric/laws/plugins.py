@@ -184,12 +184,15 @@ def unregistered_law(name: str) -> Law | None:
 
 
 def law_file(law: Law) -> Path | None:
-    """The file that declares ``law``'s own function, if it can be loaded again elsewhere: a law
-    file (:func:`load_module`), or a module imported by name (not ``__main__``, not this package).
-    None for the package's laws, variants' composed functions and functions of a notebook or script."""
+    """The file that declares ``law``'s own function, if loading it again elsewhere declares the
+    law: a law file (:func:`load_module`) or a module imported by name (not ``__main__``, not this
+    package) that registers the law or holds it at its top level. None for the package's laws,
+    variants' composed functions, laws of a notebook or script and laws declared inside a function."""
     module = sys.modules.get(getattr(law.fn, "__module__", "") or "")
     if module is None or module.__name__ == "__main__" or module.__name__.split(".")[0] == "bayesfric":
         return None
+    if REGISTRY.get(law.name) is not law and not any(v is law for v in vars(module).values()):
+        return None  # loading the file again would not declare it (declared inside a function, say)
     for path, loaded in _LOADED.items():
         if loaded is module:
             return path

@@ -11,9 +11,10 @@ from concurrent.futures import ProcessPoolExecutor
 import jax.numpy as jnp
 import pytest
 
+from bayesfric.errors import UserError
 from bayesfric.laws import REGISTRY, get_law, simple_law
 from bayesfric.laws.base import LawDeclarationError
-from bayesfric.laws.plugins import _ENTRY_POINTS, _LOADED, LawModuleError, load_entry_points, load_module
+from bayesfric.laws.plugins import _DECLARED, _ENTRY_POINTS, _LOADED, LawModuleError, load_entry_points, load_module
 from bayesfric.laws.variants import VariantError
 from bayesfric.priors import Prior
 from bayesfric.study import load_study
@@ -37,9 +38,12 @@ simple_law({name}, units={{"T_C": "N*m", "c_v": "N*m*s/rad"}})
 def clean_registry():
     """Every law, law file and entry-point state a test adds is removed after it."""
     laws, loaded, modules, points = dict(REGISTRY), dict(_LOADED), set(sys.modules), dict(_ENTRY_POINTS)
+    declared = dict(_DECLARED)
     yield
     REGISTRY.clear()
     REGISTRY.update(laws)
+    _DECLARED.clear()
+    _DECLARED.update(declared)
     _LOADED.clear()
     _LOADED.update(loaded)
     for name in set(sys.modules) - modules:
@@ -189,3 +193,46 @@ def test_a_law_spec_builds_in_a_fresh_process(tmp_path, data_csv):  # noqa: F811
     spec = load_study(tmp_path / "s.toml").laws[0]
     with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
         assert pool.submit(_params_in_a_fresh_process, spec).result(timeout=300) == ["T_C", "c_v"]
+
+
+UNREGISTERED = '''
+import jax.numpy as jnp
+import bayesfric
+
+def {name}(velocity, T_C, c_v):
+    """Coulomb + viscous, declared and not registered."""
+    return jnp.sign(velocity) * T_C + c_v * velocity
+
+mine = bayesfric.law({name}, units={{"T_C": "N*m", "c_v": "N*m*s/rad"}})
+'''
+
+
+def test_a_study_takes_law_objects_that_are_not_registered(tmp_path, data_csv):  # noqa: F811
+    """A law declared without registering enters a Study as an object; its file joins the study's
+    law files, so a spawned process (a ``--workers`` or Dask worker) builds it from its spec."""
+    import bayesfric
+    from bayesfric.study import StudyError
+
+    (tmp_path / "unreg.py").write_text(UNREGISTERED.format(name="unreg_cv"))
+    mine = load_module(tmp_path / "unreg.py").mine
+    assert "unreg_cv" not in REGISTRY and get_law("unreg_cv") is mine  # found by its name, not registered
+    variant = get_law("coulomb_viscous").fix(c_v=0.5) + "offset"
+    study = bayesfric.Study("objects", str(tmp_path / "bench.csv"), laws=[mine, variant, "coulomb"])
+    own, var = study.laws[0], study.laws[1]
+    assert own.modules == (str((tmp_path / "unreg.py").resolve()),) and own.build() is mine
+    assert var.name == "coulomb_viscous_offset" and var.law == "coulomb_viscous"  # a plain label
+    assert list(var.build().params) == ["T_C", "offset"] and var.build().recipe == dict(variant.recipe)
+    with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
+        assert pool.submit(_params_in_a_fresh_process, own).result(timeout=300) == ["T_C", "c_v"]
+
+    def inline(velocity, T_C):
+        """Declared in a notebook: no file."""
+        return jnp.sign(velocity) * T_C
+
+    here = bayesfric.law(inline, units={"T_C": "N*m"})
+    assert bayesfric.Study("inline", str(tmp_path / "bench.csv"), laws=[here]).laws[0].build() is here
+    with pytest.raises(UserError, match="name: 'coulomb' is a registered law's name"):
+        bayesfric.law(inline, units={"T_C": "N*m"}, name="coulomb")
+    other = simple_law(inline, units={"T_C": "N*m"}, name="coulomb", register=False)
+    with pytest.raises(StudyError, match="law 'coulomb' is not the registered law of that name"):
+        bayesfric.Study("clash", str(tmp_path / "bench.csv"), laws=[other])
