@@ -127,18 +127,8 @@ def assemble(
     """
     n_chains, n_draws = next(iter(samples.values())).shape[:2]
     flat = _flatten(samples)
-    key_pp, key_prior = jax.random.split(jax.random.PRNGKey(seed + 1))
     info = pointwise.storage(program.n_obs, n_chains, n_draws, n_prior)
-
-    tables = tables_jit(program, info) if tables is None else tables
-    if info.full:  # one compiled program for every per-draw table (it used to be three scans, compiled apart)
-        ll, log_prior, pp, prior = tables(flat, key_pp, key_prior)
-        prior_pred = {OBS_SITE: prior.pop(OBS_SITE)}
-        dtypes = dict.fromkeys(pointwise.GROUPS, "float64")
-    else:  # thinned, in chunks: memory bounded whatever draws × rows
-        (ll, log_prior, pp, prior, prior_pp), dtypes = pointwise.thinned_tables(program, info, flat, key_pp,
-                                                                                key_prior, tables)
-        pp, prior_pred = {OBS_SITE: pp}, {OBS_SITE: prior_pp}
+    ll, log_prior, pp, prior, prior_pred, dtypes = _tables(program, info, flat, seed, tables)
     # posterior keeps sampled + derived sites; drop nothing the sampler returned
     posterior = {k: v for k, v in samples.items()}
     for name, value in program.law.derived_values({k: flat[k] for k in program.law.params}).items():
@@ -167,6 +157,31 @@ def assemble(
         dims=dims,
         coords=coords,
     )
+    _finish(dt, program, ds, info, log_prior, n_chains)
+    dt.attrs.update(provenance(program, ds, sampler, settings, seed))
+    dt.attrs["pointwise_storage"] = info.to_json(dtypes)
+    dt.attrs["diagnostics"] = check(dt).to_json()
+    return dt
+
+
+def _tables(program: Program, info, flat: dict, seed: int, tables: Any) -> tuple:
+    """The per-draw tables of a fit: log-likelihood, log prior, posterior predictive, prior draws,
+    prior predictive and the dtypes kept (whole, or thinned in chunks: :mod:`.pointwise`)."""
+    key_pp, key_prior = jax.random.split(jax.random.PRNGKey(seed + 1))
+    tables = tables_jit(program, info) if tables is None else tables
+    if info.full:  # one compiled program for every per-draw table (it used to be three scans, compiled apart)
+        ll, log_prior, pp, prior = tables(flat, key_pp, key_prior)
+        prior_pred = {OBS_SITE: prior.pop(OBS_SITE)}
+        return ll, log_prior, pp, prior, prior_pred, dict.fromkeys(pointwise.GROUPS, "float64")
+    # thinned, in chunks: memory bounded whatever draws × rows
+    (ll, log_prior, pp, prior, prior_pp), dtypes = pointwise.thinned_tables(program, info, flat, key_pp,
+                                                                            key_prior, tables)
+    return ll, log_prior, {OBS_SITE: pp}, prior, {OBS_SITE: prior_pp}, dtypes
+
+
+def _finish(dt: xr.DataTree, program: Program, ds: xr.Dataset, info, log_prior: dict, n_chains: int) -> None:
+    """Thinned groups' draw indices, the log prior per site, the data's group coordinates and the
+    response's quantity and units, set on ``dt`` in place."""
     if not info.full:  # the kept draws keep their own indices: the groups line up with the posterior
         for group in ("log_likelihood", "posterior_predictive"):
             dt[group] = dt[group].to_dataset().assign_coords(draw=info.draw_index())
@@ -181,7 +196,3 @@ def assemble(
     dt["observed_data"].attrs.update(
         {"quantity": ds.attrs.get("response", ""), "units": ds[ds.attrs["response"]].attrs.get("units", "")}
     )
-    dt.attrs.update(provenance(program, ds, sampler, settings, seed))
-    dt.attrs["pointwise_storage"] = info.to_json(dtypes)
-    dt.attrs["diagnostics"] = check(dt).to_json()
-    return dt
