@@ -71,7 +71,8 @@ def size(source: Any, at: Mapping[str, Any] | str | None = None, *, capacity: An
     Parameters
     ----------
     source : xarray.DataTree, StudyResult, Study, str or Path
-        A fit (:func:`bayesfric.fit`; its law must be registered), a study's result
+        A fit (:func:`bayesfric.fit`; its law is rebuilt from what the fit records: a
+        registered law, a variant, or a user's law found by name or through its file), a study's result
         (:func:`bayesfric.run`), a study whose report exists in ``reports``, or a file: a fit
         (``.nc``) or a study (``.toml``).
     at : mapping or str, optional

@@ -57,8 +57,10 @@ def fit_question(fit: xr.DataTree, question: SizingQuestion, *, keys: Mapping[st
     Raises
     ------
     UserError
-        Not a bayesfric fit, a law no longer registered, a trajectory (stateful) law, or a
-        question the law cannot answer (:class:`~bayesfric.sizing.points.SizingError`).
+        Not a bayesfric fit, a law that cannot be rebuilt (no longer known by its name, or a
+        law file the fit records gone: :class:`~bayesfric.laws.plugins.LawModuleError`), a
+        trajectory (stateful) law, or a question the law cannot answer
+        (:class:`~bayesfric.sizing.points.SizingError`).
     """
     from bayesfric.laws.variants import law_of_fit
 
