@@ -37,7 +37,7 @@ from pathlib import Path
 from typing import Any
 
 __all__ = [
-    "STEP_STATS", "ROW_NUMBERS", "FULL_NUMBERS", "STORED_NUMBERS", "CHUNK_NUMBERS",
+    "STEP_STATS", "ROW_NUMBERS", "FULL_NUMBERS", "STORED_NUMBERS", "CHUNK_NUMBERS", "INIT_NUMBERS",
     "LOO_SUBSAMPLE_ROWS", "LOO_SUBSAMPLE_SIZE",
     "SHARE", "PROCESS_BYTES", "RESERVED_BYTES", "available_memory", "physical_memory",
     "fit_bytes", "pointwise_bytes", "program_size", "sampler_problem", "smc_problem", "max_processes",
@@ -55,6 +55,15 @@ FULL_NUMBERS = 2**24
 STORED_NUMBERS = 2**25
 #: Numbers computed per chunk (draws × rows): 32 MiB of float64 per intermediate array.
 CHUNK_NUMBERS = 2**22
+#: Pathfinder's budget (``init = "pathfinder"``, :mod:`bayesfric.inference.init`): log-density
+#: evaluations at once × data rows, in every stage (its L-BFGS paths, the ELBO draws of each
+#: iterate, the draws resampled for the starts). XLA's buffer sizes (``memory_analysis``) of LuGre
+#: on 800 rows: 100 bytes per row of a value, 330 of a gradient, so at most ~0.2 GB of values (the
+#: 8 paths' gradients take 8 × rows × 330 bytes: 26 MB at 10⁴ rows). blackjax's approximation
+#: evaluated 8 paths × 101 iterates × 200 draws at once (13 GB of values at 800 rows; issue 29
+#: measured 16.7 GB). At 10⁴ rows all paths and 200 draws still run side by side; above 2²¹ rows
+#: one evaluation exceeds it and the chains start at prior medians, with a warning.
+INIT_NUMBERS = 2**21
 #: Data rows above which PSIS-LOO is subsampled (:mod:`bayesfric.compare.loo_subsample`), and
 #: the rows it then scores exactly. PSIS fits a Pareto tail per row, whatever the draws: measured
 #: on 2 cores, 18 s for 10⁴ rows × 2000 draws and 262 s (0.9 GB peak) for 10⁵ rows × 308 draws,
