@@ -49,7 +49,7 @@ class ChunkedSampler:
         ``data_of(response)`` -> the density's data dict (inputs are constants, the response an
         argument).
     vmap : callable
-        The engine's ``_vmap_or_squeeze``.
+        :func:`bayesfric.inference.batching.vmap_or_squeeze`.
     finish : callable
         ``finish(positions (F, C, D, dim), response)`` -> ``(constrained, lpd)``.
     parts : dict

@@ -20,7 +20,7 @@ fold so the batch shape, and so the compilation, never changes). A fold's chains
 ``chains / chain_batch`` groups (on CPUs one chain per group), each one call of the compiled
 sampler on a thread pool: XLA releases the GIL, so on the 2-core machine a single fit, the
 full one included, samples on both cores, and no chain waits for another's trajectory. A batch
-of one is not vmapped at all (``_vmap_or_squeeze``), which is what makes tracing cheap. The
+of one is not vmapped at all (``vmap_or_squeeze``), which is what makes tracing cheap. The
 chains' keys and starts do not depend on the grouping of the calls.
 
 Progress: each call runs its chains' warm-up and sampling as consecutive calls of one compiled
@@ -48,76 +48,32 @@ fold that fails is *flagged* in the result, never silently used as if healthy.
 from __future__ import annotations
 
 import copy
-import os
 import time
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from typing import Any
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 import xarray as xr
-from scipy.special import logsumexp
 
 from bayesfric.fingerprint import program_parts
-from bayesfric.inference.adaptation import PSEUDO_COUNT, SHRINK_TO, sampling_schedule
+from bayesfric.inference.adaptation import sampling_schedule
+from bayesfric.inference.batching import FoldFits, available_cpus, chain_batch_of, join_chains, vmap_or_squeeze
 from bayesfric.inference.chunked import CHUNK_STEPS, ChunkedSampler
 from bayesfric.inference.datatree import assemble, draw_tables_args, tables_jit
 from bayesfric.inference.diagnostics import GATE, Gate, Verdict, check_folds, import_statistics
 from bayesfric.inference.init import Init, pending_chain_starts
 from bayesfric.inference.pointwise import log_mean_likelihood, storage
 from bayesfric.inference.progress import SamplingProgress, current
+from bayesfric.inference.warmstart import warm_start_from
 from bayesfric.model import Program
 
 __all__ = ["NutsEngine", "FoldFits", "available_cpus", "METRICS"]
 
 #: Mass matrices the warm-up can estimate (``NutsEngine(metric=...)``, study key ``[sampler] metric``).
 METRICS = ("diag", "dense")
-
-
-def available_cpus() -> int:
-    """CPUs this process may run on (its affinity mask where the OS has one)."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        return os.cpu_count() or 1
-
-
-@dataclass
-class FoldFits:
-    """Raw output of one :meth:`NutsEngine.run` call.
-
-    Attributes
-    ----------
-    samples : dict of str to ndarray
-        Constrained draws (sampled and deterministic sites) shaped ``(fold, chain, draw, ...)``.
-    lpd : ndarray
-        ``(fold, n_obs)``: log pointwise predictive density of *every* observation under each
-        fold's posterior (held-out points are the ones cross-validation scores).
-    verdicts : list of Verdict
-        Diagnostics gate per fold.
-    seconds : float
-        Wall time of the call (compilation included when it happened).
-    stats : dict of str to ndarray
-        Per-draw sampler statistics shaped ``(fold, chain, draw)``: ``diverging``, ``energy``,
-        ``n_steps`` (leapfrog steps) and ``acceptance_rate``.
-    target_accept : ndarray
-        ``(fold,)``: the target acceptance each fold's draws were adapted to (the engine's, or
-        its ``retry_target_accept`` where the first run diverged).
-    """
-
-    samples: dict[str, np.ndarray]
-    lpd: np.ndarray
-    verdicts: list[Verdict]
-    seconds: float
-    stats: dict[str, np.ndarray] = field(default_factory=dict)
-    target_accept: np.ndarray = field(default_factory=lambda: np.zeros(0))
-
-    @property
-    def failed(self) -> list[int]:
-        """Indices of folds whose posterior failed the gate."""
-        return [i for i, v in enumerate(self.verdicts) if not v.passed]
 
 
 class NutsEngine:
@@ -226,7 +182,7 @@ class NutsEngine:
     ):
         self._program = program
         self.threads = available_cpus() if threads is None else max(1, int(threads))
-        self.chain_batch = _chain_batch(int(chains), chain_batch)
+        self.chain_batch = chain_batch_of(int(chains), chain_batch)
         self.draws, self.chains = int(draws), int(chains)
         self.target_accept, self.max_tree_depth = float(target_accept), int(max_tree_depth)
         if metric not in METRICS:
@@ -249,7 +205,7 @@ class NutsEngine:
         self._init_z = None  # None: the cold starts; a warm start sets its own
         self._init_imm = self._unit_imm()
         # warm-up and sampling in chunks of chunk_steps rows, for progress (bayesfric.inference.chunked)
-        self._sampler = ChunkedSampler(self._density, self._data, _vmap_or_squeeze, self._finish_batch,
+        self._sampler = ChunkedSampler(self._density, self._data, vmap_or_squeeze, self._finish_batch,
                                        self._program_parts(), self._example_args(), self.max_tree_depth,
                                        self.tune, chunk_steps, self._traced)
         self.loaded = self._sampler.loaded
@@ -317,7 +273,7 @@ class NutsEngine:
     def _start_from(self, fit: xr.DataTree, warm_tune: int) -> None:
         if warm_tune < 120:
             raise ValueError(f"warm_tune must be at least 120 (got {warm_tune})")
-        self._init_z, self._init_imm = _warm_start_from(self.program, fit, self.chains, self.seed, self.metric)
+        self._init_z, self._init_imm = warm_start_from(self.program, fit, self.chains, self.seed, self.metric)
         self._schedule = sampling_schedule(self.tune, self.draws, active=warm_tune)
         self.warm, self.active_tune = True, warm_tune
 
@@ -372,7 +328,7 @@ class NutsEngine:
             lpd = log_mean_likelihood(lambda c: density.pointwise(c, data), flat, self.program.n_obs)
             return constrained, lpd
 
-        return _vmap_or_squeeze(one_fold)(positions)
+        return vmap_or_squeeze(one_fold)(positions)
 
     # -- public ---------------------------------------------------------------------------
     def run(self, train_masks: np.ndarray, seed: int = 0) -> FoldFits:
@@ -439,7 +395,7 @@ class NutsEngine:
         else:
             parts = [one_call(w) for w in work]
         splits = self.chains // cb
-        per_batch = [_join_chains(parts[i:i + splits]) for i in range(0, len(parts), splits)]
+        per_batch = [join_chains(parts[i:i + splits]) for i in range(0, len(parts), splits)]
         return jax.tree.map(lambda *xs: np.concatenate(xs)[:n_folds], *per_batch)
 
     def _verdicts(self, samples: dict, stats: dict) -> list[Verdict]:
@@ -484,70 +440,3 @@ class NutsEngine:
     def _starts(self) -> jax.Array:
         """The chains' starting points ``(chains, dim)``: a warm start's, or the cold ones."""
         return self._cold_starts() if self._init_z is None else self._init_z
-
-
-def _vmap_or_squeeze(fn: Any) -> Any:
-    """``jax.vmap(fn)``, or for a batch of one, ``fn`` on the single element (its outputs given
-    the batch axis back). Tracing vmapped NUTS is dear: the batching rules of its nested while
-    loops re-trace their bodies to a fixed point, 4.5 of the 6.3 s it took to trace the lugre
-    sampler with two chains in a batch; a single chain needs none of it."""
-    def squeezed(*args: Any) -> Any:
-        if all(a.shape[0] == 1 for a in jax.tree.leaves(args)):
-            out = fn(*jax.tree.map(lambda a: a[0], args))
-            return jax.tree.map(lambda a: a[None], out)
-        return jax.vmap(fn)(*args)
-
-    return squeezed
-
-
-def _chain_batch(chains: int, chain_batch: int | None) -> int:
-    if chain_batch is None:  # see the class notes: one chain per call on CPUs, all chains on accelerators
-        return 1 if jax.default_backend() == "cpu" else chains
-    if chain_batch < 1 or chains % chain_batch:
-        raise ValueError(f"chain_batch must divide chains ({chains}); got {chain_batch}")
-    return int(chain_batch)
-
-
-def _join_chains(parts: list[Any]) -> Any:
-    """One fold batch from its chain groups: draws joined along the chain axis; the pointwise
-    predictive density, a log-mean over each group's (equally many) draws, combined into the
-    log-mean over all."""
-    samples = jax.tree.map(lambda *xs: np.concatenate(xs, axis=1), *[p[0] for p in parts])
-    stats = jax.tree.map(lambda *xs: np.concatenate(xs, axis=1), *[p[1] for p in parts])
-    lpd = logsumexp(np.stack([p[2] for p in parts]), axis=0) - np.log(len(parts))
-    return samples, stats, lpd
-
-
-def _warm_start_from(program: Program, fit: xr.DataTree, chains: int, seed: int, metric: str = "diag"):
-    """Initial points and inverse mass matrix for the fold chains, from a full fit.
-
-    Picks ``chains`` posterior draws (chain ``c % n_chains``, a random draw of it), maps them
-    to the unconstrained space the sampler works in, and takes the per-coordinate variance of
-    all unconstrained draws as the diagonal inverse mass matrix (floored at 1e-16 of the largest
-    so a coordinate whose draws did not move keeps a positive scale, but relative, so a
-    coordinate the data pin down hard keeps its own scale), or for a dense metric their
-    covariance, regularised towards a thousandth of its own diagonal as the warm-up's own
-    estimates are (:mod:`bayesfric.inference.adaptation`: weight n / (n + 5) on the sample
-    covariance).
-    """
-    density = program.density(seed)
-    post = fit["posterior"]
-    missing = [n for n in density.sites if n not in post.data_vars]
-    if missing:
-        raise ValueError(f"warm start: the fit lacks the sampled site(s) {missing}; is it a fit of "
-                         f"{program.law.name!r} with the same noise model?")
-    n_chain, n_draw = post.sizes["chain"], post.sizes["draw"]
-    flat = {n: np.asarray(post[n].values).reshape((n_chain * n_draw,) + post[n].shape[2:]) for n in density.sites}
-    unconstrained = density.to_unconstrained(flat)
-    rng = np.random.default_rng(seed)
-    picks = np.array([(c % n_chain) * n_draw + rng.integers(n_draw) for c in range(chains)])
-    if metric == "dense":
-        draws = np.asarray(unconstrained)
-        n = draws.shape[0]
-        cov = np.atleast_2d(np.cov(draws, rowvar=False))
-        scale = np.diag(cov)
-        target = SHRINK_TO * np.diag(np.maximum(scale, 1e-16 * scale.max() + 1e-300))
-        return unconstrained[picks], (n / (n + PSEUDO_COUNT)) * cov + (PSEUDO_COUNT / (n + PSEUDO_COUNT)) * target
-    var = jnp.var(unconstrained, axis=0)
-    imm = jnp.maximum(var, 1e-16 * jnp.max(var) + 1e-300)
-    return unconstrained[picks], imm
