@@ -50,6 +50,24 @@ affine in z, so it runs as an associative scan. Start state: the constant ``F_st
 :mod:`bayesfric.laws.slip` share): z = −F_start · g(v̄₁) sgn(v̄₁)/σ0 at each trajectory start, v̄₁
 the first step's held velocity -- 0 (default) at rest, z = 0; 1 saturated against the first
 motion (after a sweep the other way); −1 in steady sliding along it.
+
+Parametrisation (issue 29). The Stribeck curve is sampled as F_c and the ratio r = F_c/F_s ∈ (0, 1)
+(``F_ratio``), not as F_c and F_s − F_c: data at one drive speed v₀ (seed 001's triangle drive)
+identify only g(v₀) = F_c (1 + (1/r − 1) e^(−(v₀/v_s)²)), and in (log F_c, logit r, log v_s) that
+ridge has the same width everywhere, whereas with F_c and F_s − F_c it narrowed to a funnel where
+v_s ≪ v₀ (F_c pinned) and widened where v_s ≳ v₀ (measured on ``dahl_duplex``: tail ESS 254,
+divergences at target_accept 0.9). σ0 stays a parameter: it is g(v₀)/z_ss(v₀), the rest stiffness
+the loop fixes whatever the split of g. Preload: like Dahl (seed 001 Fig. 12 and §V, knee
+independent of preload) the bristle force scales as (P/P_ref)^γ, F = (P/P_ref)^γ (σ0 z + σ1 ż) + σ2 v;
+scaling σ0 and g together leaves z unchanged, so the knee g/σ0 is the same at every preload. On
+data without a preload column P = P_ref and γ is fixed at 0 (:class:`OptionalInput`).
+
+What seed 001 says against LuGre on its loops: the triangle drive holds one speed, "well below
+those where viscous friction effects would become troublesome" (§III), so F_c, r and v_s are
+identified only through g(v₀), σ2 only through the jump 2σ2 v₀ at each reversal, and σ1 not at
+all (its transient σ1 ż lasts one knee); their posteriors are their priors along that ridge.
+At one speed LuGre's loop is Dahl's i = 1 loop (exponential approach, knee g(v₀)/σ0), which the
+report found less accurate than i ≈ 1.5 (§V).
 """
 
 from __future__ import annotations
@@ -263,12 +281,14 @@ DAHL_LAWS = ("dahl", "dahl_xc_preload", *DAHL_ALIASES)
 
 # --- LuGre -----------------------------------------------------------------------------------
 _LUGRE_NOTES = (
-    "Identifiability: F_c, F_s, v_s need constant-speed (steady) data spanning v_s -- a slow "
-    "drive at one speed identifies only g(v) there; σ2 needs speeds where σ2·v is comparable to "
-    "F_c. σ0 is identified from the pre-sliding slope right after reversals and only if samples "
-    "fall within the bristle time g/(σ0|v|); σ1 (here ρ1 times the passivity bound) acts only "
-    "through dz/dt during those transients and is barely identified without fast, finely "
-    "sampled reversals. Not sign-definite in velocity: the torque lags at reversals."
+    "Identifiability: F_c, F_ratio (F_c/F_s), v_s need steady data spanning v_s -- a drive at one "
+    "speed identifies only g(v) there and leaves their posteriors on a prior-shaped ridge (the "
+    "parametrisation keeps its width constant, module doc); σ2 needs speeds where σ2·v is "
+    "comparable to F_c. σ0 is identified from the pre-sliding slope right after reversals and only "
+    "if samples fall within the bristle time g/(σ0|v|); σ1 (here ρ1 times the passivity bound) acts "
+    "only through dz/dt during those transients and is barely identified without fast, finely "
+    "sampled reversals. γ needs ≥ 2 preloads. Not sign-definite in velocity: the torque lags at "
+    "reversals."
 )
 
 
@@ -322,15 +342,16 @@ def lugre_bristle(velocity, time, trajectory_start, sigma0, F_c, dF_s, v_s, F_st
 @law(
     name="lugre",
     family="hysteresis",
-    inputs=("velocity", "time", TRAJECTORY_START),
+    inputs=("velocity", "time", "preload", TRAJECTORY_START),
     response="torque",
-    source=f"{LUGRE}; passivity: Barabanov & Ortega 2000 (IEEE TAC 45(4):830-832)",
+    source=f"{LUGRE}; passivity: Barabanov & Ortega 2000 (IEEE TAC 45(4):830-832); preload "
+           f"factor as Dahl's, {SEED} Fig. 12, §V",
     params={
         "sigma0": Param(
             "N*m/rad",
             # median: the largest torque reached within 1 mrad of bristle deflection; e^(±3.3)
             Prior("LogNormal", loc=math.log(1e3), scale=2.0, scaled_by={"response": 1}),
-            "bristle (pre-sliding) stiffness σ0",
+            "bristle (pre-sliding) stiffness σ0 at P_ref",
             f"{LUGRE} (σ0 = F_c/z_ss with z_ss ~ 1e-5 m there); seed 001 knee ~ 4e-3 rad; "
             "prior centred on 1 mrad pre-sliding deflection (translational: on 10 µm, as in LuGre)",
             translational=Prior("LogNormal", loc=math.log(1e5), scale=2.0, scaled_by={"response": 1}),
@@ -349,12 +370,14 @@ def lugre_bristle(velocity, time, trajectory_start, sigma0, F_c, dF_s, v_s, F_st
             f"{LUGRE}; {_GENERIC}",
         ),
         "F_c": Param("N*m", Prior("HalfNormal", scale=1.0, scaled_by={"response": 1}),
-                     "Coulomb friction torque F_c", f"{LUGRE}; {_GENERIC}"),
-        "dF_s": Param(
-            "N*m",
-            Prior("HalfNormal", scale=0.5, scaled_by={"response": 1}),
-            "static friction excess F_s − F_c ≥ 0",
-            f"{LUGRE} (F_s ≥ F_c); {_GENERIC}",
+                     "Coulomb friction torque F_c at P_ref", f"{LUGRE}; {_GENERIC}"),
+        "F_ratio": Param(
+            "1",
+            # median 0.69 (F_s ≈ 1.46 F_c), 90 % in [0.34, 0.92]: the median ratio the former
+            # independent half-normal priors on F_c and F_s − F_c (scales 1 : 0.5) implied
+            Prior("Beta", concentration1=4.0, concentration0=2.0),
+            "Coulomb to static friction ratio F_c/F_s (≤ 1)",
+            f"{LUGRE} (F_s ≥ F_c); weakly informative: median F_s ≈ 1.5 F_c",
         ),
         "v_s": Param(
             "rad/s",
@@ -363,21 +386,27 @@ def lugre_bristle(velocity, time, trajectory_start, sigma0, F_c, dF_s, v_s, F_st
             "Stribeck velocity v_s of the Gaussian decay e^(−(v/v_s)²)",
             f"{LUGRE}; {_GENERIC}",
         ),
+        "gamma": gamma,
     },
-    constants={"F_start": START_STATE},
+    constants={"F_start": START_STATE, "P_ref": P_REF},
     derived={
-        "F_s": Derived(lambda F_c, dF_s: F_c + dF_s, "N*m", "static friction torque F_s"),
-        "sigma1": Derived(lambda rho1, sigma2, F_c, dF_s: rho1 * sigma2 * F_c / dF_s,
+        "F_s": Derived(lambda F_c, F_ratio: F_c / F_ratio, "N*m", "static friction torque F_s"),
+        "dF_s": Derived(lambda F_c, F_ratio: F_c * (1.0 / F_ratio - 1.0), "N*m",
+                        "static friction excess F_s − F_c"),
+        "sigma1": Derived(lambda rho1, sigma2, F_ratio: rho1 * sigma2 * F_ratio / (1.0 - F_ratio),
                           "N*m*s/rad", "bristle damping σ1 (≤ passivity bound)"),
     },
     trajectory=True,
     notes=_LUGRE_NOTES,
+    optional={"preload": OptionalInput("P_ref", ("gamma",))},
 )
-def lugre(velocity, time, trajectory_start, sigma0, rho1, sigma2, F_c, dF_s, v_s, F_start):
-    """LuGre friction: F = σ0 z + σ1 ż + σ2 v, ż = v − σ0|v| z/g(v), σ1 = ρ1·σ2 F_c/(F_s − F_c)."""
+def lugre(velocity, time, preload, trajectory_start, sigma0, rho1, sigma2, F_c, F_ratio, v_s, gamma,
+          F_start, P_ref):
+    """LuGre friction: F = (P/P_ref)^γ (σ0 z + σ1 ż) + σ2 v, ż = v − σ0|v| z/g(v), σ1 = ρ1·σ2 F_c/(F_s − F_c)."""
+    dF_s = F_c * (1.0 / F_ratio - 1.0)
     z, g = lugre_bristle(velocity, time, trajectory_start, sigma0, F_c, dF_s, v_s, F_start)
     v = jnp.asarray(velocity, dtype=float)
     z_rate = v - sigma0 * jnp.abs(v) * z / g
-    sigma1 = rho1 * sigma2 * F_c / dF_s
-    return sigma0 * z + sigma1 * z_rate + sigma2 * v
-
+    sigma1 = rho1 * sigma2 * F_ratio / (1.0 - F_ratio)  # ρ1 σ2 F_c/(F_s − F_c)
+    load = power_ratio(jnp.asarray(preload, dtype=float), P_ref, gamma)
+    return load * (sigma0 * z + sigma1 * z_rate) + sigma2 * v

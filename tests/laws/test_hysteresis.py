@@ -251,19 +251,21 @@ def test_gradient_in_i_is_finite_and_correct_at_one():
 
 
 # --- LuGre ------------------------------------------------------------------------------------
-LUGRE = dict(sigma0=1e3, rho1=0.5, sigma2=0.5, F_c=1.0, dF_s=0.5, v_s=0.1)
+LUGRE = dict(sigma0=1e3, rho1=0.5, sigma2=0.5, F_c=1.0, F_ratio=1.0 / 1.5, v_s=0.1)  # F_s = 1.5
 
 
-def lugre(v, t, start=None, **over):
-    p = dict(LUGRE, **over)
+def lugre(v, t, start=None, preload=None, **over):
+    p = dict(LUGRE, gamma=1.0, **over)
     v, t = np.asarray(v, float), np.asarray(t, float)
     start = starts(v.size) if start is None else start
-    inputs = {"velocity": v, "time": t, "trajectory_start": start}
+    preload = np.full(v.size, P_REF) if preload is None else np.asarray(preload, dtype=float)
+    inputs = {"velocity": v, "time": t, "preload": preload, "trajectory_start": start}
     return np.asarray(get_law("lugre").mean(inputs, p))
 
 
 def stribeck_curve(v, p):
-    return (p["F_c"] + p["dF_s"] * np.exp(-((v / p["v_s"]) ** 2))) * np.sign(v) + p["sigma2"] * v
+    dF_s = p["F_c"] / p["F_ratio"] - p["F_c"]
+    return (p["F_c"] + dF_s * np.exp(-((v / p["v_s"]) ** 2))) * np.sign(v) + p["sigma2"] * v
 
 
 @pytest.mark.parametrize("v", [-0.5, -0.08, 0.02, 0.1, 0.3, 2.0])
@@ -312,15 +314,28 @@ def test_lugre_stiff_bristles_stay_bounded_and_reset():
     np.testing.assert_allclose(two[t.size:], two[:t.size], rtol=1e-14)
 
 
+def test_lugre_preload_scales_bristle_force_not_knee():
+    # F = (P/P_ref)^γ (σ0 z + σ1 ż) + σ2 v: z does not depend on P, so at 2 P_ref (γ = 1) the
+    # bristle part doubles along the whole transient and the viscous part stays
+    t = np.linspace(0.0, 0.05, 60)
+    v = np.full(t.size, 0.1)
+    one, two = lugre(v, t), lugre(v, t, preload=np.full(t.size, 2 * P_REF))
+    np.testing.assert_allclose(two - LUGRE["sigma2"] * v, 2 * (one - LUGRE["sigma2"] * v), rtol=1e-12)
+    from bayesfric.laws.variants import vary
+
+    assert "gamma" not in vary(get_law("lugre"), without=["preload"]).params  # one load: γ fixed
+
+
 def test_lugre_damping_respects_passivity_bound():
     # Barabanov & Ortega 2000: σ1 ≤ σ2 F_c/(F_s − F_c); ρ1 ∈ (0, 1) keeps σ1 inside
     law = get_law("lugre")
     rng = np.random.default_rng(0)
     for _ in range(20):
         p = dict(rho1=rng.uniform(), sigma2=rng.uniform(0, 2), F_c=rng.uniform(0.1, 3),
-                 dF_s=rng.uniform(0.01, 2))
-        s1 = law.derived_values(dict(LUGRE, **p))["sigma1"]
-        assert 0 <= s1 <= p["sigma2"] * p["F_c"] / p["dF_s"]
+                 F_ratio=rng.uniform(0.05, 0.99))
+        derived = law.derived_values(dict(LUGRE, **p))
+        assert derived["dF_s"] == pytest.approx(derived["F_s"] - p["F_c"])
+        assert 0 <= derived["sigma1"] <= p["sigma2"] * p["F_c"] / derived["dF_s"] * (1 + 1e-12)
 
 
 # --- posterior recovery (NUTS, small designs) -------------------------------------------------
@@ -362,11 +377,13 @@ def test_dahl_posterior_recovery(name, simulator):
 def test_lugre_posterior_recovery(simulator):
     # two slow sinusoidal velocity cycles (±0.5 rad/s = 5 v_s, 1.5 s period), 300 samples: the
     # Stribeck curve is swept and each reversal puts a few samples inside the bristle transient
-    law = get_law("lugre")
+    from bayesfric.laws.variants import vary
+
+    law = vary(get_law("lugre"), without=["preload"])  # one load: γ fixed at 0
     t = np.linspace(0.0, 3.0, 300)
     truth = dict(LUGRE)
     ds = simulator(law, {"velocity": 0.5 * np.sin(2 * np.pi * t / 1.5), "time": t}, truth,
                    sigma=0.01, seed=2)
     dt = fit(law, ds, draws=300, tune=300, chains=2, seed=0)
     # ρ1 (σ1) is only weakly identified: interval check only
-    assert_recovered(dt, truth, tight={"F_c", "dF_s", "v_s", "sigma2", "sigma0"}, rel=0.05)
+    assert_recovered(dt, truth, tight={"F_c", "F_ratio", "v_s", "sigma2", "sigma0"}, rel=0.05)
