@@ -9,6 +9,12 @@
   ``log_prior`` group, written by :func:`bayesfric.inference.datatree.assemble`).
 * :func:`ranking_sensitivity` -- PSIS-LOO elpd of several fits under power-scaled priors
   p(θ)^α, by importance reweighting of the existing draws, and whether the ranking changes.
+
+Above :data:`~bayesfric.limits.LOO_SUBSAMPLE_ROWS` data rows, LOO-PIT and the ranking
+sensitivity read a random subsample of :data:`~bayesfric.limits.LOO_SUBSAMPLE_SIZE` rows (the
+rows the subsampled PSIS-LOO scores exactly, :func:`~bayesfric.compare.loo_subsample.subsample_rows`),
+and say so (``PitCheck.n_rows``, ``RankingSensitivity.details``); the prior predictive check
+evaluates its draws in chunks (every row, bounded memory). Below the limit nothing changes.
 """
 
 from __future__ import annotations
@@ -31,8 +37,10 @@ from arviz_stats.ecdf_utils import ecdf_pit
 from numpyro.infer import Predictive
 from scipy.stats import kstest
 
+from bayesfric.compare.loo_subsample import n_rows, on_rows, subsample_rows
 from bayesfric.exported import program_jit
 from bayesfric.inference.pointwise import stored_draws
+from bayesfric.limits import CHUNK_NUMBERS
 from bayesfric.model import OBS_SITE, Program
 
 __all__ = [
@@ -133,6 +141,28 @@ def plausible_draws(
     points = _envelope_points(program, envelope_points, np.random.default_rng(seed))
     inputs = {k: np.asarray(v) for k, v in points.items()}
     law_params = {k: np.asarray(params[k]) for k in law.params}
+    n_draws = len(next(iter(law_params.values())))
+    # chunks of draws × points ≤ CHUNK_NUMBERS: one chunk (as always) up to ~8000 rows at 500 draws
+    size = max(1, CHUNK_NUMBERS // max(1, len(next(iter(inputs.values())))))
+    parts = [_sign_failures(program, points, {k: v[a:a + size] for k, v in law_params.items()})
+             for a in range(0, n_draws, size)]
+    failures = {"wrong_sign": np.concatenate([w for w, _ in parts]),
+                "non_finite": np.concatenate([f for _, f in parts])}
+    pair = _static_kinetic(program)
+    if pair is not None:
+        derived = law.derived_values(law_params)
+        static, kinetic = pair
+        kinetic_values = law_params[kinetic] if kinetic in law_params else derived[kinetic]
+        failures["static_below_kinetic"] = np.asarray(derived[static] < kinetic_values).reshape(-1)
+    ok = ~np.any(np.stack(list(failures.values())), axis=0)
+    return ok, failures
+
+
+def _sign_failures(program: Program, points: Mapping[str, np.ndarray], law_params: Mapping[str, np.ndarray]
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """(wrong sign, non-finite) per draw of ``law_params`` at ``points`` (see :func:`plausible_draws`)."""
+    law = program.law
+    inputs = {k: np.asarray(v) for k, v in points.items()}
     # one compiled program (kept on disk), not the law's operations dispatched one by one
     means = np.asarray(program_jit(program, "plausible_draws means", partial(_means, law, program.constants))(
         law_params, inputs))
@@ -146,15 +176,7 @@ def plausible_draws(
         wrong_sign = np.any((means * velocity < 0) & (velocity != 0), axis=1)
     elif rule.startswith("load"):
         wrong_sign = np.any(means < 0, axis=1)
-    failures = {"wrong_sign": wrong_sign, "non_finite": non_finite}
-    pair = _static_kinetic(program)
-    if pair is not None:
-        derived = law.derived_values(law_params)
-        static, kinetic = pair
-        kinetic_values = law_params[kinetic] if kinetic in law_params else derived[kinetic]
-        failures["static_below_kinetic"] = np.asarray(derived[static] < kinetic_values).reshape(-1)
-    ok = ~np.any(np.stack(list(failures.values())), axis=0)
-    return ok, failures
+    return wrong_sign, non_finite
 
 
 def _means(law, constants, params, inputs):
@@ -221,6 +243,11 @@ class PitCheck:
     ci_prob: float
     notes: str = ""
     band: np.ndarray | None = field(default=None, repr=False)  # (3, m): evaluation points, lower, upper
+    n_rows: int = 0  # rows of the data; above pit.size when the check read a subsample (0: not recorded)
+
+    @property
+    def subsampled(self) -> bool:
+        return self.n_rows > self.pit.size
 
 
 def loo_pit_check(dt: xr.DataTree, *, ci_prob: float = 0.99, n_simulations: int = 1000,
@@ -241,15 +268,22 @@ def loo_pit_check(dt: xr.DataTree, *, ci_prob: float = 0.99, n_simulations: int 
     -----
     LOO-PIT values are only approximately independent; the KS p-value is a screening number,
     not an exact test. The band is the calibrated summary that arviz draws. A thinned fit
-    (:mod:`bayesfric.inference.pointwise`) is read on the draws it keeps, in float64.
+    (:mod:`bayesfric.inference.pointwise`) is read on the draws it keeps, in float64. Above
+    ``limits.LOO_SUBSAMPLE_ROWS`` rows only a random subsample of rows is read (``n_rows`` and
+    ``notes`` say how many of how many).
     """
-    pit = np.asarray(az.loo_pit(stored_draws(dt), var_names=OBS_SITE)[OBS_SITE]).reshape(-1)
+    rows, n = subsample_rows(n_rows(dt)), n_rows(dt)
+    view = stored_draws(dt) if rows is None else on_rows(dt, rows, ("log_likelihood", "posterior_predictive"))
+    pit = np.asarray(az.loo_pit(view, var_names=OBS_SITE)[OBS_SITE]).reshape(-1)
     ks = kstest(pit, "uniform")
     points, ecdf, lower, upper = ecdf_pit(pit, ci_prob, n_simulations, rng=np.random.default_rng(seed))
     within = bool(np.all((ecdf >= lower - 1e-12) & (ecdf <= upper + 1e-12)))
-    return PitCheck(pit, float(ks.statistic), float(ks.pvalue), within, ci_prob,
-                    "LOO-PIT via arviz-stats; KS p-value approximate (PIT values are dependent)",
-                    np.stack([points, lower, upper]))
+    notes = "LOO-PIT via arviz-stats; KS p-value approximate (PIT values are dependent)"
+    if rows is not None:
+        notes += f"; on a random subsample of {rows.size} of {n} rows"
+    return PitCheck(pit, float(ks.statistic), float(ks.pvalue), within, ci_prob, notes,
+                    np.stack([points, lower, upper]), n)
+
 
 
 # -- prior sensitivity ----------------------------------------------------------------------------
@@ -281,17 +315,19 @@ def _quiet(logger: logging.Logger):
         logger.setLevel(level)
 
 
-def power_scaled_loo(dt: xr.DataTree, alpha: float):
+def power_scaled_loo(dt: xr.DataTree, alpha: float, rows: np.ndarray | None = None):
     """PSIS-LOO of a fit as if its prior were p(θ)^α (renormalised), without refitting.
 
     The leave-one-out posterior under the scaled prior is reached from the posterior draws with
     importance ratios ∝ p(θ)^(α-1) / p(y_i | θ), Pareto-smoothed per observation (r_eff = 1);
     the result is arviz-stats' ``ELPDData`` (check its ``pareto_k`` / ``warning``: large α
-    moves the posterior far and the reweighting becomes unreliable).
+    moves the posterior far and the reweighting becomes unreliable). ``rows``: only those rows
+    (its elpd is then their sum).
     """
     if "log_prior" not in dt.children:
         raise ValueError("fit has no log_prior group; refit with a current bayesfric")
-    dt = stored_draws(dt, ("log_likelihood",))  # a thinned fit: the draws its log-likelihood holds, in float64
+    # a thinned fit: the draws its log-likelihood holds, in float64
+    dt = stored_draws(dt, ("log_likelihood",)) if rows is None else on_rows(dt, rows, ("log_likelihood",))
     log_prior = dt["log_prior"].to_dataset()
     total_prior = sum(log_prior[v] for v in log_prior.data_vars)
     log_lik = dt["log_likelihood"][OBS_SITE]
@@ -345,22 +381,31 @@ def ranking_sensitivity(
     baseline : mapping, optional
         Name -> arviz-stats' plain PSIS-LOO of that fit (``LooResult.psis``), already computed:
         the α = 1 results are taken from it instead of computed again (missing names are).
+
+    Above ``limits.LOO_SUBSAMPLE_ROWS`` rows every α (1 included, ``baseline`` unused) is
+    computed on the same random subsample of rows and scaled to the data (``N / m`` times the
+    subsample's sum); ``details["rows"]`` says how many of how many.
     """
-    baseline = baseline or {}
+    first = next(iter(fits.values()))
+    rows = subsample_rows(n_rows(first))
+    baseline = (baseline or {}) if rows is None else {}
     elpd: dict[float, dict[str, float]] = {}
     ranking: dict[float, list[str]] = {}
     max_k: dict[float, dict[str, float]] = {}
     for alpha in (1.0, *alphas):
         with warnings.catch_warnings():  # high Pareto k is kept in max_pareto_k and reported from there
             warnings.filterwarnings("ignore", message="Estimated shape parameter of Pareto", category=UserWarning)
-            results = {name: (power_scaled_loo(dt, alpha) if alpha != 1.0
+            results = {name: (power_scaled_loo(dt, alpha, rows) if alpha != 1.0 or rows is not None
                               else baseline[name] if baseline.get(name) is not None
                               else az.loo(stored_draws(dt, ("log_likelihood",)), var_name=OBS_SITE, pointwise=True))
                        for name, dt in fits.items()}
-        elpd[alpha] = {name: float(r.elpd) for name, r in results.items()}
+        scale = 1.0 if rows is None else n_rows(first) / rows.size
+        elpd[alpha] = {name: float(r.elpd) * scale for name, r in results.items()}
         max_k[alpha] = {name: float(np.max(r.pareto_k)) for name, r in results.items()}
         ranking[alpha] = sorted(elpd[alpha], key=lambda n: -elpd[alpha][n])
     changed = any(ranking[a] != ranking[1.0] for a in alphas)
-    return RankingSensitivity(elpd, ranking, max_k, changed,
-                              {"method": "PSIS reweighting by p(θ)^(α-1), no refits"})
+    details = {"method": "PSIS reweighting by p(θ)^(α-1), no refits"}
+    if rows is not None:
+        details["rows"] = f"a random subsample of {rows.size} of {n_rows(first)} rows, elpd scaled by N/m"
+    return RankingSensitivity(elpd, ranking, max_k, changed, details)
 

@@ -10,7 +10,9 @@ function (group offsets included, exactly as in the model) and the mean noise va
 program's own observation distribution (:meth:`bayesfric.model.Program.observation`). Draws and
 points are thinned to :data:`MAX_DRAWS` × :data:`MAX_POINTS` (evenly spaced), so what is kept
 does not grow with the data; the covariance of the misses across points is estimated from
-those draws.
+those draws. The mean function runs over every row (a law's row may depend on the rows before
+it) in chunks of draws of at most ``limits.CHUNK_NUMBERS`` draws × rows, so computing it does
+not grow with draws × rows either (one chunk, as before, up to 10 485 rows).
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from bayesfric.limits import CHUNK_NUMBERS
 from bayesfric.model import Program
 
 __all__ = ["MAX_DRAWS", "MAX_POINTS", "HeldOut", "heldout_predictive"]
@@ -87,6 +90,19 @@ def _fold_draws(program: Program, samples: dict[str, np.ndarray], k: int) -> tup
     return params, noise, offsets
 
 
+def _means_at(program: Program, inputs: dict, params: dict[str, np.ndarray], rows: np.ndarray) -> np.ndarray:
+    """``(draws, rows)``: the law's mean function of each draw of ``params`` at ``rows``, computed
+    over every row in chunks of draws (at most ``CHUNK_NUMBERS`` draws × rows each)."""
+    mean = jax.vmap(lambda p: program.law.mean(inputs, p, program.constants))
+    n_draws = len(next(iter(params.values())))
+    size = max(1, CHUNK_NUMBERS // max(1, program.n_obs))
+    parts = []
+    for a in range(0, n_draws, size):
+        mu = np.asarray(mean({n: jnp.asarray(v[a:a + size]) for n, v in params.items()}), dtype=float)
+        parts.append(np.broadcast_to(mu, (mu.shape[0], program.n_obs))[:, rows])
+    return parts[0] if len(parts) == 1 else np.concatenate(parts)
+
+
 def heldout_predictive(program: Program, samples: dict[str, np.ndarray], heldout: np.ndarray) -> HeldOut:
     """Mean-function draws and noise variance of each fold's posterior at the points it held out.
 
@@ -109,9 +125,7 @@ def heldout_predictive(program: Program, samples: dict[str, np.ndarray], heldout
         if mine.size == 0:
             continue
         params, noise, offsets = _fold_draws(program, samples, k)
-        mean = jax.vmap(lambda p: program.law.mean(inputs, p, program.constants))
-        mu = np.asarray(mean({n: jnp.asarray(v) for n, v in params.items()}), dtype=float)
-        mu = np.broadcast_to(mu, (mu.shape[0], program.n_obs))[:, mine]
+        mu = _means_at(program, inputs, params, mine)
         if offsets is not None:
             mu = mu * np.exp(offsets[:, program.group_index[mine]])
         obs = program.observation(jnp.asarray(mu), {n: jnp.asarray(v)[:, None] for n, v in noise.items()})

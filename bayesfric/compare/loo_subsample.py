@@ -35,7 +35,8 @@ from bayesfric.inference.pointwise import stored_draws
 from bayesfric.limits import LOO_SUBSAMPLE_ROWS, LOO_SUBSAMPLE_SIZE
 from bayesfric.model import OBS_SITE, Program, program_from_fit, program_of_fit
 
-__all__ = ["SEED", "Subsample", "n_rows", "is_subsampled", "subsample_psis", "estimate", "describe"]
+__all__ = ["SEED", "Subsample", "n_rows", "is_subsampled", "subsample_rows", "on_rows", "subsample_psis", "estimate",
+           "describe"]
 
 #: Seed of the subsample's rows: fixed, so every law of a study scores the same rows (arviz-stats'
 #: ``compare`` then uses its difference estimator on shared rows) and a stored result recomputes.
@@ -76,6 +77,28 @@ def n_rows(fit: xr.DataTree) -> int:
 def is_subsampled(fit: xr.DataTree) -> bool:
     """Whether :func:`~bayesfric.compare.loo.psis_loo` subsamples ``fit`` (rows above the limit)."""
     return n_rows(fit) > LOO_SUBSAMPLE_ROWS
+
+
+def subsample_rows(n: int) -> np.ndarray | None:
+    """The rows checks read on a data set of ``n`` rows above the limit (None: every row).
+
+    The rows the subsampled PSIS-LOO scores exactly (arviz-stats draws them as
+    ``default_rng(SEED).choice(n, LOO_SUBSAMPLE_SIZE, replace=False)``), sorted.
+    """
+    if n <= LOO_SUBSAMPLE_ROWS:
+        return None
+    return np.sort(np.random.default_rng(SEED).choice(n, min(LOO_SUBSAMPLE_SIZE, n), replace=False))
+
+
+def on_rows(dt: xr.DataTree, rows: np.ndarray, cast: tuple[str, ...]) -> xr.DataTree:
+    """``dt`` on the draws its pointwise groups keep (:func:`stored_draws`), its per-row groups
+    restricted to ``rows`` (``cast`` ones in float64, after the restriction: no copy of every row)."""
+    view = stored_draws(dt, ()).copy(deep=False)  # never the caller's tree
+    for group in ("log_likelihood", "posterior_predictive", "observed_data"):
+        if group in view.children:
+            part = view[group].to_dataset().isel(obs=rows)
+            view[group] = part.astype(np.float64) if group in cast else part
+    return view
 
 
 def _program(fit: xr.DataTree, program: Program | None, ds: xr.Dataset | None) -> Program | None:

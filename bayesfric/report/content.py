@@ -139,7 +139,18 @@ def _checks(outcome: StudyOutcome) -> Table:
               "prior sensitivity", "flags", "fit file"]
     return Table("Checks per law. ⚠ = LOO-PIT outside its simultaneous band (miscalibrated), with the direction read "
                  "from the PIT values (bayesfric.compare.pit: too narrow, too wide, biased); each flagged law's "
-                 "LOO-PIT figure follows.", header, rows, warn)
+                 "LOO-PIT figure follows." + checks_note(outcome), header, rows, warn)
+
+
+def checks_note(outcome: StudyOutcome) -> str:
+    """The sample the checks read when it was a subsample of the rows ("" when every row)."""
+    n = int(outcome.data.sizes.get("obs", 0))
+    read = {len(w.checks.pit) for w in outcome.laws if w.checks is not None and w.checks.pit is not None}
+    if not read or max(read) >= n:
+        return ""
+    return (f" On data this large (N = {n} rows) LOO-PIT and the prior-power ranking sensitivity read a random "
+            f"subsample of {max(read)} of the {n} rows (the rows the subsampled PSIS-LOO scores exactly); the "
+            "prior predictive check reads every row.")
 
 
 def _data_lines(outcome: StudyOutcome) -> list[str]:

@@ -66,11 +66,14 @@ def plot_loo_pit(outcome: StudyOutcome, w: LawOutcome, path: Path) -> Path | Non
     return save(fig, path)
 
 
-def pit_caption(w: LawOutcome) -> str:
+def pit_caption(w: LawOutcome, outcome: StudyOutcome | None = None) -> str:
     """What the LOO-PIT figure of ``w`` shows and how to read it, with the direction in words."""
     shape = w.checks.pit_shape if w.checks is not None else None
     said = shape.text() if shape is not None else "the PIT values were not stored"
-    return (f"LOO-PIT of {w.name} ({shape.n if shape is not None else '?'} observations): {said}. Left: histogram "
+    n = int(outcome.data.sizes.get("obs", 0)) if outcome is not None else 0
+    sample = (f"{shape.n} observations, a random subsample of the {n} rows" if shape is not None and 0 < shape.n < n
+              else f"{shape.n if shape is not None else '?'} observations")
+    return (f"LOO-PIT of {w.name} ({sample}): {said}. Left: histogram "
             "against the flat density of a calibrated law (grey: ± 2 sd of a bin); right: the ECDF minus the uniform "
             "CDF against the simultaneous band the check tested. Read: a U-shaped histogram (ECDF difference above "
             "zero on the left, below on the right) means intervals too narrow, a hump (below, then above) too wide, "

@@ -115,9 +115,11 @@ def plot_penalty(outcome: StudyOutcome, path: Path) -> Path:
 
 
 def _draws(dt, group: str, name: str) -> np.ndarray:
-    v = np.asarray(dt[group][name].values, dtype=float)
+    """At most MAX_DRAWS evenly spaced draws (chain and draw flattened) × rows, picked before the
+    cast to float64 (a large fit's groups are float32: no float64 copy of every draw × row)."""
+    v = dt[group][name].values
     v = v.reshape(v.shape[0] * v.shape[1], -1)
-    return v[np.linspace(0, len(v) - 1, min(MAX_DRAWS, len(v))).astype(int)]
+    return np.asarray(v[np.linspace(0, len(v) - 1, min(MAX_DRAWS, len(v))).astype(int)], dtype=float)
 
 
 def plot_bands(outcome: StudyOutcome, axis: str, path: Path, heldout: np.ndarray | None) -> Path:
@@ -294,7 +296,8 @@ def draw(outcome: StudyOutcome, folder: Path) -> tuple[list[FigureRef], dict[int
                                   "their combination, not each alone.", f"pair plot {w.name}"))
     for w in outcome.laws:  # the laws whose LOO-PIT left its band: which way they are off
         if not w.loo_pit_ok and plot_loo_pit(outcome, w, fdir / f"loo_pit_{w.name}.png") is not None:
-            refs.append(FigureRef("data", f"figures/loo_pit_{w.name}.png", pit_caption(w), f"LOO-PIT {w.name}"))
+            refs.append(FigureRef("data", f"figures/loo_pit_{w.name}.png", pit_caption(w, outcome),
+                                  f"LOO-PIT {w.name}"))
     fans = {}
     if outcome.sizing is not None:
         for i, answer in enumerate(outcome.sizing.answers):
