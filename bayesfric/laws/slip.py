@@ -213,7 +213,10 @@ def elastoplastic_deflection(velocity, time, trajectory_start, sigma0, beta, F_c
         "sigma0": Param("N*m/rad",
                         Prior("LogNormal", loc=math.log(1e3), scale=2.0, scaled_by={"response": 1}),
                         "bristle (pre-sliding) stiffness σ0",
-                        f"{EP}; prior as LuGre's: centred on 1 mrad pre-sliding deflection"),
+                        f"{EP}; prior as LuGre's: centred on 1 mrad pre-sliding deflection "
+                        "(translational: on 10 µm)",
+                        translational=Prior("LogNormal", loc=math.log(1e5), scale=2.0,
+                                            scaled_by={"response": 1})),
         "beta": Param("1", Prior("Uniform", low=0.0, high=1.0),
                       "break-away deflection z_ba as a fraction of F_c/σ0 (elastic below it)",
                       f"{EP} (0 < z_ba < z_max for every speed)"),

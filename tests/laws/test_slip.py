@@ -229,3 +229,15 @@ def test_maxwell_slip_posterior_recovers_two_elements(simulator):
     for name, values in expected.items():
         low, high = np.quantile(draws[name], [0.05, 0.95], axis=0)
         assert np.all((low <= values) & (values <= high)), f"{name}: {values} outside [{low}, {high}]"
+
+
+def test_elastoplastic_runs_on_force_data():
+    # issue 29: σ0 declares its translational prior (as LuGre's), so force-displacement loops of a
+    # tribometer are accepted; the prior is in N/m, scaled by the force
+    from bayesfric.laws.transforms import translation_problem, translational
+
+    law = get_law("elastoplastic")
+    assert translation_problem(law) is None
+    force_law = translational(law)
+    assert force_law.params["sigma0"].unit == "N/m"
+    assert force_law.params["sigma0"].prior.scaled_by == {"response": 1}
