@@ -67,10 +67,13 @@ INIT_NUMBERS = 2**21
 #: Data rows above which PSIS-LOO is subsampled (:mod:`bayesfric.compare.loo_subsample`), and
 #: the rows it then scores exactly. PSIS fits a Pareto tail per row, whatever the draws: measured
 #: on 2 cores, 18 s for 10⁴ rows × 2000 draws and 262 s (0.9 GB peak) for 10⁵ rows × 308 draws,
-#: per law and before any high-k refit; above 2·10⁴ rows (≈ 40 s) arviz-stats' ``loo_subsample``
-#: scores 2000 rows exactly (≈ 5 s) and the rest by a point-estimate (plpd) approximation, with
-#: its subsampling standard error reported. The seed studies lie far below.
-LOO_SUBSAMPLE_ROWS = 20_000
+#: per law and pass; a study makes several passes (LOO, LOO-PIT, ranking sensitivity at two prior
+#: powers): in a 3-law study at 10⁴ rows (benchmarks/bench_scale_study.py, loaded machine) LOO
+#: took 337 s and the checks 603 s of 1726 s. Above 5000 rows arviz-stats' ``loo_subsample``
+#: scores 2000 rows exactly and the rest by a point-estimate (plpd) approximation, with its
+#: subsampling standard error reported, and the checks read the same rows. The seed studies
+#: (at most 521 rows) lie far below.
+LOO_SUBSAMPLE_ROWS = 5_000
 LOO_SUBSAMPLE_SIZE = 2_000
 #: Share of the available memory one fit may claim.
 SHARE = 0.5
