@@ -34,7 +34,7 @@ def gms(v, t, F_start=0.0, C=50.0, **over):
     return np.asarray(get_law("gms").mean(inputs, params, {"F_start": F_start}))
 
 
-EP = dict(sigma0=1e3, beta=0.4, sigma2=2.0, F_c=1.0, dF_s=0.5, v_s=0.01)
+EP = dict(sigma0=1e3, beta=0.4, sigma2=2.0, F_c=1.0, F_ratio=1.0 / 1.5, v_s=0.01)  # F_s = 1.5
 
 
 def elastoplastic(v, t, F_start=0.0, **over):

@@ -13,7 +13,7 @@ import pytest
 from bayesfric.inference import check, fit
 from bayesfric.laws import get_law
 
-EP_TRUTH = dict(sigma0=1e3, beta=0.4, sigma2=2.0, F_c=1.0, dF_s=0.5, v_s=0.01)
+EP_TRUTH = dict(sigma0=1e3, beta=0.4, sigma2=2.0, F_c=1.0, F_ratio=1.0 / 1.5, v_s=0.01)  # F_s = 1.5
 
 
 def loops(simulator, law, truth, *, seed):
