@@ -227,6 +227,10 @@ def test_run_a_python_study_then_size_its_result(tmp_path):
     assert sorted(result.fits) == ["coulomb_viscous", "stribeck"]
     assert {"elpd_loo", "elpd_cv", "penalty"} <= set(result.scores["metric"])
     assert result.sizing is not None and np.isfinite(result.sizing["p_exceed"]).all()
+    tree = result.tree  # results.nc: the same numbers as one DataTree
+    assert sorted(tree["scores"].law.values) == ["coulomb_viscous", "stribeck"]
+    assert tree["sizing"].sizes["row"] == len(result.sizing)
+    np.testing.assert_array_equal(tree["sizing"]["p_exceed"].values, result.sizing["p_exceed"].to_numpy())
     own = bayesfric.size(result)  # the study's own question, from the stored fits
     asked = bayesfric.size(result, at={"velocity": (5, "rad/s")}, capacity=(30, "N*m"))
     assert own.answers[0].question.capacity.lo == 40.0 and asked.answers[0].question.capacity.lo == 30.0

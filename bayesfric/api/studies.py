@@ -235,6 +235,10 @@ class StudyResult:
         Each law's full fit (``fits/<law>.nc``).
     sizing : pandas.DataFrame or None
         ``sizing.csv`` (every law and point of every ``[[sizing]]`` question), if the study asks any.
+    tree : xarray.DataTree or None
+        ``results.nc``: the same results as one DataTree (``/scores`` over law × criterion,
+        ``/pointwise``, ``/weights``, ``/diagnostics``, ``/checks``, the tables, ``/fits/<law>``
+        posteriors; :mod:`bayesfric.report.results`); None for a report written before it existed.
     """
 
     study: config.Study
@@ -243,6 +247,7 @@ class StudyResult:
     ranking: pd.DataFrame
     fits: dict[str, xr.DataTree] = field(repr=False)
     sizing: pd.DataFrame | None = None
+    tree: xr.DataTree | None = field(default=None, repr=False)
 
     @classmethod
     def read(cls, study: config.Study, folder: str | Path) -> StudyResult:
@@ -254,8 +259,12 @@ class StudyResult:
         entries = {e["law"]: e for e in read_record(folder)["laws"]}
         fits = {spec.name: load_fit(folder / entries[spec.name]["fit"]) for spec in study.laws}
         sizing = pd.read_csv(folder / "sizing.csv") if (folder / "sizing.csv").is_file() else None
+        tree = None
+        if (folder / "results.nc").is_file():
+            with xr.open_datatree(folder / "results.nc") as opened:
+                tree = opened.load()
         return cls(study, folder, pd.read_csv(folder / "scores.csv", keep_default_na=False, na_values=[""]),
-                   pd.read_csv(folder / "ranking.csv"), fits, sizing)
+                   pd.read_csv(folder / "ranking.csv"), fits, sizing, tree)
 
 
 def run(study: Study | str | Path, out: str | Path = "reports", *, quick: bool = False, fresh: bool = False,
