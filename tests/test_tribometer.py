@@ -83,3 +83,14 @@ def test_lugre_fits_tribometer_loops_with_default_priors(tmp_path):
     verdict = verdict_of(dt)
     assert verdict.passed, verdict.problems
     _within_90(dt, {k: LUGRE[k] for k in ("F_c", "sigma0")})
+
+
+@pytest.mark.slow
+def test_lugre_passes_gate_on_dahl_loops(tmp_path):
+    # issue 29: a stateful law fitted to loops simulated from *another* law (Dahl, the tribo_loops
+    # design and scale), default priors and sampler settings but 2 chains: the gate must pass
+    truth_law = vary(get_law("dahl"), without=["preload"], motion="translational")
+    ds = _write(tmp_path, truth_law, DAHL, seed=3)
+    dt = fit(get_law("lugre"), ds, draws=1000, tune=1000, chains=2, seed=1)
+    verdict = verdict_of(dt)
+    assert verdict.passed, verdict.problems
