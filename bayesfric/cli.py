@@ -57,7 +57,7 @@ def build_parser() -> argparse.ArgumentParser:
     """The parser of every command; each sets ``func``, the :mod:`bayesfric.commands` function that runs it."""
     p = _Parser(prog="bayesfric", description="Bayesian model comparison of friction laws.")
     sub = p.add_subparsers(dest="command", required=True)
-    for add in (_add_laws, _add_fit, _add_data, _add_study, _add_size, _add_main):
+    for add in (_add_laws, _add_fit, _add_data, _add_study, _add_report, _add_size, _add_main):
         add(sub)
     return p
 
@@ -122,6 +122,14 @@ def _add_study(sub) -> None:
     q.add_argument("--quick", action="store_true", help="fewer draws and folds (smoke test, not for decisions)")
     _run_options(q)
     q.set_defaults(func=commands.cmd_study)
+
+
+def _add_report(sub) -> None:
+    """``bayesfric report RESULTS.nc --out FOLDER``: a study's report rendered again from its result tree."""
+    q = sub.add_parser("report", help="render a study's report again from its results.nc alone (same bytes)")
+    q.add_argument("results", help="a study's results.nc (reports/<study>/results.nc)")
+    q.add_argument("--out", required=True, help="new report folder (must not exist, or be empty)")
+    q.set_defaults(func=commands.cmd_report)
 
 
 def _add_size(sub) -> None:

@@ -16,8 +16,8 @@ from bayesfric.datasets.loader import DataError
 from bayesfric.errors import UserError
 from bayesfric.priors import Prior, PriorError
 
-__all__ = ["cmd_laws", "cmd_fit", "cmd_data", "cmd_study", "cmd_size", "cmd_main", "parse_priors", "parse_fix",
-           "parse_select"]
+__all__ = ["cmd_laws", "cmd_fit", "cmd_data", "cmd_study", "cmd_report", "cmd_size", "cmd_main", "parse_priors",
+           "parse_fix", "parse_select"]
 
 
 def cmd_laws(args: argparse.Namespace) -> None:
@@ -195,6 +195,12 @@ def cmd_study(args: argparse.Namespace) -> None:
 
     _check_reports_root(args.out)
     run_study(args.file, out_root=args.out, quick=args.quick, **_executor(args))
+
+
+def cmd_report(args: argparse.Namespace) -> None:
+    from bayesfric.report.summary import rerender
+
+    print(f"report rendered from {args.results} into {rerender(args.results, args.out)}")
 
 
 def _size_question(args: argparse.Namespace):

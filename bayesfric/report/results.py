@@ -17,17 +17,24 @@ file (``xarray.open_datatree("reports/<study>/results.nc")``):
     over ``(law, weighting)``: ``weight`` and ``excluded`` (why the weighting left the law out).
 ``/diagnostics``, ``/checks``
     over ``law``: the gate's verdict and problems; the checks unit's LOO-PIT and prior checks.
-``/ranking``, ``/parameters``, ``/claims``, ``/sizing``
-    the report's tables over ``row`` (the rows of ``ranking.csv``, ``parameters.csv``,
-    ``claims.csv``, ``sizing.csv``); a variable's ``csv_name`` attribute is its column's name
-    where NetCDF does not allow it (``/`` in a unit).
+``/ranking``, ``/parameters``, ``/claims``, ``/sizing``, ``/score_rows``
+    the report's CSV tables over ``row`` (the rows of ``ranking.csv``, ``parameters.csv``,
+    ``claims.csv``, ``sizing.csv``, ``scores.csv``; attribute ``csv_file``), each column typed so
+    that the CSV file is written again to the same bytes (:mod:`bayesfric.report.stored`); a
+    variable's ``csv_name`` attribute is its column's name where NetCDF does not allow it (``/``).
+``/report``, ``/report/figures``
+    the report's content model (section texts, tables, findings, as JSON in ``content``) and its
+    figure files (PNG bytes).
 ``/fits/<law>``
     each law's posterior, sample statistics and observed data; the pointwise log-likelihood and
     predictive draws stay in the full fit, ``fits/<law>.nc`` (attribute ``fit_file``).
 
-This is the first step of issue 31's one result tree: the tree is built from the study's
-in-memory outcome and written with the report; the report itself is still rendered from that
-outcome, not yet re-rendered from the tree.
+The report is rendered from this tree alone: the study run writes ``results.nc``, reads it back
+and renders every report file from it (:func:`bayesfric.report.summary.render_report`), the same
+path as ``bayesfric report results.nc --out FOLDER``, so both give the same bytes. What is not yet
+true (issue 31 item 1): the tree is built from the in-memory ``StudyOutcome``, and the report's
+content model (texts, tables, findings) and figures are computed from that outcome before they are
+stored; the run store, sizing and claims read the outcome, not the tree.
 """
 
 from __future__ import annotations
@@ -43,6 +50,7 @@ import pandas as pd
 import xarray as xr
 
 from bayesfric._version import __version__
+from bayesfric.report.stored import CSV_FILES, table_dataset
 
 if TYPE_CHECKING:
     from bayesfric.study.outcome import StudyOutcome
@@ -134,26 +142,6 @@ def _per_law(outcome: StudyOutcome) -> tuple[xr.Dataset, xr.Dataset]:
     return diag, chk
 
 
-def table_dataset(records: list[dict] | pd.DataFrame) -> xr.Dataset:
-    """One report table (a list of CSV records) as a Dataset over ``row``: numbers as float,
-    flags as bool, the rest as text; a column name NetCDF refuses keeps it in ``csv_name``."""
-    frame = pd.DataFrame(records).reset_index(drop=True)
-    data = {}
-    for column in frame.columns:
-        values = frame[column]
-        kind = pd.api.types.infer_dtype(values, skipna=True)
-        if kind == "boolean":
-            arr = values.fillna(False).astype(bool).to_numpy()
-        elif kind in ("floating", "integer", "mixed-integer-float"):
-            arr = pd.to_numeric(values, errors="coerce").astype(float).to_numpy()
-        else:
-            arr = values.map(lambda v: "" if v is None or (isinstance(v, float) and math.isnan(v)) else str(v))
-            arr = arr.to_numpy().astype(str)
-        name = str(column).replace("/", "\u2215")  # NetCDF names may not hold '/': DIVISION SLASH instead
-        data[name] = xr.Variable("row", arr, attrs={"csv_name": str(column)} if name != column else {})
-    return xr.Dataset(data, coords={"row": np.arange(len(frame))})
-
-
 def _fits(outcome: StudyOutcome) -> dict[str, xr.Dataset]:
     nodes = {}
     for w in outcome.laws:
@@ -165,17 +153,21 @@ def _fits(outcome: StudyOutcome) -> dict[str, xr.Dataset]:
     return nodes
 
 
-def result_tree(outcome: StudyOutcome, tables: dict[str, list[dict] | pd.DataFrame]) -> xr.DataTree:
+def result_tree(outcome: StudyOutcome, tables: dict[str, list[dict] | pd.DataFrame],
+                extra: dict[str, xr.Dataset] | None = None) -> xr.DataTree:
     """The study's results as one DataTree (layout in the module docstring).
 
-    ``tables`` are the report's tables by node name (``ranking``, ``parameters``, ``claims``,
-    ``sizing``) as the report writes them, so the tree and the CSV files hold the same rows.
+    ``tables`` are the report's CSV tables by node name (:data:`bayesfric.report.stored.CSV_FILES`:
+    ``ranking``, ``parameters``, ``claims``, ``sizing``, ``score_rows``) as records or a data frame,
+    so the tree and the CSV files hold the same rows; ``extra`` adds nodes by path (the report's
+    content and figures, :mod:`bayesfric.report.stored`).
     """
     diag, checks = _per_law(outcome)
     nodes: dict[str, xr.Dataset] = {"/": xr.Dataset(attrs=_root_attrs(outcome)), "scores": _scores(outcome),
                                     "pointwise": _pointwise(outcome), "weights": _weights(outcome),
                                     "diagnostics": diag, "checks": checks}
-    nodes.update({name: table_dataset(rows) for name, rows in tables.items() if len(rows)})
+    nodes.update({name: table_dataset(rows, CSV_FILES[name]) for name, rows in tables.items()})
+    nodes.update(extra or {})
     nodes.update(_fits(outcome))
     tree = xr.DataTree.from_dict(nodes)
     for w in outcome.laws:

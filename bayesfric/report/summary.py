@@ -15,26 +15,33 @@ as ``**…**`` in Markdown and ``<b>`` in HTML, never parsed back from text.
 from __future__ import annotations
 
 import base64
+import os
 import re
+import secrets
+import shutil
 from pathlib import Path
 from typing import TYPE_CHECKING
 from urllib.parse import quote
 
 import jinja2
+import xarray as xr
 from markupsafe import Markup, escape
 
 from bayesfric.csvout import write_csv
+from bayesfric.errors import UserError
+from bayesfric.fsutil import PathError, apply_umask, check_output_folder
 from bayesfric.report import sizing as sizing_report
 from bayesfric.report.content import Table, build, ranking_records
 from bayesfric.report.findings import Finding
-from bayesfric.report.results import result_tree, write_results
+from bayesfric.report.results import RESULTS, result_tree, write_results
+from bayesfric.report.stored import content_node, figures_node, open_results, read_content, read_figures, table_records
 from bayesfric.report.study_figures import draw
 from bayesfric.report.tables import format_table, parameter_rows
 
 if TYPE_CHECKING:
     from bayesfric.study.outcome import StudyOutcome
 
-__all__ = ["write_reports", "render", "md_text", "md_code"]
+__all__ = ["write_reports", "render_report", "rerender", "render", "md_text", "md_code"]
 
 _MD_CONTROL = re.compile(r"[\x00-\x1f\x7f]")
 _MD_SPECIAL = re.compile(r"([\\`*_\[\]<>&|#~])")
@@ -134,20 +141,87 @@ def _claim_records(out: StudyOutcome) -> list[dict]:
 
 
 def write_reports(out: StudyOutcome, folder: Path) -> None:
-    """Write the figures, summary.md, report.html, ranking.csv, scores.csv, parameters.csv,
-    claims.csv (with ``[[claims]]``), sizing.csv (with sizing questions) and results.nc (the same
-    results as one DataTree, :mod:`bayesfric.report.results`) into ``folder`` (the
-    runner's work folder, installed atomically afterwards)."""
+    """Write ``folder/results.nc`` (the study's results as one DataTree,
+    :mod:`bayesfric.report.results`, with the report's content, figures and tables) and render
+    the report from that file alone (:func:`render_report`): figures, summary.md, report.html,
+    ranking.csv, scores.csv, parameters.csv, claims.csv (with ``[[claims]]``) and sizing.csv (with
+    sizing questions). ``folder`` is the runner's work folder, installed atomically afterwards.
+
+    The figures are drawn into ``folder`` first (their bytes go into the tree); every file is then
+    rendered from the tree as read back from ``results.nc``, the same path as
+    ``bayesfric report results.nc``, so a re-rendering gives the same bytes.
+    """
     figures, fans = draw(out, folder)
     content = build(out, figures, {i: f"figures/{p.name}" for i, p in fans.items()})
-    (folder / "summary.md").write_text(render(content, folder, markdown=True), encoding="utf-8")
-    (folder / "report.html").write_text(render(content, folder, markdown=False), encoding="utf-8")
-    tables = {"ranking": ranking_records(out), "parameters": _parameter_records(out)}
+    tables: dict = {"ranking": ranking_records(out), "parameters": _parameter_records(out)}
     if out.claims:
         tables["claims"] = _claim_records(out)
     if out.sizing is not None:
         tables["sizing"] = sizing_report.records(out.sizing)
-    write_csv(folder / "scores.csv", out.table)  # every CSV: text cells neutralised (bayesfric.csvout)
-    for name, rows in tables.items():
-        write_csv(folder / f"{name}.csv", rows)
-    write_results(result_tree(out, tables), folder)  # the same numbers as one DataTree: results.nc
+    tables["score_rows"] = out.table
+    extra = {"report": content_node(content), "report/figures": figures_node(folder)}
+    path = write_results(result_tree(out, tables, extra), folder)
+    render_report(open_results(path), folder)
+
+
+def render_report(tree: xr.DataTree, folder: Path) -> list[Path]:
+    """Render a study's report from its result tree alone into ``folder`` (which must exist): the
+    figure files, summary.md, report.html and every CSV table node (:data:`stored.CSV_FILES`).
+    Returns the files written.
+
+    Parameters
+    ----------
+    tree : xarray.DataTree
+        A result tree with a stored report (:func:`bayesfric.report.stored.open_results`).
+    folder : Path
+        The report folder; figures go under ``folder/figures``.
+    """
+    folder = Path(folder)
+    written = []
+    for rel, blob in read_figures(tree["report/figures"].to_dataset()).items():
+        (folder / rel).parent.mkdir(parents=True, exist_ok=True)
+        (folder / rel).write_bytes(blob)
+        written.append(folder / rel)
+    content = read_content(tree["report"].to_dataset())
+    for name, markdown in (("summary.md", True), ("report.html", False)):
+        (folder / name).write_text(render(content, folder, markdown=markdown), encoding="utf-8")
+        written.append(folder / name)
+    for node in tree.children.values():
+        csv_file = node.attrs.get("csv_file")
+        if csv_file:  # every CSV: text cells neutralised (bayesfric.csvout)
+            written.append(write_csv(folder / str(csv_file), table_records(node.to_dataset())))
+    return written
+
+
+def rerender(results: str | Path, out: str | Path) -> Path:
+    """``bayesfric report RESULTS.nc --out FOLDER``: render a study's report again from its
+    ``results.nc`` alone into the new folder ``out`` (with a copy of ``results.nc``), atomically:
+    the files go into a hidden folder beside ``out``, renamed to ``out`` when complete.
+
+    Raises
+    ------
+    UserError
+        ``results`` is not a result tree with a stored report, or ``out`` exists and is not an
+        empty folder, or cannot be created.
+    """
+    tree = open_results(results)
+    out = Path(out)
+    try:
+        check_output_folder(out)
+    except PathError as exc:
+        raise UserError(f"--out {exc}") from None
+    if out.is_dir() and any(out.iterdir()):
+        raise UserError(f"--out {out}: exists and is not empty; name a new folder")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    work = out.parent / f".{out.name}.{secrets.token_hex(4)}"
+    work.mkdir()
+    try:
+        render_report(tree, work)
+        shutil.copyfile(results, work / RESULTS)
+        apply_umask(work)
+        if out.is_dir():
+            out.rmdir()  # empty, checked above
+        os.rename(work, out)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    return out

@@ -1,0 +1,109 @@
+"""`bayesfric report results.nc --out FOLDER`: the report rendered again from the result tree
+alone gives the same bytes as the study run's report (issue 31 item 1, Done-when)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from bayesfric.cli import main
+from bayesfric.datasets.synthetic import simulate
+from bayesfric.laws import get_law
+from bayesfric.report.summary import write_reports
+from bayesfric.study import load_study
+from bayesfric.study.claims import evaluate_claims
+from bayesfric.study.runner import run_study
+from tests.report.fakes import outcome
+
+#: The files the Done-when names, plus the other CSV tables and the figures.
+NAMED = ("report.html", "summary.md", "ranking.csv", "scores.csv", "parameters.csv")
+HOSTILE = '=cmd|\' /C calc\'!A0 <script>x</script> **b** `c`'
+
+
+def _files(folder: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def _rerender_matches(folder: Path, other: Path, capsys) -> dict[str, bytes]:
+    """Re-render ``folder/results.nc`` into ``other`` through the CLI; every file byte-identical."""
+    assert main(["report", str(folder / "results.nc"), "--out", str(other)]) == 0
+    capsys.readouterr()
+    before, after = _files(folder), _files(other)
+    # not re-rendered: the run's markers, the fit files, the run store's timings.csv and weights.json
+    runner = {k for k in before if k.startswith((".", "fits/")) or k in ("timings.csv", "weights.json")}
+    assert sorted(after) == sorted(set(before) - runner)
+    for name, blob in after.items():
+        assert blob == before[name], f"{name} differs after re-rendering"
+    return after
+
+
+@pytest.fixture(scope="module")
+def fake_report(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("rerender")
+    (tmp / "tiny.toml").write_text(
+        f'[study]\nname = "tiny"\ntitle = "{HOSTILE}"\nquestion = "Which law?"\n'
+        '[data]\ndataset = "robot_joint"\n[[laws]]\nname = "coulomb"\n[[laws]]\nname = "coulomb_viscous"\n'
+        '[compare]\nevidence = false\n[[compare.blocked]]\naxis = "velocity"\nthreshold = 1.0\nlabel = "outside"\n'
+        f'[[claims]]\ntext = "{HOSTILE}"\nsource = "@seed"\nkind = "best"\nlaw = "coulomb"\nmetric = "elpd_loo"\n')
+    out = outcome(load_study(tmp / "tiny.toml"), tmp)
+    out.claims = evaluate_claims(out.study.claims, out, out.table)
+    folder = tmp / "report"
+    folder.mkdir()
+    write_reports(out, folder)
+    return folder
+
+
+def test_fake_study_rerenders_byte_identically(fake_report, tmp_path, capsys):
+    after = _rerender_matches(fake_report, tmp_path / "again", capsys)
+    assert set(NAMED) | {"claims.csv", "results.nc"} <= set(after)
+    assert any(k.startswith("figures/") for k in after)
+    assert b"'=cmd" in after["claims.csv"]  # neutralised once, not twice
+    with xr.open_datatree(tmp_path / "again" / "results.nc") as tree:
+        assert tree["ranking"].sizes["row"] == 2 and tree["ranking"]["place"].dtype.kind == "i"
+        assert tree["ranking"]["elpd_loo"].dtype.kind == "f"  # numbers stay numbers in the tree
+
+
+def test_bad_targets_are_one_line_errors_and_write_nothing(fake_report, tmp_path, capsys):
+    other = tmp_path / "other"
+    plain = tmp_path / "plain.nc"
+    xr.Dataset({"x": ("i", np.arange(3.0))}).to_netcdf(plain, engine="h5netcdf")
+    cases = [(tmp_path / "missing.nc", other, "missing.nc: no such file"),
+             (fake_report / "summary.md", other, "summary.md: not a readable result tree"),
+             (plain, other, "plain.nc: not a bayesfric result tree with a stored report"),
+             (fake_report / "results.nc", fake_report, "exists and is not empty")]
+    for target, out, fragment in cases:
+        assert main(["report", str(target), "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert fragment in err and err.count("\n") == 1 and "Traceback" not in err
+    assert not other.exists() and not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
+
+
+@pytest.mark.slow
+def test_real_study_with_sizing_and_claims_rerenders_byte_identically(tmp_path, capsys):
+    """A real small study (NUTS 2 × 700, LOO, blocked CV, a claim, a sizing question): report.html,
+    summary.md, ranking.csv, sizing.csv, scores.csv, parameters.csv and the figures again, same bytes."""
+    speeds = np.geomspace(0.005, 4.0, 20)
+    v = np.concatenate([-speeds[::-1], speeds])
+    ds = simulate(get_law("coulomb_viscous"), {"velocity": v}, {"T_C": 5.0, "c_v": 2.0}, sigma=0.2, seed=5)
+    rows = ["speed,torque"] + [f"{a:.10g},{b:.10g}" for a, b in zip(v, ds["torque"].values, strict=True)]
+    (tmp_path / "bench.csv").write_text("\n".join(rows) + "\n")
+    (tmp_path / "bench.toml").write_text(
+        '[dataset]\nname = "bench"\nprovenance = "simulated"\nsource = "test"\n'
+        '[columns.speed]\nrole = "input"\nquantity = "velocity"\nunit = "rad/s"\n'
+        '[columns.torque]\nrole = "response"\nquantity = "torque"\nunit = "N*m"\n')
+    (tmp_path / "s.toml").write_text(
+        '[study]\nname = "tiny"\nquestion = "Trained below 1 rad/s, which law predicts above?"\n'
+        '[data]\ndataset = "bench.csv"\n[sampler]\ndraws = 700\ntune = 400\nchains = 2\n'
+        '[[laws]]\nname = "coulomb"\n[[laws]]\nname = "coulomb_viscous"\n[compare]\nevidence = false\n'
+        '[[compare.blocked]]\naxis = "velocity"\nthreshold = 1.0\nlabel = "outside"\n'
+        '[[claims]]\ntext = "viscous coefficient 2 N·m·s/rad"\nsource = "simulation"\nkind = "parameter"\n'
+        'law = "coulomb_viscous"\nparameter = "c_v"\nexpect = [1.8, 2.2]\n'
+        '[[sizing]]\nlabel = "beyond the tested speeds"\nat = { velocity = "4..6 rad/s" }\ncapacity = "40 N*m"\n')
+    folder = run_study(tmp_path / "s.toml", out_root=tmp_path / "reports")
+    capsys.readouterr()
+    after = _rerender_matches(folder, tmp_path / "again", capsys)
+    assert set(NAMED) | {"sizing.csv", "claims.csv"} <= set(after)
+    assert any(k.startswith("figures/sizing_") for k in after)
