@@ -51,6 +51,7 @@ from bayesfric.laws.variants import for_data, law_of_fit
 from bayesfric.noise import AR1Residuals
 from bayesfric.priors import DataScale, Prior, PriorError, resolve_all
 from bayesfric.runtime import configure
+from bayesfric.studentt import StudentT
 
 __all__ = ["Noise", "Program", "build_program", "program_from_fit", "program_of_fit", "program_record", "OBS_SITE",
            "NOISE_PRIORS"]
@@ -220,7 +221,7 @@ class Program:
             return dist.Normal(mu, sigma if se is None else jnp.sqrt(jnp.square(sigma) + extra))
         if kind == "student_t":
             sigma = values["sigma"]
-            return dist.StudentT(values["nu"], mu, sigma if se is None else jnp.sqrt(jnp.square(sigma) + extra))
+            return StudentT(values["nu"], mu, sigma if se is None else jnp.sqrt(jnp.square(sigma) + extra))
         if kind == "ar1":
             rho = values["rho"]
             return dist.Normal(mu, values["sigma"] / jnp.sqrt(1.0 - rho**2))
