@@ -24,6 +24,7 @@ import math
 from collections.abc import Mapping
 from pathlib import Path
 
+import h5netcdf
 import numpy as np
 import pandas as pd
 import xarray as xr
@@ -196,7 +197,8 @@ def read_figures(node: xr.Dataset) -> dict[str, bytes]:
 
 
 def open_results(path: str | Path) -> xr.DataTree:
-    """Open a study's ``results.nc`` for rendering (loaded: the file is closed on return).
+    """Open the nodes of a study's ``results.nc`` that the report renders from (root, ``/report``,
+    ``/report/figures`` and the CSV tables; not the fits), loaded: the file is closed on return.
 
     Raises
     ------
@@ -208,15 +210,18 @@ def open_results(path: str | Path) -> xr.DataTree:
     if not path.is_file():
         raise UserError(f"{path}: no such file (a study's results.nc)")
     try:
-        with xr.open_datatree(path, engine="h5netcdf") as tree:
-            report = tree["report"] if "report" in tree.children else None
-            if report is None or report.attrs.get("layout") != LAYOUT:
-                raise UserError(f"{path}: not a bayesfric result tree with a stored report (no /report group of "
-                                f"layout {LAYOUT}; rerun the study with this version)")
-            keep = ["report", *(n for n in tree.children if "csv_file" in tree[n].attrs)]
-            return xr.DataTree.from_dict({"/": tree.to_dataset().load(),
-                                          **{n: tree[n].to_dataset().load() for n in keep},
-                                          "report/figures": tree["report/figures"].to_dataset().load()})
+        with h5netcdf.File(path, "r") as fh:  # the groups' names and attributes, without opening the fits
+            groups = fh.groups
+            layout = groups["report"].attrs.get("layout") if "report" in groups else None
+            keep = [n for n in groups if "csv_file" in groups[n].attrs]
+        if layout != LAYOUT:
+            raise UserError(f"{path}: not a bayesfric result tree with a stored report (no /report group of "
+                            f"layout {LAYOUT}; rerun the study with this version)")
+        nodes = {}
+        for name in ("/", "report", "report/figures", *keep):
+            with xr.open_dataset(path, group=name, engine="h5netcdf") as ds:
+                nodes[name] = ds.load()
+        return xr.DataTree.from_dict(nodes)
     except UserError:
         raise
     except (OSError, ValueError, KeyError) as exc:
