@@ -129,7 +129,7 @@ def test_fit_checks_its_arguments_before_sampling(kwargs, fragment):
     assert fragment in str(info.value)
 
 
-def test_law_and_load_data():
+def test_law_and_load_data(tmp_path):
     import jax.numpy as jnp
 
     assert bayesfric.law("stribeck") is bayesfric.law(bayesfric.law("stribeck"))
@@ -146,6 +146,11 @@ def test_law_and_load_data():
         bayesfric.law("stribeck", priors={"T_C": {"dist": "HalfNormal", "scale": 1}})
     study = bayesfric.Study("s", "robot_joint", laws=[mine])  # not registered: found by name in this process
     assert study.laws[0].build() is mine and study.laws[0].modules == ()  # declared in a function: no file
+    # worker processes could not load it: refused before anything runs, naming the law
+    with pytest.raises(UserError, match="workers: law 'api_test_smooth' is declared in this process only"):
+        bayesfric.run(study, tmp_path, workers=2)
+    assert not any(tmp_path.iterdir())
+    assert bayesfric.api.studies.process_local_laws(bayesfric.Study("r", "robot_joint", laws=["stribeck"])) == []
 
 
 STUDY_TOML = """[study]

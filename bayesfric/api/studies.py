@@ -208,6 +208,23 @@ class Study(config.Study):
         return study
 
 
+def process_local_laws(study: config.Study) -> list[str]:
+    """The laws of ``study`` that only this process can build: declared (not registered) in a
+    notebook, a script or a function, in no law file a worker process would load
+    (:func:`bayesfric.laws.plugins.law_file`)."""
+    from bayesfric.laws.base import REGISTRY
+    from bayesfric.laws.plugins import law_file, load_modules, unregistered_law
+
+    out = []
+    for spec in study.laws:
+        load_modules(spec.modules)
+        for name in (spec.law or spec.name, *spec.add):
+            law = unregistered_law(name) if name not in REGISTRY else None
+            if law is not None and law_file(law) is None and name not in out:
+                out.append(name)
+    return out
+
+
 def as_study(study: Any, argument: str = "study") -> config.Study:
     """A study given as a :class:`Study` (or a loaded one) or as a study file's path."""
     if isinstance(study, config.Study):
@@ -322,5 +339,9 @@ def run(study: Study | str | Path, out: str | Path = "reports", *, quick: bool =
         raise UserError(f"workers: must be 0 (serial) or a number of processes ≥ 1, got {workers!r}")
     if problem := process_problem(workers, "worker processes"):
         raise UserError(f"workers: {problem}")
+    if workers and (local := process_local_laws(chosen)):
+        raise UserError(f"workers: law {', '.join(map(repr, local))} is declared in this process only (a notebook "
+                        "or script), which worker processes cannot load: run with workers=0, or move it into a "
+                        "law file (Study(..., modules=[...]))")
     folder = run_study(chosen, out_root=out, quick=quick, fresh=fresh, workers=workers)
     return StudyResult.read(chosen, folder)
