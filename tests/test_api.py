@@ -101,7 +101,9 @@ def test_size_of_a_real_fit_gives_a_finite_exceedance(fits):
 
 def test_compare_laws_ranks_the_fits(fits):
     table = bayesfric.compare_laws(fits, "robot_joint")
-    assert list(table.columns) == ["elpd_loo", "se", "elpd_diff", "p_loo", "high_k", "weight", "reliable", "reason"]
+    assert list(table.columns) == ["elpd_loo", "se", "elpd_diff", "subsampling_se", "p_loo", "high_k", "weight",
+                                   "reliable", "reason"]
+    assert table["subsampling_se"].isna().all()  # 111 rows: every row scored
     assert sorted(table.index) == sorted(fits) and table["elpd_diff"].iloc[0] == 0
     assert table["elpd_loo"].is_monotonic_decreasing
     for law, row in table.iterrows():  # a law without a weight says why

@@ -301,7 +301,10 @@ def compare_laws(fits: Mapping[str, xr.DataTree] | list[xr.DataTree], data: str 
     Returns
     -------
     pandas.DataFrame
-        One row per law, best first: ``elpd_loo``, ``se``, ``elpd_diff`` (to the best), ``p_loo``,
+        One row per law, best first: ``elpd_loo``, ``se``, ``elpd_diff`` (to the best),
+        ``subsampling_se`` (the extra error of a subsampled PSIS-LOO above
+        :data:`~bayesfric.limits.LOO_SUBSAMPLE_ROWS` rows, arviz-stats' ``loo_subsample``; NaN
+        when every row is scored), ``p_loo``,
         ``high_k``, ``weight`` (stacking; NaN for a law left out), ``reliable`` and ``reason``
         (why a law is unreliable or has no weight: a fit that failed the diagnostics gate, ...).
 
@@ -334,7 +337,9 @@ def compare_laws(fits: Mapping[str, xr.DataTree] | list[xr.DataTree], data: str 
     for label, r in loo.items():
         reason = left_out.get(label) or ("fit failed the diagnostics gate" if not verdict_of(named[label]).passed
                                          else "" if r.reliable else r.handling)
-        rows.append({"law": label, "elpd_loo": r.elpd, "se": r.se, "p_loo": r.p_loo, "high_k": r.n_high_k,
+        sub_se = r.subsampling_se if r.subsample is not None else float("nan")
+        rows.append({"law": label, "elpd_loo": r.elpd, "se": r.se, "subsampling_se": sub_se, "p_loo": r.p_loo,
+                     "high_k": r.n_high_k,
                      "weight": kept.get(label, float("nan")), "reliable": r.reliable, "reason": reason})
     table = pd.DataFrame(rows).set_index("law").sort_values("elpd_loo", ascending=False)
     table.insert(2, "elpd_diff", table["elpd_loo"] - table["elpd_loo"].iloc[0])

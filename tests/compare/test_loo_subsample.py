@@ -139,3 +139,17 @@ def test_bridge_evidence_in_chunks_of_points_equals_the_one_call_result(results,
     chunked = bridge_log_evidence(program, dt, seed=2)
     assert chunked.log_z == pytest.approx(whole.log_z, rel=1e-12, abs=1e-9)
     assert chunked.error == pytest.approx(whole.error, rel=1e-9)
+
+
+def test_compare_laws_shows_the_subsampling_se(results, data):
+    """The public ranking table carries the subsampling error of a subsampled LOO (NaN otherwise)."""
+    import bayesfric
+
+    dt, _, sub, _, _ = results
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(sub_mod, "LOO_SUBSAMPLE_ROWS", LIMIT)
+        mp.setattr(sub_mod, "LOO_SUBSAMPLE_SIZE", SIZE)
+        table = bayesfric.compare_laws({"cv": dt}, data)
+    assert table.loc["cv", "subsampling_se"] == pytest.approx(sub.subsampling_se)
+    assert table.loc["cv", "elpd_loo"] == pytest.approx(sub.elpd)
+    assert np.isnan(bayesfric.compare_laws({"cv": dt}, data).loc["cv", "subsampling_se"])
