@@ -4,7 +4,8 @@ The tree holds what the study computed, in numbers a notebook can use without pa
 file (``xarray.open_datatree("reports/<study>/results.nc")``):
 
 ``/``
-    attrs: study, data set, data hash, bayesfric version, run seconds, CV schemes.
+    attrs: study, data set, data hash, bayesfric version, run seconds, CV schemes, the prior-power
+    ranking sensitivity (``ranking_sensitivity``, ``ranking_changed``).
 ``/scores``
     over ``(law, criterion)``: ``estimate``, ``se``, ``reliable``, ``reason``; a criterion is a
     metric and its scheme (``elpd_loo``, ``elpd_cv[<scheme>]``, ``penalty[<scheme>]``,
@@ -12,11 +13,15 @@ file (``xarray.open_datatree("reports/<study>/results.nc")``):
     coordinates (the rows of ``scores.csv``).
 ``/pointwise``
     ``elpd`` over ``(criterion, law, obs)``: PSIS-LOO and each CV scheme's pointwise elpd (NaN
-    where a point is not held out or the stage did not run); ``heldout`` over ``(scheme, obs)``.
+    where a point is not held out or the stage did not run); ``heldout`` over ``(scheme, obs)``;
+    ``pareto_k`` over ``(law, obs)`` (NaN where LOO did not run or was subsampled).
 ``/weights``
     over ``(law, weighting)``: ``weight`` and ``excluded`` (why the weighting left the law out).
 ``/diagnostics``, ``/checks``
-    over ``law``: the gate's verdict and problems; the checks unit's LOO-PIT and prior checks.
+    over ``law``: the gate's verdict (``passed``, ``problems``, ``verdict`` as the report writes
+    it), the law's ``flags`` (one line each), ``p_loo``, ``n_high_k``, ``seconds`` and ``timing``
+    over ``(law, stage)``; the checks unit's LOO-PIT (``pit`` over ``(law, pit_row)``, p-value,
+    band coverage ``ci_prob``, direction) and prior checks.
 ``/ranking``, ``/parameters``, ``/claims``, ``/sizing``, ``/score_rows``
     the report's CSV tables over ``row`` (the rows of ``ranking.csv``, ``parameters.csv``,
     ``claims.csv``, ``sizing.csv``, ``scores.csv``; attribute ``csv_file``), each column typed so
@@ -94,16 +99,20 @@ def _pointwise(outcome: StudyOutcome) -> xr.Dataset:
     laws = [w.name for w in outcome.laws]
     crit = ["elpd_loo"] + [_criterion("elpd_cv", s) for s in outcome.schemes]
     elpd = np.full((len(crit), len(laws), n), np.nan)
+    pareto_k = np.full((len(laws), n), np.nan)
     for i, w in enumerate(outcome.laws):
         if w.loo is not None:
             elpd[0, i] = np.asarray(w.loo.elpd_i, dtype=float)
+            if np.size(w.loo.pareto_k) == n:  # every row scored (a subsampled LOO has k̂ on its subsample only)
+                pareto_k[i] = np.asarray(w.loo.pareto_k, dtype=float)
         for j, scheme in enumerate(outcome.schemes, start=1):
             cv = w.cv.get(scheme)
             if cv is not None:
                 elpd[j, i] = np.asarray(cv.elpd_i, dtype=float)
     schemes = list(outcome.heldout)
     heldout = np.array([np.asarray(outcome.heldout[s], dtype=bool) for s in schemes]).reshape(len(schemes), n)
-    return xr.Dataset({"elpd": (("criterion", "law", "obs"), elpd), "heldout": (("scheme", "obs"), heldout)},
+    return xr.Dataset({"elpd": (("criterion", "law", "obs"), elpd), "heldout": (("scheme", "obs"), heldout),
+                       "pareto_k": (("law", "obs"), pareto_k)},
                       coords={"criterion": crit, "law": laws, "scheme": schemes, "obs": np.arange(n)})
 
 
@@ -129,7 +138,18 @@ def _per_law(outcome: StudyOutcome) -> tuple[xr.Dataset, xr.Dataset]:
         "evidence_agree": ("law", [bool(w.evidence_agree) for w in outcome.laws]),
         "skipped": ("law", [", ".join(w.skipped) for w in outcome.laws]),
         "seconds": ("law", [float(w.seconds) for w in outcome.laws]),
+        "verdict": ("law", [str(w.verdict) for w in outcome.laws]),
+        "flags": ("law", ["\n".join(w.flags) for w in outcome.laws]),
+        "p_loo": ("law", [float(w.loo.p_loo) if w.loo is not None else math.nan for w in outcome.laws]),
+        "n_high_k": ("law", [int(w.loo.n_high_k) if w.loo is not None else -1 for w in outcome.laws]),
     }, coords={"law": laws})
+    diag["flags"].attrs["description"] = "one line per problem found in the law's results (LawOutcome.flags)"
+    diag["n_high_k"].attrs["description"] = "PSIS-LOO points above the Pareto-k threshold; -1: no LOO"
+    stages = list(dict.fromkeys(k for w in outcome.laws for k in w.timings))
+    diag["timing"] = (("law", "stage"), np.array([[float(w.timings.get(k, math.nan)) for k in stages]
+                                                  for w in outcome.laws]).reshape(len(laws), len(stages)))
+    diag = diag.assign_coords(stage=stages)
+    diag["timing"].attrs.update(units="s", description="wall seconds per stage computed in this run (NaN: reused)")
     checks = [w.checks for w in outcome.laws]
     nan = math.nan
     chk = xr.Dataset({
@@ -138,7 +158,14 @@ def _per_law(outcome: StudyOutcome) -> tuple[xr.Dataset, xr.Dataset]:
         "loo_pit_ok": ("law", [bool(c.loo_pit_ok) if c else True for c in checks]),
         "loo_pit_direction": ("law", [c.pit_shape.label if c and c.pit_shape is not None else "" for c in checks]),
         "psense": ("law", [", ".join(c.psense) if c else "" for c in checks]),
+        "ci_prob": ("law", [c.ci_prob if c else nan for c in checks]),
     }, coords={"law": laws})
+    pits = [np.asarray(c.pit, dtype=float).ravel() if c is not None and c.pit is not None else np.zeros(0)
+            for c in checks]
+    width = max((len(p) for p in pits), default=0)
+    chk["pit"] = (("law", "pit_row"), np.array([np.pad(p, (0, width - len(p)), constant_values=nan) for p in pits])
+                  .reshape(len(laws), width))
+    chk["pit"].attrs["description"] = "LOO-PIT values of the rows the check read (NaN-padded)"
     return diag, chk
 
 
@@ -184,7 +211,8 @@ def _root_attrs(outcome: StudyOutcome) -> dict:
     return {"study": outcome.study.name, "dataset": str(outcome.data.attrs.get("name", "")),
             "data_hash": str(outcome.data.attrs.get("data_hash", "")), "bayesfric_version": __version__,
             "seconds": float(outcome.seconds), "schemes": "; ".join(outcome.schemes),
-            "blocked_schemes": "; ".join(outcome.blocked), "quick": int("quick" in outcome.extra)}
+            "blocked_schemes": "; ".join(outcome.blocked), "quick": int("quick" in outcome.extra),
+            "ranking_sensitivity": str(outcome.ranking_sensitivity), "ranking_changed": int(outcome.ranking_changed)}
 
 
 def write_results(tree: xr.DataTree, folder: Path) -> Path:

@@ -3,6 +3,7 @@ alone gives the same bytes as the study run's report (issue 31 item 1, Done-when
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -50,14 +51,16 @@ def fake_report(tmp_path_factory):
         f'[[claims]]\ntext = "{HOSTILE}"\nsource = "@seed"\nkind = "best"\nlaw = "coulomb"\nmetric = "elpd_loo"\n')
     out = outcome(load_study(tmp / "tiny.toml"), tmp)
     out.claims = evaluate_claims(out.study.claims, out, out.table)
+    pit = np.linspace(0.01, 0.99, out.data.sizes["obs"])
+    out.laws[0] = replace(out.laws[0], timings={"fit": 1.5, "loo": 0.25}, checks=replace(out.laws[0].checks, pit=pit))
     folder = tmp / "report"
     folder.mkdir()
     write_reports(out, folder)
-    return folder
+    return folder, out
 
 
 def test_fake_study_rerenders_byte_identically(fake_report, tmp_path, capsys):
-    after = _rerender_matches(fake_report, tmp_path / "again", capsys)
+    after = _rerender_matches(fake_report[0], tmp_path / "again", capsys)
     assert set(NAMED) | {"claims.csv", "results.nc"} <= set(after)
     assert any(k.startswith("figures/") for k in after)
     assert b"'=cmd" in after["claims.csv"]  # neutralised once, not twice
@@ -66,7 +69,24 @@ def test_fake_study_rerenders_byte_identically(fake_report, tmp_path, capsys):
         assert tree["ranking"]["elpd_loo"].dtype.kind == "f"  # numbers stay numbers in the tree
 
 
+def test_the_tree_holds_verdicts_flags_timings_and_pit(fake_report):
+    folder, out = fake_report
+    with xr.open_datatree(folder / "results.nc") as tree:
+        diag, checks = tree["diagnostics"].to_dataset(), tree["checks"].to_dataset()
+        for w in out.laws:
+            d = diag.sel(law=w.name)
+            assert str(d.verdict.values) == str(w.verdict) and str(d.flags.values) == "\n".join(w.flags)
+            assert float(d.p_loo) == w.loo.p_loo and int(d.n_high_k) == w.loo.n_high_k
+            np.testing.assert_array_equal(tree["pointwise"]["pareto_k"].sel(law=w.name).values, w.loo.pareto_k)
+        np.testing.assert_array_equal(checks.pit.sel(law=out.laws[0].name).values, out.laws[0].checks.pit)
+        assert np.isnan(checks.pit.sel(law=out.laws[1].name).values).all()  # no PIT values: all NaN
+        assert float(diag.timing.sel(law=out.laws[0].name, stage="loo")) == 0.25
+        assert np.isnan(float(diag.timing.sel(law=out.laws[1].name, stage="fit")))
+        assert tree.attrs["ranking_sensitivity"] == out.ranking_sensitivity
+
+
 def test_bad_targets_are_one_line_errors_and_write_nothing(fake_report, tmp_path, capsys):
+    fake_report = fake_report[0]
     other = tmp_path / "other"
     plain = tmp_path / "plain.nc"
     xr.Dataset({"x": ("i", np.arange(3.0))}).to_netcdf(plain, engine="h5netcdf")
