@@ -3,7 +3,7 @@
 Usage::
 
     .venv/bin/python benchmarks/bench_scale_study.py [--rows 10000 100000] [--chains 4]
-        [--draws 1000] [--tune 1000] [--no-evidence]
+        [--draws 1000] [--tune 1000] [--no-evidence] [--trace]
 
 Data: SIMULATED steady-state Stribeck friction, the rows of ``bench_scale_rows.dataset`` (T_C = 2,
 dT_s = 1, v_s = 0.1 rad/s, δ = 0.8, σ = 0.1 N·m; speeds log-uniform on 0.01–4 rad/s both ways).
@@ -15,7 +15,9 @@ sampling), the checks; report written as ``bayesfric study`` writes it, every un
 Each size runs in a fresh child process under ``/usr/bin/time -v``: its wall seconds and peak RSS
 ("Maximum resident set size") are the whole study's, report assembly included. Per-stage
 seconds are the sums over laws of the report's ``timings.csv``, with its units counted by status
-(a law whose full fit fails the diagnostics gate skips its folds and evidence). Writes
+(a law whose full fit fails the diagnostics gate skips its folds and evidence). With ``--trace``
+the child also reports the resident memory per stage (``benchmarks/stage_memory.py``: on entry,
+on exit, sampled inside, and each stage's share of the rise of the high-water mark). Writes
 ``reports/benchmarks/bench_scale_study.json``.
 """
 
@@ -53,12 +55,18 @@ unit = "N*m"
 """
 
 
-def child(rows: int, out: Path, draws: int, tune: int, chains: int, evidence: bool) -> None:
-    """Run the study on ``rows`` rows into ``out`` (the child's whole work)."""
+def child(rows: int, out: Path, draws: int, tune: int, chains: int, evidence: bool, trace: bool = False) -> None:
+    """Run the study on ``rows`` rows into ``out`` (the child's whole work); with ``trace``, print
+    the resident memory per stage (:mod:`stage_memory`) as a ``STAGE_MEMORY`` JSON line."""
     sys.path.insert(0, str(REPO / "benchmarks"))
     from bench_scale_rows import dataset
 
     import bayesfric
+
+    if trace:
+        import stage_memory
+
+        stop = stage_memory.start()
 
     ds = dataset(rows)
     csv_path = out / f"scale_{rows}.csv"
@@ -74,6 +82,9 @@ def child(rows: int, out: Path, draws: int, tune: int, chains: int, evidence: bo
     start = time.perf_counter()
     bayesfric.run(study, out=out, fresh=True)
     print(f"STUDY_SECONDS {time.perf_counter() - start:.1f}", flush=True)
+    if trace:
+        stop.set()
+        print("STAGE_MEMORY " + json.dumps(stage_memory.report()), flush=True)
 
 
 def stages(folder: Path) -> tuple[dict[str, float], dict[str, dict[str, int]]]:
@@ -94,6 +105,7 @@ def measure(rows: int, args: argparse.Namespace) -> dict:
         cmd = ["/usr/bin/time", "-v", sys.executable, __file__, "--child", str(rows), "--out", tmp,
                "--draws", str(args.draws), "--tune", str(args.tune), "--chains", str(args.chains)]
         cmd += ["--no-evidence"] if args.no_evidence else []
+        cmd += ["--trace"] if args.trace else []
         start = time.perf_counter()
         proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
         wall = time.perf_counter() - start
@@ -106,6 +118,9 @@ def measure(rows: int, args: argparse.Namespace) -> dict:
                   "stages_s": {}, "units": {},
                   "settings": {"draws": args.draws, "tune": args.tune, "chains": args.chains,
                                "evidence": not args.no_evidence}}
+        traced = re.search(r"STAGE_MEMORY (.*)", proc.stdout)
+        if traced:
+            result["stage_memory"] = json.loads(traced.group(1))
         if (folder / "timings.csv").exists():
             result["stages_s"], result["units"] = stages(folder)
         if (folder / "ranking.csv").exists():
@@ -125,11 +140,13 @@ def main() -> None:
     parser.add_argument("--draws", type=int, default=1000)
     parser.add_argument("--tune", type=int, default=1000)
     parser.add_argument("--no-evidence", action="store_true")
+    parser.add_argument("--trace", action="store_true",
+                        help="resident memory per stage (benchmarks/stage_memory.py; sampled every 0.1 s)")
     parser.add_argument("--child", type=int, help=argparse.SUPPRESS)
     parser.add_argument("--out", type=Path, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child:
-        child(args.child, args.out, args.draws, args.tune, args.chains, not args.no_evidence)
+        child(args.child, args.out, args.draws, args.tune, args.chains, not args.no_evidence, args.trace)
         return
     results = []
     for rows in args.rows:

@@ -37,7 +37,7 @@ from arviz_stats.ecdf_utils import ecdf_pit
 from numpyro.infer import Predictive
 from scipy.stats import kstest
 
-from bayesfric.compare.loo_subsample import n_rows, on_rows, subsample_rows
+from bayesfric.compare.loo_subsample import n_rows, on_rows, rows_summed, subsample_rows
 from bayesfric.exported import program_jit
 from bayesfric.inference.pointwise import stored_draws
 from bayesfric.limits import CHUNK_NUMBERS
@@ -301,7 +301,8 @@ def prior_sensitivity(dt: xr.DataTree, threshold: float = 0.05) -> pd.DataFrame:
     if "log_prior" not in dt.children:
         raise ValueError("fit has no log_prior group; refit with a current bayesfric")
     with contextlib.redirect_stdout(io.StringIO()), _quiet(logging.getLogger("arviz_stats.psense")):
-        return az.psense_summary(stored_draws(dt, ("log_likelihood",)), var_names=_parameters(dt), threshold=threshold)
+        # the log-likelihood summed per draw in chunks: the same numbers, no copies of draws × rows
+        return az.psense_summary(rows_summed(dt), var_names=_parameters(dt), threshold=threshold)
 
 
 @contextlib.contextmanager

@@ -32,11 +32,11 @@ from numpyro.handlers import trace
 from numpyro.infer import log_likelihood as numpyro_log_likelihood
 
 from bayesfric.inference.pointwise import stored_draws
-from bayesfric.limits import LOO_SUBSAMPLE_ROWS, LOO_SUBSAMPLE_SIZE
+from bayesfric.limits import CHUNK_NUMBERS, LOO_SUBSAMPLE_ROWS, LOO_SUBSAMPLE_SIZE
 from bayesfric.model import OBS_SITE, Program, program_from_fit, program_of_fit
 
-__all__ = ["SEED", "Subsample", "n_rows", "is_subsampled", "subsample_rows", "on_rows", "subsample_psis", "estimate",
-           "describe"]
+__all__ = ["SEED", "Subsample", "n_rows", "is_subsampled", "subsample_rows", "on_rows", "rows_summed",
+           "subsample_psis", "estimate", "describe"]
 
 #: Seed of the subsample's rows: fixed, so every law of a study scores the same rows (arviz-stats'
 #: ``compare`` then uses its difference estimator on shared rows) and a stored result recomputes.
@@ -98,6 +98,28 @@ def on_rows(dt: xr.DataTree, rows: np.ndarray, cast: tuple[str, ...]) -> xr.Data
         if group in view.children:
             part = view[group].to_dataset().isel(obs=rows)
             view[group] = part.astype(np.float64) if group in cast else part
+    return view
+
+
+def rows_summed(dt: xr.DataTree) -> xr.DataTree:
+    """``dt`` on the draws its log-likelihood keeps (:func:`stored_draws`), that group replaced by
+    its sum over every row per draw, in float64: all that arviz-stats' ``psense`` reads of it.
+
+    psense sums it itself (``to_stacked_array`` over the non-sample dimensions, then ``sum``),
+    after :func:`stored_draws` cast every draw × row to float64: three copies of the whole group
+    (0.8 GB for 10⁵ rows of a thinned fit). Here the same two calls run on at most
+    :data:`~bayesfric.limits.CHUNK_NUMBERS` draws × rows at a time; each draw's sum reads its own
+    rows only, so the sums are the ones psense computes, and its own sum over one value per draw
+    returns them unchanged.
+    """
+    view = stored_draws(dt, ()).copy(deep=False)  # never the caller's tree
+    ll = view["log_likelihood"].to_dataset()
+    per_draw = sum(v.size for v in ll.data_vars.values()) // ll.sizes["draw"]
+    step = max(1, CHUNK_NUMBERS // max(1, per_draw))
+    parts = [ll.isel(draw=slice(start, start + step)).astype(np.float64)
+             .to_stacked_array("latent-obs_var", sample_dims=["chain", "draw"]).sum("latent-obs_var")
+             for start in range(0, ll.sizes["draw"], step)]
+    view["log_likelihood"] = xr.Dataset({OBS_SITE: xr.concat(parts, dim="draw")})
     return view
 
 

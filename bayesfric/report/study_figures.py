@@ -32,6 +32,7 @@ import matplotlib as mpl
 import numpy as np
 from matplotlib.figure import Figure
 
+from bayesfric.limits import CHUNK_NUMBERS
 from bayesfric.quantities import QUANTITIES, UnitError, conversion
 from bayesfric.report.blocks import FigureRef
 from bayesfric.report.figures import banner, plot_sizing_fan, save
@@ -114,12 +115,33 @@ def plot_penalty(outcome: StudyOutcome, path: Path) -> Path:
     return save(fig, path)
 
 
+def _picked(dt, group: str, name: str) -> tuple[np.ndarray, np.ndarray]:
+    """The stored draws (chain and draw flattened) × rows as stored, and the at most MAX_DRAWS
+    evenly spaced draws to use."""
+    v = dt[group][name].values
+    v = v.reshape(v.shape[0] * v.shape[1], -1)
+    return v, np.linspace(0, len(v) - 1, min(MAX_DRAWS, len(v))).astype(int)
+
+
 def _draws(dt, group: str, name: str) -> np.ndarray:
     """At most MAX_DRAWS evenly spaced draws (chain and draw flattened) × rows, picked before the
     cast to float64 (a large fit's groups are float32: no float64 copy of every draw × row)."""
-    v = dt[group][name].values
-    v = v.reshape(v.shape[0] * v.shape[1], -1)
-    return np.asarray(v[np.linspace(0, len(v) - 1, min(MAX_DRAWS, len(v))).astype(int)], dtype=float)
+    v, pick = _picked(dt, group, name)
+    return np.asarray(v[pick], dtype=float)
+
+
+def _band(ds, response: str, fit) -> np.ndarray:
+    """5, 50 and 95 % of the fit's predictive draws (:func:`_draws`, in display units) per row,
+    ``(3, rows)``. Computed for :data:`~bayesfric.limits.CHUNK_NUMBERS` draws × rows at a time:
+    each row's quantiles read that row's column only, so the chunks give the one-call numbers
+    without its three copies of draws × rows in float64 (1 GB at 10⁵ rows)."""
+    v, pick = _picked(fit, "posterior_predictive", "response")
+    step = max(1, CHUNK_NUMBERS // len(pick))
+    out = np.empty((3, v.shape[1]))
+    for start in range(0, v.shape[1], step):
+        part = _shown(ds, response, np.asarray(v[pick, start:start + step], dtype=float))
+        out[:, start:start + step] = np.quantile(part, [0.05, 0.5, 0.95], axis=0)
+    return out
 
 
 def plot_bands(outcome: StudyOutcome, axis: str, path: Path, heldout: np.ndarray | None) -> Path:
@@ -139,8 +161,7 @@ def plot_bands(outcome: StudyOutcome, axis: str, path: Path, heldout: np.ndarray
     trained = ~heldout if heldout is not None else np.ones_like(x, dtype=bool)
     s = np.argsort(x, kind="stable")
     for ax, name, colour in zip(axes, order, _colours() * 3, strict=False):
-        pp = _shown(ds, response, _draws(fits[name], "posterior_predictive", "response"))
-        lo, mid, hi = np.quantile(pp, [0.05, 0.5, 0.95], axis=0)
+        lo, mid, hi = _band(ds, response, fits[name])
         ax.axvspan(x[trained].min(), x[trained].max(), color="#e6f2e6", lw=0, zorder=0)  # trained region
         ax.plot(x[trained], y[trained], ".", ms=3, color="0.35")
         if heldout is not None and heldout.any():
@@ -223,8 +244,7 @@ def plot_trajectories(outcome: StudyOutcome, path: Path) -> Path | None:
     cols = min(3, len(ids))
     fig = Figure(figsize=(4.0 * cols, 3.0 * math.ceil(len(ids) / cols) + 0.6), layout="constrained")
     axes = np.atleast_1d(fig.subplots(math.ceil(len(ids) / cols), cols, squeeze=False)).ravel()
-    bands = {name: np.quantile(_shown(ds, response, _draws(laws[name].fit, "posterior_predictive", "response")),
-                               [0.05, 0.5, 0.95], axis=0) for name in order}
+    bands = {name: _band(ds, response, laws[name].fit) for name in order}
     values = np.asarray(ds[key].values)
     for ax, tid in zip(axes, ids, strict=False):
         m = values == tid

@@ -41,7 +41,7 @@ from bayesfric.compare import verdict_of
 from bayesfric.csvout import write_csv
 from bayesfric.errors import UserError
 from bayesfric.inference.progress import reporting
-from bayesfric.study.store import RunStore, load_fit_bytes
+from bayesfric.study.store import RunStore, load_fit_bytes, release_fit
 from bayesfric.study.units import COSTLY, LawJob, Unit, compute, compute_seconds
 
 #: Seconds to wait for ``--scheduler ADDRESS`` to answer.
@@ -257,19 +257,48 @@ class _Dask:
             yield job, unit, payload, seconds
 
 
+class _Fits:
+    """Each law's fit once its units are done: the opened fit kept in ``opened``, its bytes taken
+    out of ``payloads`` and out of the cache of opened fits (:func:`release_fit`), so that they
+    leave memory; the run store keeps them on disk."""
+
+    def __init__(self, plans: list, payloads: dict[str, bytes]):
+        self.payloads = payloads
+        self.opened: dict[str, object] = {}
+        self.waiting: dict[str, int] = {}  # fit key -> its units still computing
+        self.fit_of = {u.key: fit.key for _, fit, rest in plans for u in rest}
+
+    def scheduled(self, fit_key: str, units: int) -> None:
+        """``units`` of the fit's units were submitted (the others reused or skipped)."""
+        self.waiting[fit_key] = units
+        if not units:
+            self.opened[fit_key] = release_fit(self.payloads.pop(fit_key))
+
+    def done(self, unit_key: str) -> None:
+        """A unit was computed (a fit's: nothing to count)."""
+        fit_key = self.fit_of.get(unit_key)
+        if fit_key is not None:
+            self.scheduled(fit_key, self.waiting[fit_key] - 1)
+
+
 def run_units(plans: list[tuple[LawJob, Unit, list[Unit]]], store: RunStore, *, study: str,
               failed_fits: str = "skip", client=None, stream=None, live: bool | None = None
-              ) -> tuple[dict[str, bytes], dict[str, list[Unit]], list[Timing]]:
+              ) -> tuple[dict[str, bytes], dict[str, list[Unit]], list[Timing], dict[str, object]]:
     """Results of every unit of ``plans`` (law job, fit unit, units after the fit), reusing the store.
 
     Returns
     -------
     payloads : dict
-        Unit key -> stored bytes (every unit that ran or was reused).
+        Unit key -> stored bytes (every unit after a fit that ran or was reused).
     skipped : dict
         Law -> units not run because its fit failed the gate (``failed_fits = "skip"``).
     timings : list of Timing
         One row per unit.
+    fits : dict
+        Fit unit key -> the fit (an ``xarray.DataTree``); its bytes are in the store
+        (``store.path(key, "nc")``). They leave memory as soon as the law's units are done
+        (:func:`~bayesfric.study.store.release_fit`): a fit of 10⁵ rows is 0.4 GB as bytes and
+        as much again opened, and a study held every law's both ways to its end.
     """
     every = [u for _, fit, rest in plans for u in [fit, *rest]]
     progress = Progress(len(every), study, stream, live, units=every)
@@ -278,9 +307,12 @@ def run_units(plans: list[tuple[LawJob, Unit, list[Unit]]], store: RunStore, *, 
     skipped: dict[str, list[Unit]] = {job.spec.name: [] for job, _, _ in plans}
     timings: list[Timing] = []
     follow = {fit.key: rest for _, fit, rest in plans}
+    fits = _Fits(plans, payloads)
 
     def finished(job: LawJob, unit: Unit, payload: bytes, status: str, seconds: float) -> None:
         payloads[unit.key] = payload
+        if status == "computed":
+            fits.done(unit.key)
         if status == "computed":
             cost = seconds
         elif unit.kind == "nc":  # a fit's seconds lie beside it in the store
@@ -302,6 +334,7 @@ def run_units(plans: list[tuple[LawJob, Unit, list[Unit]]], store: RunStore, *, 
                 misses.append(nxt)
         for nxt in reversed(misses):  # reversed: each goes to the front of the serial queue, so they run in order
             executor.submit(job, nxt, payload, first=True)
+        fits.scheduled(unit.key, len(misses))
 
     def reuse(job: LawJob, unit: Unit) -> bool:
         hit = store.get(unit.key, unit.kind)
@@ -320,7 +353,7 @@ def run_units(plans: list[tuple[LawJob, Unit, list[Unit]]], store: RunStore, *, 
             finished(job, unit, payload, "computed", seconds)
     finally:
         progress.close()
-    return payloads, skipped, timings
+    return payloads, skipped, timings, fits.opened
 
 
 def timing_table(rows: list[Timing], title: str = "time per stage") -> str:

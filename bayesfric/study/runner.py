@@ -26,6 +26,7 @@ import dataclasses
 import hashlib
 import json
 import math
+import shutil
 import time
 from pathlib import Path
 
@@ -46,7 +47,7 @@ from bayesfric.study.plan import (  # checked and planned before anything is wri
     validate_against_data,
 )
 from bayesfric.study.scores import score_table
-from bayesfric.study.store import RunStore, load_fit_bytes, store_folder
+from bayesfric.study.store import RunStore, store_folder
 
 __all__ = ["run_study", "current_report", "validate_against_data", "sizing_questions", "load_study_data", "INPUTS_FILE",
            "QUICK", "QUICK_KFOLD"]
@@ -109,17 +110,17 @@ def _run_laws(study: Study, ds, work: Path, plans: list, schemes, *, out_root: P
     for tmp in store.clean():
         print(f"[{study.name}] removed a temporary file of an interrupted run: {tmp}", flush=True)
     failed_fits = "run" if quick else study.failed_fits
-    payloads, skipped, rows = run_units(plans, store, study=study.name, failed_fits=failed_fits, client=client,
-                                        live=live_progress)
+    payloads, skipped, rows, fits = run_units(plans, store, study=study.name, failed_fits=failed_fits,
+                                              client=client, live=live_progress)
     timings += rows
     kinds = {label: kind for label, _, kind in schemes}
     outcomes = []
     for job, fit, rest in plans:
         fit_file = work / "fits" / f"{job.spec.name}.nc"
         fit_file.parent.mkdir(parents=True, exist_ok=True)
-        fit_file.write_bytes(payloads[fit.key])  # inside the work folder: installed atomically with the report
-        out = units.assemble(load_fit_bytes(payloads[fit.key]), fit_file, rest, payloads, kinds, skipped[job.spec.name],
-                             failed_fits)
+        # inside the work folder: installed atomically with the report; the bytes are the store's
+        shutil.copyfile(store.path(fit.key, fit.kind), fit_file)
+        out = units.assemble(fits[fit.key], fit_file, rest, payloads, kinds, skipped[job.spec.name], failed_fits)
         seconds = {r.label if r.stage != "cv" else f"cv {r.label}": r.seconds for r in rows
                    if r.law == job.spec.name and r.status == "computed"}
         outcomes.append(dataclasses.replace(out, timings=seconds))

@@ -233,6 +233,14 @@ def remember_fit(payload: bytes, fit: xr.DataTree) -> None:
     _keep(bytes(payload), fit)
 
 
+def release_fit(payload: bytes) -> xr.DataTree:
+    """The fit of ``payload`` (:func:`load_fit_bytes`), no longer kept under its bytes: once a
+    law's units are done its caller holds the tree alone, and the bytes (as large as the fit
+    again: 0.2-0.4 GB from 10⁴ rows) can leave memory; the run store keeps them on disk."""
+    fit = _OPENED.pop(bytes(payload), None)
+    return xr.open_datatree(io.BytesIO(payload), engine="h5netcdf").load() if fit is None else fit
+
+
 _OPENED: dict[bytes, xr.DataTree] = {}  # most recently used last
 _KEEP_FITS = 8
 
