@@ -34,9 +34,10 @@ file (``xarray.open_datatree("reports/<study>/results.nc")``):
     each law's posterior, sample statistics and observed data; the pointwise log-likelihood and
     predictive draws stay in the full fit, ``fits/<law>.nc`` (attribute ``fit_file``).
 
-The report is rendered from this tree alone: the study run writes ``results.nc``, reads it back
-and renders every report file from it (:func:`bayesfric.report.summary.render_report`), the same
-path as ``bayesfric report results.nc --out FOLDER``, so both give the same bytes. What is not yet
+The report is rendered from this tree alone: the study run writes ``results.nc`` and renders
+every report file from the tree it holds (:func:`bayesfric.report.summary.render_report`), the
+function ``bayesfric report results.nc --out FOLDER`` calls on the saved tree; a test checks that
+both give the same bytes. What is not yet
 true (issue 31 item 1): the tree is built from the in-memory ``StudyOutcome``, and the report's
 content model (texts, tables, findings) and figures are computed from that outcome before they are
 stored; the run store, sizing and claims read the outcome, not the tree.

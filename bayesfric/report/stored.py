@@ -1,8 +1,9 @@
 """The report's files as nodes of the result tree, and back (:mod:`bayesfric.report.results`).
 
-A report is rendered from the tree only: the study run writes ``results.nc``, opens it again and
-renders every file from what it reads (:func:`bayesfric.report.summary.render_report`), and
-``bayesfric report results.nc --out FOLDER`` does the same later, so both give the same bytes.
+A report is rendered from the tree only: the study run builds the tree, writes ``results.nc``
+and renders every file from the tree it holds (:func:`bayesfric.report.summary.render_report`);
+``bayesfric report results.nc --out FOLDER`` calls the same function on the saved tree, and a
+test checks both give the same bytes (``tests/report/test_rerender.py``).
 
 Tables. Every CSV file is one node over ``row`` (:func:`table_dataset`); each column keeps how its
 cells were typed (attribute ``csv_kind``: ``bool``, ``int``, ``float`` or ``text``), so

@@ -148,8 +148,8 @@ def write_reports(out: StudyOutcome, folder: Path) -> None:
     sizing questions). ``folder`` is the runner's work folder, installed atomically afterwards.
 
     The figures are drawn into ``folder`` first (their bytes go into the tree); every file is then
-    rendered from the tree as read back from ``results.nc``, the same path as
-    ``bayesfric report results.nc``, so a re-rendering gives the same bytes.
+    rendered from the tree by :func:`render_report`, the function ``bayesfric report results.nc``
+    calls on the saved tree, so a re-rendering gives the same bytes (tested file by file).
     """
     figures, fans = draw(out, folder)
     content = build(out, figures, {i: f"figures/{p.name}" for i, p in fans.items()})
@@ -160,8 +160,9 @@ def write_reports(out: StudyOutcome, folder: Path) -> None:
         tables["sizing"] = sizing_report.records(out.sizing)
     tables["score_rows"] = out.table
     extra = {"report": content_node(content), "report/figures": figures_node(folder)}
-    path = write_results(result_tree(out, tables, extra), folder)
-    render_report(open_results(path), folder)
+    tree = result_tree(out, tables, extra)
+    write_results(tree, folder)
+    render_report(tree, folder)  # from the tree in memory; the file renders the same (tests/report/test_rerender.py)
 
 
 def render_report(tree: xr.DataTree, folder: Path) -> list[Path]:
