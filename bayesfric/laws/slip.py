@@ -240,9 +240,11 @@ def elastoplastic_deflection(velocity, time, trajectory_start, sigma0, beta, F_c
     notes=("Identifiability: as LuGre for F_c, F_ratio, v_s, σ2 and σ0; β (z_ba) only from reversals "
            "sampled finely inside the pre-sliding range, otherwise its prior returns. On Dahl loops "
            "(rate independent, no elastic range) the best fit leaves residuals ~14× the noise with β "
-           "near 0 and σ2 standing in for the knee, and NUTS chains settled in different modes "
-           "(2 × (800 + 800), R-hat 1.17, ESS 8): check R-hat. Not sign-definite in velocity: the "
-           "torque lags at reversals."),
+           "near 0 and σ2 standing in for the knee; σ0, β and σ2 then mix well (ESS ≥ 720 of 2000), "
+           "but a flat sliding level is reached two ways, v_s below the data's speeds (s = F_c) or "
+           "above them (s = F_s, F_c = F_ratio F_s free), and chains cross rarely between the two: "
+           "2 × (1000 + 1000) on the tribo_loops design, R-hat 1.034, ESS 92/32 (F_c, v_s), 5 "
+           "divergences; check R-hat. Not sign-definite in velocity: the torque lags at reversals."),
 )
 def elastoplastic(velocity, time, trajectory_start, sigma0, beta, F_c, F_ratio, v_s, sigma2, F_start):
     """Elasto-plastic friction: T = σ0 z + σ2 v, ż = v(1 − α(z, v) z/z_ss(v)), elastic below z_ba."""
