@@ -94,3 +94,15 @@ def test_lugre_passes_gate_on_dahl_loops(tmp_path):
     dt = fit(get_law("lugre"), ds, draws=1000, tune=1000, chains=2, seed=1)
     verdict = verdict_of(dt)
     assert verdict.passed, verdict.problems
+
+
+@pytest.mark.slow
+def test_maxwell_slip_passes_gate_on_dahl_loops(tmp_path):
+    # issue 29: as LuGre's above, Maxwell-slip (N = 4) on the same Dahl loops, with the default
+    # 4 × (1000 + 1000): its element deflections mix slowly on these rate-independent loops
+    # (residuals ~12× the noise, 74 leapfrog steps per draw), 2 chains left bulk ESS at 323
+    truth_law = vary(get_law("dahl"), without=["preload"], motion="translational")
+    ds = _write(tmp_path, truth_law, DAHL, seed=3)
+    dt = fit(get_law("maxwell_slip"), ds, seed=1)
+    verdict = verdict_of(dt)
+    assert verdict.passed, verdict.problems
