@@ -20,7 +20,7 @@ test: venv
 	.venv/bin/python -m pytest -q $(PYTEST_PARALLEL)
 
 test-fast: venv
-	.venv/bin/python -m pytest -q -m "not slow" $(PYTEST_PARALLEL)
+	.venv/bin/python -m pytest -q -m fast $(PYTEST_PARALLEL)
 
 lint: venv
 	.venv/bin/python -m ruff check bayesfric tests benchmarks data examples
