@@ -81,3 +81,29 @@ def outcome(study, tmp: Path, *, failed: str | None = None) -> StudyOutcome:
     out = StudyOutcome(study=study, data=ds, laws=laws, schemes=[label], blocked=[label], heldout={label: held})
     out.table = score_table(out)
     return out
+
+
+def write_bench_study(folder: Path, capacity: str | None = None) -> Path:
+    """A real small study in ``folder`` (SIMULATED coulomb_viscous bench, 40 speeds; NUTS 2 × 700,
+    LOO, a blocked fold above 1 rad/s, a parameter claim, a sizing question with ``capacity``):
+    the study file's path. Shared by the browser and re-rendering tests."""
+    speeds = np.geomspace(0.005, 4.0, 20)
+    v = np.concatenate([-speeds[::-1], speeds])
+    ds = simulate(get_law("coulomb_viscous"), {"velocity": v}, {"T_C": 5.0, "c_v": 2.0}, sigma=0.2, seed=5)
+    rows = ["speed,torque"] + [f"{a:.10g},{b:.10g}" for a, b in zip(v, ds["torque"].values, strict=True)]
+    (folder / "bench.csv").write_text("\n".join(rows) + "\n")
+    (folder / "bench.toml").write_text(
+        '[dataset]\nname = "bench"\nprovenance = "simulated"\nsource = "test"\n'
+        '[columns.speed]\nrole = "input"\nquantity = "velocity"\nunit = "rad/s"\n'
+        '[columns.torque]\nrole = "response"\nquantity = "torque"\nunit = "N*m"\n')
+    cap = f'capacity = "{capacity}"\n' if capacity else ""
+    (folder / "s.toml").write_text(
+        '[study]\nname = "tiny"\nquestion = "Trained below 1 rad/s, which law predicts above?"\n'
+        '[data]\ndataset = "bench.csv"\n[sampler]\ndraws = 700\ntune = 400\nchains = 2\n'
+        '[[laws]]\nname = "coulomb"\n[[laws]]\nname = "coulomb_viscous"\n[compare]\nevidence = false\n'
+        '[[compare.blocked]]\naxis = "velocity"\nthreshold = 1.0\nlabel = "outside"\n'
+        '[[claims]]\ntext = "viscous coefficient 2 N·m·s/rad"\nsource = "simulation"\nkind = "parameter"\n'
+        'law = "coulomb_viscous"\nparameter = "c_v"\nexpect = [1.8, 2.2]\n'
+        '[[sizing]]\nlabel = "beyond the tested speeds"\nat = { velocity = "4..6 rad/s" }\n' + cap)
+    return folder / "s.toml"
+

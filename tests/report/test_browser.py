@@ -12,17 +12,14 @@ import re
 import shutil
 from pathlib import Path
 
-import numpy as np
 import pytest
 
-from bayesfric.datasets.synthetic import simulate
-from bayesfric.laws import get_law
 from bayesfric.report.summary import write_reports
 from bayesfric.study import load_study
 from bayesfric.study.claims import evaluate_claims
 from bayesfric.study.runner import run_study
 from tests.report.browser import PHONE, WIDTH, find_chromium, inspect_page
-from tests.report.fakes import outcome
+from tests.report.fakes import outcome, write_bench_study
 
 INSTALL = "apt-get install -y chromium (scripts/bootstrap.sh does it when missing)"
 
@@ -97,24 +94,8 @@ def test_small_study_report_in_chromium(tmp_path):
     without a recommendation would test less — LOO, blocked CV, claims) on simulated data, opened
     in Chromium;
     the screenshot is kept in reports/ci-screenshots when CI sets BAYESFRIC_SCREENSHOTS."""
-    speeds = np.geomspace(0.005, 4.0, 20)
-    v = np.concatenate([-speeds[::-1], speeds])
-    ds = simulate(get_law("coulomb_viscous"), {"velocity": v}, {"T_C": 5.0, "c_v": 2.0}, sigma=0.2, seed=5)
-    rows = ["speed,torque"] + [f"{a:.10g},{b:.10g}" for a, b in zip(v, ds["torque"].values, strict=True)]
-    (tmp_path / "bench.csv").write_text("\n".join(rows) + "\n")
-    (tmp_path / "bench.toml").write_text(
-        '[dataset]\nname = "bench"\nprovenance = "simulated"\nsource = "test"\n'
-        '[columns.speed]\nrole = "input"\nquantity = "velocity"\nunit = "rad/s"\n'
-        '[columns.torque]\nrole = "response"\nquantity = "torque"\nunit = "N*m"\n')
-    (tmp_path / "s.toml").write_text(
-        '[study]\nname = "tiny"\nquestion = "Trained below 1 rad/s, which law predicts above?"\n'
-        '[data]\ndataset = "bench.csv"\n[sampler]\ndraws = 700\ntune = 400\nchains = 2\n'
-        '[[laws]]\nname = "coulomb"\n[[laws]]\nname = "coulomb_viscous"\n[compare]\nevidence = false\n'
-        '[[compare.blocked]]\naxis = "velocity"\nthreshold = 1.0\nlabel = "outside"\n'
-        '[[claims]]\ntext = "viscous coefficient 2 N·m·s/rad"\nsource = "simulation"\nkind = "parameter"\n'
-        'law = "coulomb_viscous"\nparameter = "c_v"\nexpect = [1.8, 2.2]\n'
-        '[[sizing]]\nlabel = "beyond the tested speeds"\nat = { velocity = "4..6 rad/s" }\n')
-    folder = run_study(tmp_path / "s.toml", out_root=tmp_path / "reports")
+    study = write_bench_study(tmp_path)
+    folder = run_study(study, out_root=tmp_path / "reports")
     check(folder, tmp_path / "screenshot.png")
     html = (folder / "report.html").read_text()
     assert '<section id="sizing">' in html and html.count("<img ") == len(list((folder / "figures").iterdir()))

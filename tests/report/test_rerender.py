@@ -11,13 +11,11 @@ import pytest
 import xarray as xr
 
 from bayesfric.cli import main
-from bayesfric.datasets.synthetic import simulate
-from bayesfric.laws import get_law
 from bayesfric.report.summary import write_reports
 from bayesfric.study import load_study
 from bayesfric.study.claims import evaluate_claims
 from bayesfric.study.runner import run_study
-from tests.report.fakes import outcome
+from tests.report.fakes import outcome, write_bench_study
 
 #: The files the Done-when names, plus the other CSV tables and the figures.
 NAMED = ("report.html", "summary.md", "ranking.csv", "scores.csv", "parameters.csv")
@@ -105,24 +103,8 @@ def test_bad_targets_are_one_line_errors_and_write_nothing(fake_report, tmp_path
 def test_real_study_with_sizing_and_claims_rerenders_byte_identically(tmp_path, capsys):
     """A real small study (NUTS 2 × 700, LOO, blocked CV, a claim, a sizing question): report.html,
     summary.md, ranking.csv, sizing.csv, scores.csv, parameters.csv and the figures again, same bytes."""
-    speeds = np.geomspace(0.005, 4.0, 20)
-    v = np.concatenate([-speeds[::-1], speeds])
-    ds = simulate(get_law("coulomb_viscous"), {"velocity": v}, {"T_C": 5.0, "c_v": 2.0}, sigma=0.2, seed=5)
-    rows = ["speed,torque"] + [f"{a:.10g},{b:.10g}" for a, b in zip(v, ds["torque"].values, strict=True)]
-    (tmp_path / "bench.csv").write_text("\n".join(rows) + "\n")
-    (tmp_path / "bench.toml").write_text(
-        '[dataset]\nname = "bench"\nprovenance = "simulated"\nsource = "test"\n'
-        '[columns.speed]\nrole = "input"\nquantity = "velocity"\nunit = "rad/s"\n'
-        '[columns.torque]\nrole = "response"\nquantity = "torque"\nunit = "N*m"\n')
-    (tmp_path / "s.toml").write_text(
-        '[study]\nname = "tiny"\nquestion = "Trained below 1 rad/s, which law predicts above?"\n'
-        '[data]\ndataset = "bench.csv"\n[sampler]\ndraws = 700\ntune = 400\nchains = 2\n'
-        '[[laws]]\nname = "coulomb"\n[[laws]]\nname = "coulomb_viscous"\n[compare]\nevidence = false\n'
-        '[[compare.blocked]]\naxis = "velocity"\nthreshold = 1.0\nlabel = "outside"\n'
-        '[[claims]]\ntext = "viscous coefficient 2 N·m·s/rad"\nsource = "simulation"\nkind = "parameter"\n'
-        'law = "coulomb_viscous"\nparameter = "c_v"\nexpect = [1.8, 2.2]\n'
-        '[[sizing]]\nlabel = "beyond the tested speeds"\nat = { velocity = "4..6 rad/s" }\ncapacity = "40 N*m"\n')
-    folder = run_study(tmp_path / "s.toml", out_root=tmp_path / "reports")
+    study = write_bench_study(tmp_path, capacity="40 N*m")
+    folder = run_study(study, out_root=tmp_path / "reports")
     capsys.readouterr()
     after = _rerender_matches(folder, tmp_path / "again", capsys)
     assert set(NAMED) | {"sizing.csv", "claims.csv"} <= set(after)
