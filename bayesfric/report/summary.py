@@ -211,6 +211,8 @@ def rerender(results: str | Path, out: str | Path) -> Path:
         check_output_folder(out)
     except PathError as exc:
         raise UserError(f"--out {exc}") from None
+    if out.is_symlink():  # never write through a link (it may lead out of the folder the user sees)
+        raise UserError(f"--out {out}: is a link; name a new folder")
     if out.is_dir() and any(out.iterdir()):
         raise UserError(f"--out {out}: exists and is not empty; name a new folder")
     out.parent.mkdir(parents=True, exist_ok=True)

@@ -88,15 +88,21 @@ def test_bad_targets_are_one_line_errors_and_write_nothing(fake_report, tmp_path
     other = tmp_path / "other"
     plain = tmp_path / "plain.nc"
     xr.Dataset({"x": ("i", np.arange(3.0))}).to_netcdf(plain, engine="h5netcdf")
+    victim, link = tmp_path / "victim", tmp_path / "link"
+    victim.mkdir()
+    link.symlink_to(victim)
     cases = [(tmp_path / "missing.nc", other, "missing.nc: no such file"),
              (fake_report / "summary.md", other, "summary.md: not a readable result tree"),
              (plain, other, "plain.nc: not a bayesfric result tree with a stored report"),
-             (fake_report / "results.nc", fake_report, "exists and is not empty")]
+             (fake_report / "results.nc", fake_report, "exists and is not empty"),
+             (fake_report / "results.nc", link, "is a link; name a new folder"),  # to an empty folder elsewhere
+             (fake_report / "results.nc", plain, "exists and is not a folder")]
     for target, out, fragment in cases:
         assert main(["report", str(target), "--out", str(out)]) == 2
         err = capsys.readouterr().err
         assert fragment in err and err.count("\n") == 1 and "Traceback" not in err
     assert not other.exists() and not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
+    assert link.is_symlink() and not any(victim.iterdir()) and plain.is_file()
 
 
 @pytest.mark.slow
