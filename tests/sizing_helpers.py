@@ -38,3 +38,29 @@ def hand_fit(law_name: str, draws: dict[str, np.ndarray], inputs: dict[str, np.n
     dt.attrs["versions"] = json.dumps({})
     dt.attrs["diagnostics"] = verdict.to_json()
     return dt
+
+
+def write_basis(folder, laws: list[str], *, passed: bool = True) -> None:
+    """A ``results.nc`` holding only the nodes sizing reads (:data:`bayesfric.sizing.store.NODES`):
+    each law's fit ``fits/<law>.nc``, stacking-LOO weight 1 / n, no blocked scheme."""
+    import xarray as xr
+
+    n = len(laws)
+    law = {"law": laws}
+    empty = np.zeros((n, 0))
+    basis = xr.DataTree.from_dict({
+        "weights": xr.Dataset({"weight": (("law", "weighting"), np.full((n, 1), 1.0 / n)),
+                               "excluded": (("law", "weighting"), np.full((n, 1), ""))},
+                              coords=law | {"weighting": ["stacking LOO"]}),
+        "diagnostics": xr.Dataset({"passed": ("law", [passed] * n), "problems": ("law", [""] * n)}, coords=law),
+        "sizing_basis": xr.Dataset(
+            {"fit": ("law", [f"fits/{x}.nc" for x in laws]), "evidence_disagreement": ("law", np.zeros(n)),
+             "penalty": (("law", "penalty_scheme"), empty)}
+            | {f"miss_{k}": (("law", "scheme"), empty) for k in ("rate", "beta", "se", "reach")}
+            | {"miss_n": (("law", "scheme"), empty.astype(int))},
+            coords=law | {"scheme": np.array([], dtype=str), "penalty_scheme": np.array([], dtype=str),
+                          "axis": ("scheme", np.array([], dtype=str)),
+                          "direction": ("scheme", np.array([], dtype=str)),
+                          "use_abs": ("scheme", np.array([], dtype=bool))}),
+    })
+    basis.to_netcdf(folder / "results.nc", engine="h5netcdf")

@@ -53,15 +53,13 @@ def test_weighted_quantiles_invert_the_weighted_cdf():
     np.testing.assert_allclose(equal[0.5], np.quantile(x, 0.5, axis=0, method="inverted_cdf"))
 
 
-def test_exclusion_reasons_come_from_the_records_booleans():
-    assert sizing.exclusion({"diagnostics_passed": True, "evidence_agree": True}) is None
-    failed = sizing.exclusion({"diagnostics_passed": False, "diagnostics_problems": ["R-hat 1.02 > 1.01"]})
-    assert failed == "failed the diagnostics gate (R-hat 1.02 > 1.01)"
-    # an unreliable evidence estimate is no reason about a law's predictions: never an exclusion (issue #28)
-    unreliable_evidence = {"diagnostics_passed": True, "evidence_agree": False, "evidence_disagreement": -0.12}
-    assert sizing.exclusion(unreliable_evidence) is None
-    both = sizing.exclusion({"diagnostics_passed": False, "evidence_agree": False, "evidence_disagreement": -0.09})
-    assert both == "failed the diagnostics gate"
+def test_exclusion_reasons_come_from_the_verdicts_boolean():
+    assert sizing.exclusion(True) is None
+    assert sizing.exclusion(True, "R-hat 1.02 > 1.01") is None  # the boolean decides, not the text
+    assert sizing.exclusion(False, "R-hat 1.02 > 1.01") == "failed the diagnostics gate (R-hat 1.02 > 1.01)"
+    assert sizing.exclusion(False) == "failed the diagnostics gate"
+    # an unreliable evidence estimate is no reason about a law's predictions: exclusion() does not
+    # even take it (issue #28); the basis keeps it in /diagnostics evidence_agree, shown only
 
 
 # -- parsing questions ------------------------------------------------------------------------------
@@ -275,11 +273,10 @@ def test_shipped_sizing_questions():
 
 
 def test_tiny_study_end_to_end_and_size_without_refitting(bench, monkeypatch, capsys):
-    """The runner writes weights.json, sizing.csv, the fan figure and the sections; `bayesfric size`
+    """The runner writes the sizing basis into results.nc, sizing.csv, the fan figure and the sections; `bayesfric size`
     answers the same question from the stored fits (the samplers are disabled) with the same numbers,
     and a single fit answers --at."""
     import functools
-    import json
 
     from bayesfric import compare, inference
     from bayesfric.cli import main
@@ -287,10 +284,13 @@ def test_tiny_study_end_to_end_and_size_without_refitting(bench, monkeypatch, ca
 
     (bench / "s.toml").write_text(tiny_study())
     folder = run_study(bench / "s.toml", out_root=bench / "reports")
-    record = json.loads((folder / "weights.json").read_text())
-    assert record["schemes"] == [{"label": "above 1.2", "axis": "velocity", "direction": "upper", "use_abs": False}]
-    assert {e["law"] for e in record["laws"]} == {"coulomb", "coulomb_viscous"}
-    assert all("above 1.2" in e["misses"] and e["misses"]["above 1.2"]["rate"] >= 0 for e in record["laws"])
+    assert not (folder / "weights.json").exists()  # the basis lives in results.nc, not in a JSON file
+    basis = sizing.read_basis(folder)
+    assert sizing.basis_schemes(basis) == [sizing.Scheme("above 1.2", "velocity", "upper", False)]
+    node = basis["sizing_basis"]
+    assert set(node["law"].values) == {"coulomb", "coulomb_viscous"}
+    assert (node["miss_n"].sel(scheme="above 1.2") > 0).all() and (node["miss_rate"] >= 0).all()
+    assert list(node["fit"].values) == ["fits/coulomb.nc", "fits/coulomb_viscous.nc"]
     with (folder / "sizing.csv").open() as fh:
         rows = list(csv.DictReader(fh))
     assert len(rows) == sizing.RANGE_POINTS * 4  # two laws, the blocked-weight average and the LOO one

@@ -255,7 +255,7 @@ class StudyResult:
     tree : xarray.DataTree or None
         ``results.nc``: the same results as one DataTree (``/scores`` over law × criterion,
         ``/pointwise``, ``/weights``, ``/diagnostics``, ``/checks``, the tables, ``/fits/<law>``
-        posteriors; :mod:`bayesfric.report.results`); None for a report written before it existed.
+        posteriors, ``/sizing_basis``; :mod:`bayesfric.report.results`), which names the fit files.
     """
 
     study: config.Study
@@ -270,16 +270,16 @@ class StudyResult:
     def read(cls, study: config.Study, folder: str | Path) -> StudyResult:
         """Read the report folder of ``study`` (written by :func:`run` or ``bayesfric study``)."""
         from bayesfric.inference import load_fit
-        from bayesfric.sizing import read_record
+        from bayesfric.sizing import SizingError
 
         folder = Path(folder)
-        entries = {e["law"]: e for e in read_record(folder)["laws"]}
-        fits = {spec.name: load_fit(folder / entries[spec.name]["fit"]) for spec in study.laws}
+        if not (folder / "results.nc").is_file():
+            raise SizingError("", f"{folder / 'results.nc'}: missing; run the study again")
+        with xr.open_datatree(folder / "results.nc") as opened:
+            tree = opened.load()
+        files = tree["sizing_basis"]["fit"]
+        fits = {spec.name: load_fit(folder / str(files.sel(law=spec.name).values)) for spec in study.laws}
         sizing = pd.read_csv(folder / "sizing.csv") if (folder / "sizing.csv").is_file() else None
-        tree = None
-        if (folder / "results.nc").is_file():
-            with xr.open_datatree(folder / "results.nc") as opened:
-                tree = opened.load()
         return cls(study, folder, pd.read_csv(folder / "scores.csv", keep_default_na=False, na_values=[""]),
                    pd.read_csv(folder / "ranking.csv"), fits, sizing, tree)
 

@@ -17,6 +17,10 @@ file (``xarray.open_datatree("reports/<study>/results.nc")``):
     ``pareto_k`` over ``(law, obs)`` (NaN where LOO did not run or was subsampled).
 ``/weights``
     over ``(law, weighting)``: ``weight`` and ``excluded`` (why the weighting left the law out).
+``/sizing_basis``
+    what sizing reads besides ``/weights`` and ``/diagnostics``: each law's fit file, measured
+    misses on the blocked schemes and extrapolation penalties, and the schemes
+    (:mod:`bayesfric.sizing.store`; ``bayesfric size STUDY.toml`` reads these three nodes).
 ``/diagnostics``, ``/checks``
     over ``law``: the gate's verdict (``passed``, ``problems``, ``verdict`` as the report writes
     it), the law's ``flags`` (one line each), ``p_loo``, ``n_high_k``, ``seconds`` and ``timing``
@@ -40,7 +44,8 @@ function ``bayesfric report results.nc --out FOLDER`` calls on the saved tree; a
 both give the same bytes. What is not yet
 true (issue 31 item 1): the tree is built from the in-memory ``StudyOutcome``, and the report's
 content model (texts, tables, findings) and figures are computed from that outcome before they are
-stored; the run store, sizing and claims read the outcome, not the tree.
+stored; the run store and claims read the outcome, not the tree; sizing reads the tree's per-law nodes
+(:func:`law_nodes`), built once before the tree.
 """
 
 from __future__ import annotations
@@ -57,11 +62,12 @@ import xarray as xr
 
 from bayesfric._version import __version__
 from bayesfric.report.stored import CSV_FILES, table_dataset
+from bayesfric.sizing.store import basis_node
 
 if TYPE_CHECKING:
     from bayesfric.study.outcome import StudyOutcome
 
-__all__ = ["RESULTS", "result_tree", "write_results", "table_dataset"]
+__all__ = ["RESULTS", "result_tree", "law_nodes", "write_results", "table_dataset"]
 
 #: The file name of the saved tree in a report folder.
 RESULTS = "results.nc"
@@ -170,6 +176,14 @@ def _per_law(outcome: StudyOutcome) -> tuple[xr.Dataset, xr.Dataset]:
     return diag, chk
 
 
+def law_nodes(outcome: StudyOutcome) -> dict[str, xr.Dataset]:
+    """The per-law nodes ``/weights``, ``/diagnostics``, ``/checks`` and ``/sizing_basis``
+    (:func:`bayesfric.sizing.store.basis_node`) of a study's outcome after its weights."""
+    diag, checks = _per_law(outcome)
+    return {"weights": _weights(outcome), "diagnostics": diag, "checks": checks,
+            "sizing_basis": basis_node(outcome)}
+
+
 def _fits(outcome: StudyOutcome) -> dict[str, xr.Dataset]:
     nodes = {}
     for w in outcome.laws:
@@ -190,10 +204,9 @@ def result_tree(outcome: StudyOutcome, tables: dict[str, list[dict] | pd.DataFra
     so the tree and the CSV files hold the same rows; ``extra`` adds nodes by path (the report's
     content and figures, :mod:`bayesfric.report.stored`).
     """
-    diag, checks = _per_law(outcome)
     nodes: dict[str, xr.Dataset] = {"/": xr.Dataset(attrs=_root_attrs(outcome)), "scores": _scores(outcome),
-                                    "pointwise": _pointwise(outcome), "weights": _weights(outcome),
-                                    "diagnostics": diag, "checks": checks}
+                                    "pointwise": _pointwise(outcome)}
+    nodes.update(outcome.nodes or law_nodes(outcome))
     nodes.update({name: table_dataset(rows, CSV_FILES[name]) for name, rows in tables.items()})
     nodes.update(extra or {})
     nodes.update(_fits(outcome))

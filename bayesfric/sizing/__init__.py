@@ -9,7 +9,8 @@ into a :class:`SizingResult`; ``summary.md``, ``report.html``, ``sizing.csv``, t
 * :mod:`bayesfric.sizing.calibration` — model-form error: the miss blocked folds measured, scaled
   to a point's distance beyond the envelope (the calibrated answers);
 * :mod:`bayesfric.sizing.basis` — which weights and misses answer a question, from its direction;
-* :mod:`bayesfric.sizing.store` — ``weights.json``: what a study run stores so sizing never refits.
+* :mod:`bayesfric.sizing.store` — the ``/sizing_basis`` node of ``results.nc``: what a study run
+  keeps so sizing never refits.
 """
 
 from __future__ import annotations
@@ -49,24 +50,16 @@ from bayesfric.sizing.points import (
     parse_capacity,
     parse_value,
 )
-from bayesfric.sizing.store import (
-    RECORD,
-    exclusion,
-    read_record,
-    record_schemes,
-    sources,
-    weights_record,
-    write_record,
-)
+from bayesfric.sizing.store import basis_node, basis_schemes, exclusion, read_basis, sources
 
 __all__ = [
-    "LOO", "NO_EXTRAPOLATION", "Basis", "choose_basis", "Miss", "Scheme", "measure_miss", "record_schemes",
-    "CLI_KEYS", "EXTRAPOLATION_WARN", "FAN_POINTS", "LEVELS", "RANGE_POINTS", "RECORD", "Answer", "LawSource",
+    "LOO", "NO_EXTRAPOLATION", "Basis", "choose_basis", "Miss", "Scheme", "measure_miss", "basis_schemes",
+    "CLI_KEYS", "EXTRAPOLATION_WARN", "FAN_POINTS", "LEVELS", "RANGE_POINTS", "Answer", "LawSource",
     "Mixture",
     "SizingError", "SizingQuestion", "SizingResult", "Value", "answer", "answer_question", "check_question",
     "exclusion", "extrapolation_distance", "make_question", "parse_at", "parse_capacity", "parse_value", "predict",
-    "read_record", "sources", "tested_ranges", "variance_split", "weighted_quantiles", "weights_record",
-    "write_record", "size_study", "size_fit", "provenance_of_fit",
+    "read_basis", "basis_node", "sources", "tested_ranges", "variance_split", "weighted_quantiles", "size_study",
+    "size_fit", "provenance_of_fit",
 ]
 
 
@@ -77,8 +70,9 @@ def _response_display(response: str, unit: str | None) -> tuple[str, float]:
 
 
 def size_study(questions: Sequence[SizingQuestion], ds: xr.Dataset, law_sources: Sequence[LawSource],
-               record: dict, *, study_name: str, seed: int = 0, fan: bool = True) -> SizingResult:
-    """Answer a study's questions from its laws' fits, stored weights and misses (``record``)."""
+               schemes: Sequence[Scheme], *, study_name: str, seed: int = 0, fan: bool = True) -> SizingResult:
+    """Answer a study's questions from its laws' fits, weights and misses (``law_sources``, from
+    :func:`sources`) and its blocked ``schemes`` (:func:`basis_schemes`)."""
     from bayesfric.report.figures import provenance_label
 
     response = ds.attrs["response"]
@@ -86,7 +80,7 @@ def size_study(questions: Sequence[SizingQuestion], ds: xr.Dataset, law_sources:
     inputs = [k for k, v in ds.coords.items() if v.attrs.get("role") == "input"]
     return answer(questions, law_sources, {k: np.asarray(ds[k].values, dtype=float) for k in inputs},
                   response=response, response_unit=unit, response_scale=scale, provenance=provenance_label(ds),
-                  source=f"study {study_name}", schemes=record_schemes(record),
+                  source=f"study {study_name}", schemes=list(schemes),
                   measured=np.asarray(ds[response].values, dtype=float), seed=seed, fan=fan)
 
 

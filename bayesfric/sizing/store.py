@@ -1,27 +1,34 @@
-"""What a study run stores so that sizing never refits: ``weights.json`` next to ``fits/*.nc``.
+"""What a study run keeps so that sizing never refits: the ``/sizing_basis`` node of ``results.nc``.
 
-``weights.json`` (format :data:`FORMAT`) records, per law, its fit file, the diagnostics verdict,
-whether the evidence estimators agreed (shown, never a reason to leave a law out of sizing),
-every weight the study computed (keys as in :attr:`bayesfric.study.outcome.LawOutcome.weights`:
-``"stacking LOO"``, ``"stacking <blocked label>"`` for every blocked scheme ...), why a weighting
-left the law out, the law's measured miss on every blocked scheme
-(:mod:`bayesfric.sizing.calibration`) and its extrapolation penalties; plus the study's blocked
-schemes (axis, direction, ``|x|`` or not). Which weights answer a question is chosen per
-question from its direction (:mod:`bayesfric.sizing.basis`). ``bayesfric size STUDY.toml``
-reads the record back as data; the exclusion reason is derived from its booleans
-(:func:`exclusion`), never parsed from text.
+Sizing reads three nodes of a study's result tree (:mod:`bayesfric.report.results`):
+
+``/weights``
+    over ``(law, weighting)``: every weight the study computed (``"stacking LOO"``,
+    ``"stacking <blocked label>"`` for every blocked scheme ...) and why a weighting left a law out;
+``/diagnostics``
+    over ``law``: the gate's verdict (``passed``, ``problems``), whether the evidence estimators
+    agreed (shown, never a reason to leave a law out of sizing);
+``/sizing_basis``
+    built here (:func:`basis_node`): each law's fit file and evidence disagreement, its measured
+    miss on every blocked scheme (:mod:`bayesfric.sizing.calibration`; ``miss_*`` over
+    ``(law, scheme)``, ``miss_n`` −1 where none was measured), its extrapolation penalties
+    (``penalty`` over ``(law, penalty_scheme)``) and the blocked schemes themselves (``axis``,
+    ``direction`` and ``use_abs`` over ``scheme``).
+
+The study run builds these nodes once from its results and answers its own sizing questions from
+them in memory (:func:`sources` with the fits it holds); ``bayesfric size STUDY.toml`` reads the
+same nodes back from ``results.nc`` (:func:`read_basis`). Which weights answer a question is
+chosen per question from its direction (:mod:`bayesfric.sizing.basis`). The exclusion reason is
+derived from the verdict's boolean (:func:`exclusion`), never parsed from text.
 """
 
 from __future__ import annotations
 
-import json
 import math
-import os
-import secrets
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
+import numpy as np
 import xarray as xr
 
 from bayesfric.inference import load_fit
@@ -30,17 +37,13 @@ from bayesfric.sizing.calibration import Miss, Scheme, measure_miss
 from bayesfric.sizing.compute import LawSource
 from bayesfric.sizing.points import SizingError
 
-__all__ = ["RECORD", "FORMAT", "schemes_of", "weights_record", "write_record", "read_record", "exclusion",
-           "record_schemes", "sources"]
+__all__ = ["NODES", "RESULTS", "schemes_of", "basis_node", "read_basis", "exclusion", "basis_schemes", "sources"]
 
-#: File name of the record in a report folder.
-RECORD = "weights.json"
-#: Version of the record's layout (2: blocked schemes, misses and penalties per law).
-FORMAT = 2
-
-
-def _number(x: Any) -> float | None:
-    return float(x) if isinstance(x, int | float) and math.isfinite(x) else None
+#: The result tree's file in a report folder (:data:`bayesfric.report.results.RESULTS`).
+RESULTS = "results.nc"
+#: The result-tree nodes sizing reads.
+NODES = ("weights", "diagnostics", "sizing_basis")
+MISS_FIELDS = ("rate", "beta", "se", "reach")
 
 
 def schemes_of(outcome) -> list[Scheme]:
@@ -56,86 +59,115 @@ def schemes_of(outcome) -> list[Scheme]:
     return out
 
 
-def _misses(w, data, schemes: Sequence[Scheme]) -> dict[str, dict]:
-    out = {}
-    for scheme in schemes:
-        if scheme.label in w.cv and (miss := measure_miss(w.cv[scheme.label], data, scheme)) is not None:
-            out[scheme.label] = miss.to_json()
-    return out
+def _miss_arrays(outcome, schemes: Sequence[Scheme]) -> dict[str, tuple]:
+    shape = (len(outcome.laws), len(schemes))
+    values = {k: np.full(shape, np.nan) for k in MISS_FIELDS}
+    count = np.full(shape, -1, dtype=np.int64)
+    for i, w in enumerate(outcome.laws):
+        for j, scheme in enumerate(schemes):
+            miss = measure_miss(w.cv[scheme.label], outcome.data, scheme) if scheme.label in w.cv else None
+            if miss is not None:
+                for k in MISS_FIELDS:
+                    values[k][i, j] = getattr(miss, k)
+                count[i, j] = miss.n
+    dims = ("law", "scheme")
+    return {f"miss_{k}": (dims, v) for k, v in values.items()} | {"miss_n": (dims, count)}
 
 
-def weights_record(outcome) -> dict[str, Any]:
-    """The record of a :class:`~bayesfric.study.outcome.StudyOutcome` (after its weights)."""
+def basis_node(outcome) -> xr.Dataset:
+    """The ``/sizing_basis`` node of a :class:`~bayesfric.study.outcome.StudyOutcome` (after its
+    weights): fit files, evidence disagreement, misses, penalties and blocked schemes."""
     schemes = schemes_of(outcome)
-    laws = []
-    for w in outcome.laws:
-        laws.append({
-            "law": w.name,
-            "fit": f"fits/{w.fit_file.name}",
-            "diagnostics_passed": bool(w.verdict.passed),
-            "diagnostics_problems": list(w.verdict.problems),
-            "evidence_agree": bool(w.evidence_agree),
-            "evidence_disagreement": _number(w.agreement.difference if w.agreement is not None else math.nan),
-            "weights": {k: _number(v.value) for k, v in w.weights.items()},
-            "weight_exclusions": {k: v.excluded for k, v in w.weights.items() if v.excluded},
-            "misses": _misses(w, outcome.data, schemes),
-            "penalties": {k: _number(v) for k, v in w.penalty.items()},
-        })
-    return {
-        "format": FORMAT,
-        "study": outcome.study.name,
-        "dataset": str(outcome.data.attrs.get("name", "")),
-        "data_hash": str(outcome.data.attrs.get("data_hash", "")),
-        "schemes": [s.to_json() for s in schemes],
-        "laws": laws,
-    }
+    laws = [w.name for w in outcome.laws]
+    labels = list(dict.fromkeys(k for w in outcome.laws for k in w.penalty))
+    penalty = np.array([[float(w.penalty.get(k, math.nan)) for k in labels] for w in outcome.laws])
+    disagreement = [float(w.agreement.difference) if w.agreement is not None else math.nan for w in outcome.laws]
+    node = xr.Dataset(
+        {"fit": ("law", [f"fits/{w.fit_file.name}" for w in outcome.laws]),
+         "evidence_disagreement": ("law", disagreement),
+         "penalty": (("law", "penalty_scheme"), penalty.reshape(len(laws), len(labels)))}
+        | _miss_arrays(outcome, schemes),
+        coords={"law": laws, "scheme": [s.label for s in schemes], "penalty_scheme": labels,
+                "axis": ("scheme", [s.axis for s in schemes]),
+                "direction": ("scheme", [s.direction for s in schemes]),
+                "use_abs": ("scheme", [s.use_abs for s in schemes])},
+        attrs={"description": "what sizing reads besides /weights and /diagnostics (bayesfric.sizing.store)"})
+    node["miss_n"].attrs["description"] = "held-out points of the blocked fold's miss; -1: no miss measured"
+    node["penalty"].attrs.update(units="nats per held-out point")
+    return node
 
 
-def write_record(folder: Path, record: dict[str, Any]) -> Path:
-    """Write ``folder/weights.json`` atomically (ordinary file modes: the folder is installed later)."""
-    path = folder / RECORD
-    tmp = folder / f".{RECORD}.{secrets.token_hex(4)}.tmp"
-    tmp.write_text(json.dumps(record, indent=1, ensure_ascii=False, allow_nan=False) + "\n", encoding="utf-8")
-    os.replace(tmp, path)
-    return path
-
-
-def read_record(folder: Path) -> dict[str, Any]:
-    """Read ``folder/weights.json``; a missing, unreadable or foreign file is a :class:`SizingError`."""
-    path = folder / RECORD
+def read_basis(folder: Path) -> xr.DataTree:
+    """The nodes sizing reads (:data:`NODES`), loaded from ``folder/results.nc``; a missing or
+    foreign file, or one written before sizing read it, is a :class:`SizingError`."""
+    path = Path(folder) / RESULTS
     if not path.is_file():
-        raise SizingError("", f"{path}: missing (the report was written before sizing existed); run the study again")
+        raise SizingError("", f"{path}: missing (the report was written before sizing read it); run the study again")
     try:
-        record = json.loads(path.read_text(encoding="utf-8"))
+        with xr.open_datatree(path, engine="h5netcdf") as tree:
+            if not all(name in tree.children for name in NODES):
+                raise SizingError("", f"{path}: holds no sizing basis (written by an older bayesfric); "
+                                      "run the study again")
+            return xr.DataTree.from_dict({name: tree[name].to_dataset().load() for name in NODES})
     except (OSError, ValueError) as exc:
         raise SizingError("", f"{path}: unreadable ({exc}); run the study again") from None
-    if not isinstance(record, dict) or record.get("format") != FORMAT or not isinstance(record.get("laws"), list):
-        raise SizingError("", f"{path}: not a bayesfric weights record of format {FORMAT}; run the study again")
-    return record
 
 
-def exclusion(entry: dict[str, Any]) -> str | None:
+def exclusion(passed: bool, problems: str = "") -> str | None:
     """Why sizing may not use a law's predictions (None: it may): its full fit failed the
-    diagnostics gate. Only a reason about its predictions counts: an unreliable *evidence*
-    estimate removes a law from the evidence ranking and nothing else."""
-    if entry.get("diagnostics_passed", False):
+    diagnostics gate (``problems``: the gate's problems, joined). Only a reason about its
+    predictions counts: an unreliable *evidence* estimate removes a law from the evidence ranking
+    and nothing else."""
+    if passed:
         return None
-    problems = "; ".join(entry.get("diagnostics_problems") or [])
     return "failed the diagnostics gate" + (f" ({problems})" if problems else "")
 
 
-def record_schemes(record: dict[str, Any]) -> list[Scheme]:
-    """The blocked schemes of a record (:func:`schemes_of`)."""
-    return [Scheme(str(s["label"]), str(s["axis"]), str(s["direction"]), bool(s["use_abs"]))
-            for s in record.get("schemes") or []]
+def basis_schemes(basis: xr.DataTree) -> list[Scheme]:
+    """The blocked schemes of a sizing basis (:func:`schemes_of`)."""
+    node = basis["sizing_basis"]
+    return [Scheme(str(label), str(axis), str(direction), bool(use_abs)) for label, axis, direction, use_abs in
+            zip(node["scheme"].values, node["axis"].values, node["direction"].values, node["use_abs"].values,
+                strict=True)]
 
 
-def sources(record: dict[str, Any], folder: Path, laws: Sequence[str] | None = None,
+def _law_terms(basis: xr.DataTree, name: str) -> tuple[dict, str, dict, dict]:
+    """(stacking weights by basis key, weight note, misses, penalties) of one law."""
+    weights, notes = {}, []
+    node = basis["weights"].to_dataset().sel(law=name)
+    for key, value, excluded in zip(node["weighting"].values, node["weight"].values, node["excluded"].values,
+                                    strict=True):
+        key = str(key)
+        if key.startswith("stacking ") and math.isfinite(float(value)):
+            weights[LOO if key == "stacking LOO" else key.removeprefix("stacking ")] = float(value)
+        if str(excluded):
+            notes.append(f"{key}: {excluded}")
+    row = basis["sizing_basis"].to_dataset().sel(law=name)
+    misses = {str(label): Miss(str(label), *(float(row[f"miss_{k}"].values[j]) for k in ("rate", "beta", "se")),
+                               int(row["miss_n"].values[j]), float(row["miss_reach"].values[j]))
+              for j, label in enumerate(row["scheme"].values) if int(row["miss_n"].values[j]) >= 0}
+    penalties = {str(k): float(v) for k, v in zip(row["penalty_scheme"].values, row["penalty"].values, strict=True)
+                 if math.isfinite(float(v))}
+    return weights, "; ".join(notes), misses, penalties
+
+
+def _fit_of(basis: xr.DataTree, folder: Path, name: str) -> xr.DataTree:
+    path = folder / str(basis["sizing_basis"]["fit"].sel(law=name).values)
+    if not path.is_file() or path.resolve().parent != (folder / "fits").resolve():
+        raise SizingError("", f"{path}: fit of {name} missing from the report; run the study again")
+    try:
+        return load_fit(path)
+    except (OSError, ValueError) as exc:
+        raise SizingError("", f"{path}: unreadable fit ({exc}); run the study again") from None
+
+
+def sources(basis: xr.DataTree, folder: Path, laws: Sequence[str] | None = None,
             fits: dict[str, xr.DataTree] | None = None, data_hash: str | None = None,
             selection: str | None = None) -> list[LawSource]:
-    """The :class:`LawSource` of every law of the record (in the order of ``laws`` when given).
+    """The :class:`LawSource` of every law of the basis (in the order of ``laws`` when given).
 
-    Fits come from ``fits`` (in memory, the runner) or from ``folder/fits/*.nc``.
+    ``basis`` holds the nodes :data:`NODES` (a study's result tree or :func:`read_basis`). Fits
+    come from ``fits`` (in memory, the runner) or from ``folder/fits/*.nc``.
 
     Raises
     ------
@@ -144,25 +176,16 @@ def sources(record: dict[str, Any], folder: Path, laws: Sequence[str] | None = N
         unreadable, or a fit was made from other data than ``data_hash`` or another row
         ``selection`` (the data's ``selection`` attr).
     """
-    entries = {e.get("law"): e for e in record["laws"] if isinstance(e, dict)}
-    names = list(laws) if laws is not None else list(entries)
-    missing = [n for n in names if n not in entries]
+    known = [str(n) for n in basis["sizing_basis"]["law"].values]
+    names = list(laws) if laws is not None else known
+    missing = [n for n in names if n not in known]
     if missing:
         raise SizingError("", f"{folder}: the report has no fit of {', '.join(missing)} (the study's laws changed "
                               "since it ran); run the study again")
     out = []
+    diagnostics = basis["diagnostics"].to_dataset()
     for name in names:
-        entry = entries[name]
-        if fits is not None and name in fits:
-            fit = fits[name]
-        else:
-            path = folder / str(entry.get("fit", ""))
-            if not path.is_file() or path.resolve().parent != (folder / "fits").resolve():
-                raise SizingError("", f"{path}: fit of {name} missing from the report; run the study again")
-            try:
-                fit = load_fit(path)
-            except (OSError, ValueError) as exc:
-                raise SizingError("", f"{path}: unreadable fit ({exc}); run the study again") from None
+        fit = fits[name] if fits is not None and name in fits else _fit_of(basis, folder, name)
         if data_hash and fit.attrs.get("data_hash") not in (None, "", data_hash):
             raise SizingError("", f"{folder}: the fit of {name} was made from other data (hash "
                                   f"{fit.attrs.get('data_hash')}, the study's data now {data_hash}); "
@@ -171,11 +194,8 @@ def sources(record: dict[str, Any], folder: Path, laws: Sequence[str] | None = N
             raise SizingError("", f"{folder}: the fit of {name} was made from another row selection "
                                   f"({fit.attrs.get('data_selection') or 'all rows'}; the study now selects "
                                   f"{selection or 'all rows'}); run the study again")
-        stored = entry.get("weights") or {}
-        weights = {(LOO if key == "stacking LOO" else key.removeprefix("stacking ")): float(v)
-                   for key, v in stored.items() if key.startswith("stacking ") and v is not None}
-        notes = "; ".join(f"{k}: {v}" for k, v in (entry.get("weight_exclusions") or {}).items())
-        misses = {k: Miss.from_json(v) for k, v in (entry.get("misses") or {}).items()}
-        penalties = {k: float(v) for k, v in (entry.get("penalties") or {}).items() if v is not None}
-        out.append(LawSource(name, fit, weights, exclusion(entry), notes, misses, penalties))
+        weights, notes, misses, penalties = _law_terms(basis, name)
+        verdict = diagnostics.sel(law=name)
+        excluded = exclusion(bool(verdict["passed"].values), str(verdict["problems"].values))
+        out.append(LawSource(name, fit, weights, excluded, notes, misses, penalties))
     return out

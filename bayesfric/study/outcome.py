@@ -147,3 +147,6 @@ class StudyOutcome:
     sizing: Any = None  # bayesfric.sizing.SizingResult when the study asks sizing questions
     table: Any = None  # the law × metric table (bayesfric.study.scores.score_table), computed once
     claims: list[Any] = field(default_factory=list)  # bayesfric.report.claims.ClaimResult per [[claims]] entry
+    # the per-law nodes of the result tree (/weights, /diagnostics, /checks, /sizing_basis), built once
+    # after the weights (bayesfric.report.results.law_nodes); sizing reads them, the tree holds them
+    nodes: dict[str, Any] = field(default_factory=dict)

@@ -1,4 +1,4 @@
-"""Sizing from a study's written report: its stored fits and ``weights.json``, without refitting.
+"""Sizing from a study's written report: its stored fits and ``results.nc``, without refitting.
 
 Used by ``bayesfric size STUDY.toml`` and by :func:`bayesfric.size` on a study or a study's
 result. The answer itself is :func:`bayesfric.sizing.size_study`.
@@ -40,7 +40,7 @@ def size_from_report(study: Study, questions: list[sizing.SizingQuestion] | None
     Raises
     ------
     UserError
-        No question, no report of the study there, a report without its weights record, or
+        No question, no report of the study there, a report without its sizing basis, or
         fits that no longer match the study's laws or data.
     """
     ds = load_study_data(study)
@@ -53,7 +53,8 @@ def size_from_report(study: Study, questions: list[sizing.SizingQuestion] | None
     if not is_marked(folder, study.name):
         hint = run_hint or f"`bayesfric study {study.path} --out {reports}`"
         raise UserError(f"{study.path}: no report of study {study.name!r} in {reports}: run {hint} first")
-    record = sizing.read_record(folder)
-    laws = sizing.sources(record, folder, [spec.name for spec in study.laws], data_hash=ds.attrs.get("data_hash"),
+    basis = sizing.read_basis(folder)
+    laws = sizing.sources(basis, folder, [spec.name for spec in study.laws], data_hash=ds.attrs.get("data_hash"),
                           selection=str(ds.attrs.get("selection", "")))
-    return sizing.size_study(checked, ds, laws, record, study_name=study.name, seed=study.sampler["seed"], fan=False)
+    return sizing.size_study(checked, ds, laws, sizing.basis_schemes(basis), study_name=study.name,
+                             seed=study.sampler["seed"], fan=False)

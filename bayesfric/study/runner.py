@@ -12,9 +12,10 @@ store when their key matches and computed otherwise, serially or on Dask
 (:mod:`bayesfric.study.store`, :mod:`bayesfric.study.executor`); ``timings.csv`` in the report says
 which, and how long each took. A killed run keeps its finished units for the next one.
 
-Besides the reports, every run stores ``weights.json`` (:mod:`bayesfric.sizing.store`): the
-weights, the diagnostics and evidence verdicts and the weighting exclusions of every law, so
-``bayesfric size`` can answer sizing questions from ``fits/*.nc`` later without refitting. A study
+Besides the report files, every run saves its result tree ``results.nc``, whose ``/weights``,
+``/diagnostics`` and ``/sizing_basis`` nodes (:mod:`bayesfric.sizing.store`) hold the weights,
+verdicts, weighting exclusions, misses and penalties of every law, so ``bayesfric size`` can
+answer sizing questions from ``fits/*.nc`` later without refitting. A study
 with ``[[sizing]]`` questions also gets them answered here: ``sizing.csv``, a fan figure per
 question and a sizing section in ``summary.md`` and ``report.html``.
 """
@@ -29,6 +30,8 @@ import math
 import shutil
 import time
 from pathlib import Path
+
+import xarray as xr
 
 from bayesfric import compare, fsutil, sizing
 from bayesfric.fingerprint import package_fingerprint
@@ -252,14 +255,17 @@ def _write_study(prepared, out_root: Path, quick: bool, fresh: bool, client, tim
         if quick:
             outcome.extra["quick"] = {"settings": settings, "kfold": (study.kfold, kfold)}
         _assign_weights(outcome)
-        # What `bayesfric size` needs to answer sizing questions later without refitting.
-        record = sizing.weights_record(outcome)
-        sizing.write_record(work, record)
+        from bayesfric.report.results import law_nodes  # here: bayesfric.report reads bayesfric.study
+
+        # The per-law nodes of results.nc, built once: sizing reads them here, `bayesfric size` from the file.
+        outcome.nodes = law_nodes(outcome)
         if questions:
             print(f"[{study.name}] sizing {len(questions)} question(s) ...", flush=True)
-            law_sources = sizing.sources(record, work, [w.name for w in outcome.laws],
+            basis = xr.DataTree.from_dict({k: outcome.nodes[k] for k in sizing.store.NODES})
+            law_sources = sizing.sources(basis, work, [w.name for w in outcome.laws],
                                          fits={w.name: w.fit for w in outcome.laws})
-            outcome.sizing = sizing.size_study(questions, ds, law_sources, record, study_name=study.name, seed=seed)
+            outcome.sizing = sizing.size_study(questions, ds, law_sources, sizing.basis_schemes(basis),
+                                               study_name=study.name, seed=seed)
         outcome.table = score_table(outcome)
         outcome.claims = evaluate_claims(study.claims, outcome, outcome.table)
         outcome.seconds = time.perf_counter() - start

@@ -32,7 +32,7 @@ class StudyError(UserError):
 class LawSpec:
     """A candidate law with its overrides and variant options (:mod:`bayesfric.laws.variants`).
 
-    ``name`` is the entry's label -- what fits, tables and ``weights.json`` call it (the law's
+    ``name`` is the entry's label -- what fits, tables and the result tree call it (the law's
     name unless the entry gives ``label``); ``law`` is the registered law it is built from.
     """
 

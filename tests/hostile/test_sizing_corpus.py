@@ -4,7 +4,7 @@ Every case runs the CLI in-process through :func:`tests.hostile.harness.assert_u
 status 2, one line ``bayesfric: error: ...`` naming the option (or file) and the problem, no
 traceback, and nothing under the case's tree created, changed or removed. The tree holds a valid
 tiny study with a ``[[sizing]]`` question, its data, a fit made by hand (no sampling), a fit of a
-trajectory law, a file that is not a fit, and a report folder without its weights record.
+trajectory law, a file that is not a fit, and a report folder without its result tree.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ import pytest
 from bayesfric.fsutil import MARKER
 from bayesfric.inference import save_fit
 from tests.hostile.harness import assert_user_error
-from tests.sizing_helpers import hand_fit
+from tests.sizing_helpers import hand_fit, write_basis
 
 STUDY = ('[study]\nname = "tiny"\n[data]\ndataset = "bench.csv"\n[sampler]\ndraws = 300\ntune = 300\nchains = 2\n'
          '[[laws]]\nname = "coulomb_viscous"\n[compare]\nloo = true\nevidence = false\n'
@@ -45,16 +45,14 @@ def tree(tmp_path: Path) -> Path:
     draws = {"f0": np.full((2, 50), 1.0), "f1": np.full((2, 50), 1e-3), "sigma": np.full((2, 50), 0.2)}
     save_fit(hand_fit("palmgren", draws, {"velocity": v, "bending_moment": 1e6 * v}), tmp_path / "two.nc")
     (tmp_path / "junk.nc").write_bytes(b"not a NetCDF file\x00\x01")
-    old = tmp_path / "old_reports" / "tiny"  # a report from before sizing: marked, no weights.json
+    old = tmp_path / "old_reports" / "tiny"  # a report from before sizing: marked, no results.nc
     (old / "fits").mkdir(parents=True)
     (old / MARKER).write_text(json.dumps({"tool": "bayesfric", "study": "tiny"}))
     stale = tmp_path / "stale_reports" / "tiny"  # a report whose fit was made from other data
     (stale / "fits").mkdir(parents=True)
     (stale / MARKER).write_text(json.dumps({"tool": "bayesfric", "study": "tiny"}))
     save_fit(hand_fit("coulomb_viscous", draws_cv, {"velocity": v}), stale / "fits" / "coulomb_viscous.nc")
-    entry = {"law": "coulomb_viscous", "fit": "fits/coulomb_viscous.nc", "diagnostics_passed": True,
-             "evidence_agree": True, "weights": {"stacking LOO": 1.0}}
-    (stale / "weights.json").write_text(json.dumps({"format": 2, "schemes": [], "laws": [entry]}))
+    write_basis(stale, ["coulomb_viscous"])
     (tmp_path / "two.toml").write_text(STUDY.replace('[[laws]]', '[[laws]]\nname = "coulomb"\n[[laws]]', 1)
                                        + QUESTION)
     return tmp_path
@@ -84,7 +82,7 @@ CASES = [
     # -- targets and reports ---------------------------------------------------------------------------
     ("no-report", ("size", "s.toml", "--reports", "reports"),
      ("s.toml", "no report of study 'tiny'", "bayesfric study")),
-    ("old-report", ("size", "s.toml", "--reports", "old_reports"), ("weights.json", "run the study again")),
+    ("old-report", ("size", "s.toml", "--reports", "old_reports"), ("results.nc", "run the study again")),
     ("stale-data", ("size", "s.toml", "--reports", "stale_reports"), ("made from other data", "run the study again")),
     ("laws-changed", ("size", "two.toml", "--reports", "stale_reports"),
      ("no fit of coulomb", "laws changed", "run the study again")),
