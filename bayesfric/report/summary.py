@@ -15,6 +15,7 @@ as ``**…**`` in Markdown and ``<b>`` in HTML, never parsed back from text.
 from __future__ import annotations
 
 import base64
+import contextlib
 import os
 import re
 import secrets
@@ -215,6 +216,7 @@ def rerender(results: str | Path, out: str | Path) -> Path:
         raise UserError(f"--out {out}: is a link; name a new folder")
     if out.is_dir() and any(out.iterdir()):
         raise UserError(f"--out {out}: exists and is not empty; name a new folder")
+    created = [p for p in out.absolute().parents if not p.exists()]  # innermost first: removed on failure
     out.parent.mkdir(parents=True, exist_ok=True)
     work = out.parent / f".{out.name}.{secrets.token_hex(4)}"
     work.mkdir()
@@ -225,6 +227,10 @@ def rerender(results: str | Path, out: str | Path) -> Path:
         if out.is_dir():
             out.rmdir()  # empty, checked above
         os.rename(work, out)
-    finally:
+    except BaseException:
         shutil.rmtree(work, ignore_errors=True)
+        for folder in created:  # only the folders this call made, and only while empty
+            with contextlib.suppress(OSError):
+                folder.rmdir()
+        raise
     return out

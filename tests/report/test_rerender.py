@@ -31,8 +31,8 @@ def _rerender_matches(folder: Path, other: Path, capsys) -> dict[str, bytes]:
     assert main(["report", str(folder / "results.nc"), "--out", str(other)]) == 0
     capsys.readouterr()
     before, after = _files(folder), _files(other)
-    # not re-rendered: the run's markers, the fit files, the run store's timings.csv and weights.json
-    runner = {k for k in before if k.startswith((".", "fits/")) or k in ("timings.csv", "weights.json")}
+    # not re-rendered: the run's markers, the fit files and the run store's timings.csv
+    runner = {k for k in before if k.startswith((".", "fits/")) or k == "timings.csv"}
     assert sorted(after) == sorted(set(before) - runner)
     for name, blob in after.items():
         assert blob == before[name], f"{name} differs after re-rendering"
@@ -103,6 +103,21 @@ def test_bad_targets_are_one_line_errors_and_write_nothing(fake_report, tmp_path
         assert fragment in err and err.count("\n") == 1 and "Traceback" not in err
     assert not other.exists() and not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
     assert link.is_symlink() and not any(victim.iterdir()) and plain.is_file()
+
+
+def test_a_failed_rendering_removes_the_folders_it_created_and_nothing_else(fake_report, tmp_path, monkeypatch):
+    from bayesfric.report import summary
+
+    def broken(tree, folder):
+        (Path(folder) / "half.md").write_text("half")
+        raise RuntimeError("disk full")
+
+    monkeypatch.setattr(summary, "render_report", broken)
+    kept = tmp_path / "kept"
+    kept.mkdir()
+    with pytest.raises(RuntimeError, match="disk full"):
+        summary.rerender(fake_report[0] / "results.nc", kept / "a" / "b" / "out")
+    assert list(kept.iterdir()) == []  # a/ and a/b/ were made by the call, so they went; kept/ stays
 
 
 @pytest.mark.slow
