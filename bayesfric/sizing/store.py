@@ -105,12 +105,12 @@ def read_basis(folder: Path) -> xr.DataTree:
         raise SizingError("", f"{path}: missing (the report was written before sizing read it); run the study again")
     try:
         with xr.open_datatree(path, engine="h5netcdf") as tree:
-            if not all(name in tree.children for name in NODES):
-                raise SizingError("", f"{path}: holds no sizing basis (written by an older bayesfric); "
-                                      "run the study again")
-            return xr.DataTree.from_dict({name: tree[name].to_dataset().load() for name in NODES})
+            nodes = {name: tree[name].to_dataset().load() for name in NODES if name in tree.children}
     except (OSError, ValueError) as exc:
         raise SizingError("", f"{path}: unreadable ({exc}); run the study again") from None
+    if len(nodes) < len(NODES):
+        raise SizingError("", f"{path}: holds no sizing basis (written by an older bayesfric); run the study again")
+    return xr.DataTree.from_dict(nodes)
 
 
 def exclusion(passed: bool, problems: str = "") -> str | None:

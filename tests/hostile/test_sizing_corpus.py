@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import xarray as xr
 
 from bayesfric.fsutil import MARKER
 from bayesfric.inference import save_fit
@@ -48,6 +49,10 @@ def tree(tmp_path: Path) -> Path:
     old = tmp_path / "old_reports" / "tiny"  # a report from before sizing: marked, no results.nc
     (old / "fits").mkdir(parents=True)
     (old / MARKER).write_text(json.dumps({"tool": "bayesfric", "study": "tiny"}))
+    older = tmp_path / "older_reports" / "tiny"  # a results.nc from before the sizing basis
+    (older / "fits").mkdir(parents=True)
+    (older / MARKER).write_text(json.dumps({"tool": "bayesfric", "study": "tiny"}))
+    xr.DataTree.from_dict({"scores": xr.Dataset({"x": ("law", [1.0])})}).to_netcdf(older / "results.nc")
     stale = tmp_path / "stale_reports" / "tiny"  # a report whose fit was made from other data
     (stale / "fits").mkdir(parents=True)
     (stale / MARKER).write_text(json.dumps({"tool": "bayesfric", "study": "tiny"}))
@@ -83,6 +88,8 @@ CASES = [
     ("no-report", ("size", "s.toml", "--reports", "reports"),
      ("s.toml", "no report of study 'tiny'", "bayesfric study")),
     ("old-report", ("size", "s.toml", "--reports", "old_reports"), ("results.nc", "run the study again")),
+    ("older-report", ("size", "s.toml", "--reports", "older_reports"),
+     ("results.nc: holds no sizing basis", "run the study again")),
     ("stale-data", ("size", "s.toml", "--reports", "stale_reports"), ("made from other data", "run the study again")),
     ("laws-changed", ("size", "two.toml", "--reports", "stale_reports"),
      ("no fit of coulomb", "laws changed", "run the study again")),
