@@ -17,7 +17,7 @@ from bayesfric.study.plan import _fold_schemes, _run_settings, load_study_data
 from bayesfric.study.store import STORE_ENV, RunStore, pack_record, unpack_record
 from bayesfric.study.units import make_job, plan_law
 from tests.hostile.harness import assert_user_error
-from tests.test_study import data_csv, study_text  # noqa: F401 - the fixture is used by name
+from tests.test_study import data_csv, study_text, write_bench_data  # noqa: F401 - the fixture is used by name
 
 REPO = Path(__file__).resolve().parents[1]
 LAWS = '[[laws]]\nname = "coulomb"\n[[laws]]\nname = "coulomb_viscous"\n'
@@ -144,11 +144,21 @@ def _statuses(folder: Path) -> list[str]:
         return [row["status"] for row in csv.DictReader(fh)]
 
 
+@pytest.fixture(scope="module")
+def serial_run(tmp_path_factory) -> tuple[Path, Path]:
+    """(study file, report folder) of one uninterrupted serial run of :func:`_study`: the reference
+    that the killed-and-resumed run and the Dask run must equal (one subprocess, ~20 s, for both)."""
+    folder = tmp_path_factory.mktemp("serial")
+    write_bench_data(folder)
+    path = _study(folder)
+    _finish(_run(path, folder / "ref"))
+    return path, folder / "ref" / "tiny"
+
+
 @pytest.mark.slow
-def test_kill_minus_nine_then_rerun_equals_an_uninterrupted_run(tmp_path, data_csv):  # noqa: F811
-    path = _study(tmp_path)
-    _finish(_run(path, tmp_path / "ref"))
-    expected = (tmp_path / "ref" / "tiny" / "ranking.csv").read_text()
+def test_kill_minus_nine_then_rerun_equals_an_uninterrupted_run(tmp_path, serial_run):
+    path, reference = serial_run
+    expected = (reference / "ranking.csv").read_text()
 
     proc = _run(path, tmp_path / "out")
     store = tmp_path / "out" / ".store" / "tiny"
@@ -190,13 +200,12 @@ def test_kill_minus_nine_then_rerun_equals_an_uninterrupted_run(tmp_path, data_c
 
 
 @pytest.mark.slow
-def test_two_worker_local_cluster_equals_serial(tmp_path, data_csv):  # noqa: F811
+def test_two_worker_local_cluster_equals_serial(tmp_path, serial_run):
     pytest.importorskip("distributed")  # the dask extra (installed by make test's bootstrap)
-    path = _study(tmp_path)
-    _finish(_run(path, tmp_path / "serial"))
+    path, serial = serial_run
     _finish(_run(path, tmp_path / "dask", "--workers", "2"))
     for name in ("ranking.csv", "parameters.csv"):
-        assert (tmp_path / "dask" / "tiny" / name).read_text() == (tmp_path / "serial" / "tiny" / name).read_text()
+        assert (tmp_path / "dask" / "tiny" / name).read_text() == (serial / name).read_text()
     assert set(_statuses(tmp_path / "dask" / "tiny")) == {"computed"}
 
 

@@ -15,6 +15,11 @@ from bayesfric.study.runner import run_study
 @pytest.fixture
 def data_csv(tmp_path):
     """A small simulated Stribeck data set written as CSV + sidecar."""
+    return write_bench_data(tmp_path)
+
+
+def write_bench_data(tmp_path):
+    """``data_csv``'s data set written into ``tmp_path`` (for fixtures of a wider scope)."""
     speeds = np.geomspace(0.005, 4.0, 20)
     v = np.concatenate([-speeds[::-1], speeds])
     ds = simulate(get_law("coulomb_viscous"), {"velocity": v}, {"T_C": 5.0, "c_v": 2.0}, sigma=0.2, seed=5)
