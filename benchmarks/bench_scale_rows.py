@@ -15,6 +15,9 @@ Sides, each a fresh whole process timed by this parent, interleaved per size:
   scale-relative regulariser of :mod:`bayesfric.inference.adaptation`);
 * ``fisher``: the same with the Fisher diagonal (``adaptation.DIAGONAL = "fisher"``, measured but
   not the default: see that module);
+* ``dense``: the same with the dense metric (``metric="dense"``, a per-law study setting, not the
+  default: on this law's correlated posterior it takes ~4× fewer steps, on weakly correlated
+  seed laws it passed the gate less often; ``benchmarks/bench_adaptation.py``);
 * ``stan``: the same, with the warm-up's metric estimated and regularised as Stan and blackjax's
   ``mass_matrix_adaptation`` do (positions' variance, shrunk towards ``1e-3 I``) — patched in
   this benchmark's child only, to show the before/after side by side;
@@ -22,7 +25,8 @@ Sides, each a fresh whole process timed by this parent, interleaved per size:
   ``benchmarks/bench_vs_pymc.py``; needs the ``bench`` extra: ``pip install -e ".[bench]"``).
 
 Reported per size and side: wall seconds of the process, leapfrog steps per draw (mean over all
-draws and chains), divergences, peak RSS (the child's ``ru_maxrss``) and the posterior means; the
+draws and chains), the smallest bulk ESS over the four coefficients (arviz-stats, from the draws),
+divergences, peak RSS (the child's ``ru_maxrss``) and the posterior means; the
 bayesfric children time the sampling call alone as well (``fit`` also assembles pointwise
 log-likelihood and predictive draws, which is what memory grew with: issue 30 item 2). With
 ``--save`` a bayesfric child also writes its fit (``bayesfric.inference.save_fit``, as ``bayesfric fit
@@ -93,7 +97,9 @@ def bayesfric_child(args: argparse.Namespace) -> None:
         adaptation.DIAGONAL = "fisher"
     ds = dataset(args.rows)
     start = time.perf_counter()
-    dt = fit(get_law("stribeck"), ds, seed=args.seed, draws=args.draws, tune=args.tune, chains=args.chains)
+    metric = {"metric": "dense"} if args.child == "dense" else {}
+    dt = fit(get_law("stribeck"), ds, seed=args.seed, draws=args.draws, tune=args.tune, chains=args.chains,
+             **metric)
     seconds = time.perf_counter() - start
     stats, post = dt["sample_stats"], dt["posterior"]
     saved = {}
@@ -107,8 +113,17 @@ def bayesfric_child(args: argparse.Namespace) -> None:
     print(json.dumps({"fit_seconds": seconds, "steps_per_draw": float(stats["n_steps"].mean()),
                       "divergent": int(stats["diverging"].sum()),
                       "means": {k: float(post[k].mean()) for k in TRUTH},
+                      "ess_bulk_min": ess_min({k: np.asarray(post[k]) for k in TRUTH}),
                       "sds": {k: float(post[k].std()) for k in TRUTH},
                       "peak_rss_gb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20, **saved}))
+
+
+def ess_min(draws: dict[str, np.ndarray]) -> float:
+    """The smallest bulk ESS over the coefficients (each draws shaped (chain, draw))."""
+    from arviz_stats.base import array_stats
+
+    return min(float(array_stats.ess(np.asarray(v).reshape(v.shape[0], -1), chain_axis=0, draw_axis=1,
+                                     method="bulk")) for v in draws.values())
 
 
 def nutpie_spec(rows: int, folder: Path) -> Path:
@@ -148,6 +163,7 @@ def run(side: str, rows: int, folder: Path, args: argparse.Namespace) -> dict:
         row["steps_per_draw"] = row.pop("n_steps_mean")
         with np.load(folder / f"nutpie_{rows}.npz") as f:
             row["means"] = {k: float(f[k].mean()) for k in TRUTH}
+            row["ess_bulk_min"] = ess_min({k: f[k] for k in TRUTH})
     return row
 
 
@@ -155,14 +171,14 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rows", type=int, nargs="+", default=[1000, 10_000, 100_000])
     parser.add_argument("--sides", nargs="+", default=["bayesfric", "stan", "nutpie"],
-                        choices=["bayesfric", "stan", "fisher", "nutpie"])
+                        choices=["bayesfric", "dense", "stan", "fisher", "nutpie"])
     parser.add_argument("--chains", type=int, default=4)
     parser.add_argument("--draws", type=int, default=1000)
     parser.add_argument("--tune", type=int, default=1000)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--cold", action="store_true", help="skip the cache-filling run (large sizes)")
     parser.add_argument("--save", action="store_true", help="bayesfric sides also write the fit; report its size")
-    parser.add_argument("--child", choices=["bayesfric", "stan", "fisher"], help=argparse.SUPPRESS)
+    parser.add_argument("--child", choices=["bayesfric", "dense", "stan", "fisher"], help=argparse.SUPPRESS)
     parser.add_argument("--one", type=int, dest="rows_one", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child:
@@ -177,7 +193,8 @@ def main() -> None:
                 row = run(side, rows, Path(tmp), args)
                 results.append(row)
                 print(f"{rows:>8} {side:<9} wall {row['wall_seconds']:7.1f} s  steps/draw "
-                      f"{row['steps_per_draw']:5.1f}  rss {row.get('peak_rss_gb', float('nan')):5.2f} GB  "
+                      f"{row['steps_per_draw']:5.1f}  ESS min {row.get('ess_bulk_min', float('nan')):6.0f}  "
+                      f"rss {row.get('peak_rss_gb', float('nan')):5.2f} GB  "
                       + (f"file {row['fit_file_mb']:7.1f} MB  " if "fit_file_mb" in row else "") +
                       f"means {', '.join(f'{k}={v:.4g}' for k, v in row['means'].items())}", flush=True)
     OUT.parent.mkdir(parents=True, exist_ok=True)

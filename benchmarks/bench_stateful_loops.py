@@ -1,0 +1,113 @@
+"""Every stateful (hysteresis) law on loops simulated from another law, at tribometer scale (issue 29).
+
+Data: SIMULATED Dahl loops (F_c0 = 500 µN, x_c0 = 2 µm, i = 1.5, noise 5 µN), written as a
+tribometer CSV in µN, mm, mm/s and ms with a sidecar and read by the loader (the helpers of
+``tests/test_tribometer.py``). Two designs:
+
+* ``tribo`` — the shipped ``tribo_loops`` scale: 3 stroke amplitudes (10, 20, 30 µm) × 2 cycles ×
+  60 samples = 360 rows;
+* ``800`` — the issue's measured log: 4 loops (10, 20, 30, 40 µm), one cycle each, 200 samples a
+  loop = 800 rows.
+
+Each law (``dahl``, ``lugre``, ``maxwell_slip`` (N = 4), ``gms`` (N = 4), ``elastoplastic``) is
+fitted with its default priors and the default sampler settings (4 chains × (1000 + 1000), chains
+from prior medians) in a fresh process under a time limit; the row says whether the diagnostics
+gate passed, its R-hat / ESS / divergences, leapfrog steps per draw and the fit's seconds relative
+to Dahl's on the same data (the issue's budget: ≤ 3×). Seconds move with the shared machine's
+load, printed with each row.
+
+Run: ``PYTHONPATH=. .venv/bin/python benchmarks/bench_stateful_loops.py [--design 800] [--laws dahl lugre]
+[--limit 1800]``. Writes ``reports/benchmarks/bench_stateful_loops.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+OUT = ROOT / "reports" / "benchmarks" / "bench_stateful_loops.json"
+LAWS = ["dahl", "lugre", "maxwell_slip", "gms", "elastoplastic"]
+DESIGNS = {"tribo": {"per_cycle": 60, "cycles": 2, "runs": (10e-6, 20e-6, 30e-6)},
+           "800": {"per_cycle": 200, "cycles": 1, "runs": (10e-6, 20e-6, 30e-6, 40e-6)}}
+
+
+def child(law_name: str, design: str, seed: int) -> dict:
+    """Simulate the Dahl loops of ``design``, fit ``law_name`` with defaults, return the row."""
+    import numpy as np
+
+    from bayesfric.compare import verdict_of
+    from bayesfric.inference import fit
+    from bayesfric.laws import get_law
+    from bayesfric.laws.variants import vary
+    from tests import test_tribometer as tt
+
+    truth_law = vary(get_law("dahl"), without=["preload"], motion="translational")
+    layout = DESIGNS[design]
+    with tempfile.TemporaryDirectory() as tmp:
+        original = tt._loops
+        tt._loops = lambda: original(**layout)  # the design's strokes through the tests' writer
+        try:
+            ds = tt._write(Path(tmp), truth_law, tt.DAHL, seed=seed)
+        finally:
+            tt._loops = original
+        start = time.perf_counter()
+        dt = fit(get_law(law_name), ds, seed=1)
+        seconds = time.perf_counter() - start
+    verdict = verdict_of(dt)
+    steps = float(np.asarray(dt["sample_stats"]["n_steps"]).mean()) if "n_steps" in dt["sample_stats"] else None
+    return {"law": law_name, "design": design, "rows": int(ds.sizes["obs"]), "seconds": seconds,
+            "passed": bool(verdict.passed), "rhat_max": verdict.rhat_max, "ess_bulk_min": verdict.ess_bulk_min,
+            "ess_tail_min": verdict.ess_tail_min, "divergences": verdict.divergences,
+            "steps_per_draw": steps, "problems": list(verdict.problems)}
+
+
+def run_one(law_name: str, design: str, seed: int, limit: float) -> dict:
+    """One law in a fresh process under ``limit`` seconds."""
+    cmd = [sys.executable, __file__, "--child", law_name, "--design", design, "--seed", str(seed)]
+    start = time.perf_counter()
+    load = os.getloadavg()[0]
+    try:
+        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=limit, cwd=ROOT,
+                              env=os.environ | {"PYTHONPATH": str(ROOT)})
+    except subprocess.TimeoutExpired:
+        return {"law": law_name, "design": design, "timed_out": limit, "load_start": load}
+    lines = [x for x in proc.stdout.splitlines() if x.startswith("{")]
+    if proc.returncode != 0 or not lines:
+        return {"law": law_name, "design": design, "error": proc.stderr[-1500:], "load_start": load}
+    row = json.loads(lines[-1])
+    row.update(wall=time.perf_counter() - start, load_start=load, load_end=os.getloadavg()[0])
+    return row
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--design", choices=sorted(DESIGNS), default="800")
+    parser.add_argument("--laws", nargs="+", default=LAWS)
+    parser.add_argument("--seed", type=int, default=3)
+    parser.add_argument("--limit", type=float, default=1800.0, help="seconds per law (a fit past it is cut)")
+    parser.add_argument("--child", help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.child:
+        print(json.dumps(child(args.child, args.design, args.seed)), flush=True)
+        return
+    rows = []
+    for name in args.laws:
+        row = run_one(name, args.design, args.seed, args.limit)
+        rows.append(row)
+        dahl = next((r["seconds"] for r in rows if r["law"] == "dahl" and "seconds" in r), None)
+        if "seconds" in row and dahl:
+            row["vs_dahl"] = row["seconds"] / dahl
+        print(json.dumps(row), flush=True)
+        OUT.parent.mkdir(parents=True, exist_ok=True)
+        OUT.write_text(json.dumps({"design": args.design, "seed": args.seed, "rows": rows}, indent=1))
+
+
+if __name__ == "__main__":
+    main()
