@@ -2,12 +2,18 @@
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
+from pathlib import Path
+
 import pytest
 
 from bayesfric.cli import main
 from bayesfric.study import StudyError
 from bayesfric.study.mainjob import run_flagship, study_order
-from tests.test_study import data_csv, study_text  # noqa: F401 -- the fixture is used by name
+from bayesfric.study.store import STORE_ENV
+from tests.test_study import data_csv, study_text, write_bench_data  # noqa: F401 -- the fixture is used by name
 
 ONE_LAW = '[[laws]]\nname = "coulomb_viscous"\n'
 
@@ -15,6 +21,11 @@ ONE_LAW = '[[laws]]\nname = "coulomb_viscous"\n'
 @pytest.fixture
 def studies(tmp_path, data_csv):  # noqa: F811
     """Two small studies of the same data in one folder (one law each, quick-sized sampling)."""
+    return _write_studies(tmp_path)
+
+
+def _write_studies(tmp_path: Path) -> Path:
+    """The two study files of :func:`studies`, next to the data ``tmp_path`` holds."""
     folder = tmp_path / "studies"  # only study files: the data stays next to it
     folder.mkdir()
     for name, law in (("alpha", ONE_LAW), ("beta", '[[laws]]\nname = "coulomb"\n')):
@@ -23,16 +34,32 @@ def studies(tmp_path, data_csv):  # noqa: F811
     return folder
 
 
-def test_studies_in_two_processes_give_the_serial_numbers(tmp_path, studies, capsys):
-    """Same units, inputs and seeds in a spawned process: ranking.csv and parameters.csv equal
-    the serial run's byte for byte; the closing table covers both studies' units."""
+@pytest.fixture(scope="module")
+def main_command(tmp_path_factory) -> tuple[Path, Path, subprocess.CompletedProcess]:
+    """``bayesfric main --jobs 2`` on the two studies, run once as a user runs it (its own store
+    under --out): (studies folder, reports folder, the finished command). Two tests read it."""
+    root = tmp_path_factory.mktemp("main")
+    write_bench_data(root)
+    studies = _write_studies(root)
+    env = {k: v for k, v in os.environ.items() if k != STORE_ENV}
+    done = subprocess.run([sys.executable, "-m", "bayesfric", "main", "--studies", str(studies), "--jobs", "2",
+                           "--out", str(root / "reports")], capture_output=True, text=True, timeout=600, env=env)
+    return studies, root / "reports", done
+
+
+def test_studies_in_two_processes_give_the_serial_numbers(tmp_path, main_command, monkeypatch):
+    """Same units, inputs and seeds in a spawned process (``main --jobs 2``): ranking.csv and
+    parameters.csv equal a serial run's byte for byte; the closing table covers both studies' units."""
+    studies, reports, done = main_command
+    assert done.returncode == 0, done.stderr[-2000:]
+    monkeypatch.delenv(STORE_ENV, raising=False)  # the serial run computes every unit itself
     serial = run_flagship(tmp_path / "serial", studies=studies, jobs=1)
-    parallel = run_flagship(tmp_path / "parallel", studies=studies, jobs=2)
+    parallel = sorted(p for p in reports.iterdir() if not p.name.startswith("."))
     assert [f.name for f in serial] == [f.name for f in parallel] == ["alpha", "beta"]
     for one, two in zip(serial, parallel, strict=True):
         for name in ("ranking.csv", "parameters.csv"):
             assert (one / name).read_bytes() == (two / name).read_bytes(), (one.name, name)
-    out = capsys.readouterr().out
+    out = done.stdout
     assert "main job: 2 studies in" in out and "(2 at a time, one process each)" in out
     fit_row = next(line for line in out.split("main job: time per stage")[-1].splitlines()
                    if line.split()[:1] == ["fit"])
@@ -94,17 +121,14 @@ def test_jobs_option_errors_are_one_line(tmp_path, capsys, argv, message):
     assert not (tmp_path / "reports").exists()
 
 
-def test_the_main_command_returns_when_its_study_processes_are_done(tmp_path, studies):
+def test_the_main_command_returns_when_its_study_processes_are_done(main_command):
     """``bayesfric main`` leaves with ``os._exit``: its study processes must have exited by then,
-    or they would wait for work forever and keep its output pipes open (the run would never end)."""
-    import subprocess
-    import sys
-
-    done = subprocess.run([sys.executable, "-m", "bayesfric", "main", "--studies", str(studies), "--jobs", "2",
-                           "--out", str(tmp_path / "reports")], capture_output=True, text=True, timeout=600)
+    or they would wait for work forever and keep its output pipes open (the run would never end:
+    :func:`main_command` gives it 600 s)."""
+    _, reports, done = main_command
     assert done.returncode == 0, done.stderr[-2000:]
     assert "main job: 2 studies in" in done.stdout
-    assert sorted(p.name for p in (tmp_path / "reports").iterdir() if not p.name.startswith(".")) == ["alpha", "beta"]
+    assert sorted(p.name for p in reports.iterdir() if not p.name.startswith(".")) == ["alpha", "beta"]
 
 
 def test_a_studies_folder_that_is_not_one_is_a_one_line_error(tmp_path, capsys):
