@@ -37,7 +37,7 @@ from arviz_stats.ecdf_utils import ecdf_pit
 from numpyro.infer import Predictive
 from scipy.stats import kstest
 
-from bayesfric.compare.loo_subsample import n_rows, on_rows, rows_summed, subsample_rows
+from bayesfric.compare.loo_subsample import n_rows, on_rows, releases_views, rows_summed, subsample_rows
 from bayesfric.exported import program_jit
 from bayesfric.inference.pointwise import stored_draws
 from bayesfric.limits import CHUNK_NUMBERS
@@ -250,6 +250,7 @@ class PitCheck:
         return self.n_rows > self.pit.size
 
 
+@releases_views
 def loo_pit_check(dt: xr.DataTree, *, ci_prob: float = 0.99, n_simulations: int = 1000,
                   seed: int = 0) -> PitCheck:
     """LOO-PIT values of a fit with two uniformity summaries.
@@ -291,6 +292,7 @@ def _parameters(dt: xr.DataTree) -> list[str]:
     return [v for v in dt["posterior"].data_vars if v not in ("group_z", "group_offset")]
 
 
+@releases_views
 def prior_sensitivity(dt: xr.DataTree, threshold: float = 0.05) -> pd.DataFrame:
     """Power-scaling prior and likelihood sensitivity per parameter (arviz-stats ``psense_summary``,
     Kallioinen et al. 2024): columns ``prior``, ``likelihood``, ``diagnosis``.
@@ -316,6 +318,7 @@ def _quiet(logger: logging.Logger):
         logger.setLevel(level)
 
 
+@releases_views
 def power_scaled_loo(dt: xr.DataTree, alpha: float, rows: np.ndarray | None = None):
     """PSIS-LOO of a fit as if its prior were p(θ)^α (renormalised), without refitting.
 

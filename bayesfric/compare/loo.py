@@ -33,7 +33,7 @@ import arviz as az
 import numpy as np
 import xarray as xr
 
-from bayesfric.compare.loo_subsample import Subsample, describe, estimate, is_subsampled, subsample_psis
+from bayesfric.compare.loo_subsample import Subsample, describe, estimate, is_subsampled, releases_views, subsample_psis
 from bayesfric.compare.refit import CVResult, RefitEngine, pointwise_lpd, program_from_fit
 from bayesfric.inference.diagnostics import verdict_of
 from bayesfric.inference.pointwise import stored_draws
@@ -177,6 +177,7 @@ def psis_loo(
     return _result(fit, data, elpd_i, threshold, high, handling, refit_failed, refitted, sub)
 
 
+@releases_views
 def _psis(fit: xr.DataTree):
     """arviz-stats' PSIS-LOO of ``fit``; its warning on high Pareto k̂ is held back: those points
     are refitted, or the result says they were not (``handling``, ``reliable``)."""

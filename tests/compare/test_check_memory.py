@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import gc
+
 import arviz as az
 import numpy as np
 import pandas as pd
@@ -9,6 +11,7 @@ import pytest
 import xarray as xr
 
 from bayesfric.compare import loo_subsample, prior_sensitivity
+from bayesfric.compare.checks import power_scaled_loo
 
 
 def _fit(rows: int = 37, chains: int = 2, draws: int = 60) -> xr.DataTree:
@@ -38,3 +41,27 @@ def test_prior_sensitivity_in_chunks_equals_psense_on_the_whole_group(monkeypatc
                                   dt["log_likelihood"]["response"].sum("obs").values)
     pd.testing.assert_frame_equal(prior_sensitivity(dt), expected)  # bit-identical, whatever the chunk
     assert "log_likelihood" in dt.children and dt["log_likelihood"]["response"].dims == ("chain", "draw", "obs")
+
+
+def _trees() -> int:
+    return sum(isinstance(o, xr.DataTree) for o in gc.get_objects())
+
+
+@pytest.mark.parametrize("large", [True, False])
+def test_views_of_a_large_fit_leave_memory_on_return(monkeypatch, large):
+    """A view of a fit is a DataTree, a reference cycle: on a large fit the checks collect it on
+    return (with the cyclic collector off, it would otherwise stay, with its float64 copies)."""
+    dt, rows = _fit(), np.arange(0, 37, 3)
+    expected = power_scaled_loo(dt, 0.5, rows)
+    monkeypatch.setattr(loo_subsample, "CHUNK_NUMBERS", dt["log_likelihood"]["response"].size if large else 2**40)
+    gc.collect()
+    gc.disable()
+    try:
+        before = _trees()
+        got = power_scaled_loo(dt, 0.5, rows)
+        left = _trees() - before
+    finally:
+        gc.enable()
+    assert (left == 0) == large
+    np.testing.assert_array_equal(got.elpd_i, expected.elpd_i)
+    assert got.elpd == expected.elpd
