@@ -12,6 +12,7 @@ import pytest
 from bayesfric import sizing
 from bayesfric.model import Noise
 from bayesfric.sizing import SizingError, make_question
+from tests.bench_data import write_bench
 from tests.sizing_helpers import hand_fit
 
 C, D = 4, 500
@@ -197,17 +198,8 @@ def test_trajectory_laws_cannot_be_sized():
 @pytest.fixture
 def bench(tmp_path):
     """A small simulated data set (CSV + sidecar): coulomb_viscous truth, 0.1-2 rad/s."""
-    from bayesfric.datasets.synthetic import simulate
-    from bayesfric.laws import get_law
 
-    v = np.geomspace(0.1, 2.0, 24)
-    ds = simulate(get_law("coulomb_viscous"), {"velocity": v}, {"T_C": 5.0, "c_v": 2.0}, sigma=0.2, seed=5)
-    rows = ["speed,torque"] + [f"{a:.10g},{b:.10g}" for a, b in zip(v, ds["torque"].values, strict=True)]
-    (tmp_path / "bench.csv").write_text("\n".join(rows) + "\n")
-    (tmp_path / "bench.toml").write_text(
-        '[dataset]\nname = "bench"\nprovenance = "simulated"\nsource = "test"\n'
-        '[columns.speed]\nrole = "input"\nquantity = "velocity"\nunit = "rad/s"\n'
-        '[columns.torque]\nrole = "response"\nquantity = "torque"\nunit = "N*m"\n')
+    write_bench(tmp_path, np.geomspace(0.1, 2.0, 24))
     return tmp_path
 
 

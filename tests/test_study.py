@@ -6,10 +6,9 @@ import numpy as np
 import pytest
 
 from bayesfric.cli import main
-from bayesfric.datasets.synthetic import simulate
-from bayesfric.laws import get_law
 from bayesfric.study import STUDIES_DIR, StudyError, load_study
 from bayesfric.study.runner import run_study
+from tests.bench_data import write_bench
 
 
 @pytest.fixture
@@ -21,18 +20,7 @@ def data_csv(tmp_path):
 def write_bench_data(tmp_path):
     """``data_csv``'s data set written into ``tmp_path`` (for fixtures of a wider scope)."""
     speeds = np.geomspace(0.005, 4.0, 20)
-    v = np.concatenate([-speeds[::-1], speeds])
-    ds = simulate(get_law("coulomb_viscous"), {"velocity": v}, {"T_C": 5.0, "c_v": 2.0}, sigma=0.2, seed=5)
-    path = tmp_path / "bench.csv"
-    rows = ["speed,torque,series"] + [f"{a:.10g},{b:.10g},{i % 2}" for i, (a, b) in
-                                      enumerate(zip(v, ds["torque"].values, strict=True))]
-    path.write_text("\n".join(rows) + "\n")
-    (tmp_path / "bench.toml").write_text(
-        '[dataset]\nname = "bench"\nprovenance = "simulated"\nsource = "test"\n'
-        '[columns.speed]\nrole = "input"\nquantity = "velocity"\nunit = "rad/s"\n'
-        '[columns.torque]\nrole = "response"\nquantity = "torque"\nunit = "N*m"\n'
-        '[columns.series]\nrole = "group"\n')
-    return path
+    return write_bench(tmp_path, np.concatenate([-speeds[::-1], speeds]), series=True)
 
 
 def study_text(laws='[[laws]]\nname = "coulomb"\n[[laws]]\nname = "coulomb_viscous"\n', extra=""):

@@ -16,6 +16,7 @@ from bayesfric.laws import get_law
 from bayesfric.model import build_program
 from bayesfric.study.outcome import Checks, LawOutcome, StudyOutcome, Weight
 from bayesfric.study.scores import score_table
+from tests.bench_data import write_bench
 
 OK = Verdict(True, 1.0, 1000.0, 1000.0, 0, 1.0, 0.9)
 BAD = Verdict(False, 1.2, 50.0, 40.0, 12, 0.2, 0.9, problems=["R-hat 1.2 > 1.01"])
@@ -88,14 +89,7 @@ def write_bench_study(folder: Path, capacity: str | None = None) -> Path:
     LOO, a blocked fold above 1 rad/s, a parameter claim, a sizing question with ``capacity``):
     the study file's path. Shared by the browser and re-rendering tests."""
     speeds = np.geomspace(0.005, 4.0, 20)
-    v = np.concatenate([-speeds[::-1], speeds])
-    ds = simulate(get_law("coulomb_viscous"), {"velocity": v}, {"T_C": 5.0, "c_v": 2.0}, sigma=0.2, seed=5)
-    rows = ["speed,torque"] + [f"{a:.10g},{b:.10g}" for a, b in zip(v, ds["torque"].values, strict=True)]
-    (folder / "bench.csv").write_text("\n".join(rows) + "\n")
-    (folder / "bench.toml").write_text(
-        '[dataset]\nname = "bench"\nprovenance = "simulated"\nsource = "test"\n'
-        '[columns.speed]\nrole = "input"\nquantity = "velocity"\nunit = "rad/s"\n'
-        '[columns.torque]\nrole = "response"\nquantity = "torque"\nunit = "N*m"\n')
+    write_bench(folder, np.concatenate([-speeds[::-1], speeds]))
     cap = f'capacity = "{capacity}"\n' if capacity else ""
     (folder / "s.toml").write_text(
         '[study]\nname = "tiny"\nquestion = "Trained below 1 rad/s, which law predicts above?"\n'
