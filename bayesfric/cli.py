@@ -83,7 +83,7 @@ def _add_fit(sub) -> None:
     q.add_argument("--chains", type=int, default=None, help="NUTS chains, ≥ 1")
     q.add_argument("--init", default=None, help="NUTS chain starts: median (default) | pathfinder")
     q.add_argument("--metric", default=None,
-                   help="NUTS mass matrix: diag (default) | dense (strongly correlated coefficients)")
+                   help="NUTS mass matrix: auto (default: dense where correlations are strong) | diag | dense")
     q.add_argument("--walkers", type=int, default=None, help="emcee walkers, ≥ 2 × free parameters")
     q.add_argument("--retry-target-accept", type=float, default=None,
                    help="NUTS: sample again at this target acceptance after divergences (default 0.99; 0: off)")

@@ -3,7 +3,7 @@
 Usage::
 
     .venv/bin/python benchmarks/bench_scale_rows.py [--rows 1000 10000 100000] [--chains 4]
-        [--draws 1000] [--tune 1000] [--sides bayesfric stan nutpie] [--save] [--cold]
+        [--draws 1000] [--tune 1000] [--sides bayesfric diag stan nutpie] [--save] [--cold]
 
 Data: SIMULATED steady-state Stribeck friction (``bayesfric.datasets.synthetic.simulate``; T_C = 2,
 dT_s = 1, v_s = 0.1 rad/s, δ = 0.8, σ = 0.1 N·m; speeds log-uniform on 0.01–4 rad/s in both
@@ -11,13 +11,16 @@ directions), the same rows for every side at a size.
 
 Sides, each a fresh whole process timed by this parent, interleaved per size:
 
-* ``bayesfric``: ``bayesfric.inference.fit`` (the compiled blackjax NUTS engine, its warm-up with the
-  scale-relative regulariser of :mod:`bayesfric.inference.adaptation`);
+* ``bayesfric``: ``bayesfric.inference.fit`` with its defaults (the compiled blackjax NUTS engine,
+  its warm-up with the scale-relative regulariser and the ``auto`` metric of
+  :mod:`bayesfric.inference.adaptation`: dense on this law's correlated posterior);
+* ``diag``, ``auto``: the same with ``metric="diag"`` (the default before 2026-11-26) or
+  ``metric="auto"`` set explicitly;
 * ``fisher``: the same with the Fisher diagonal (``adaptation.DIAGONAL = "fisher"``, measured but
   not the default: see that module);
-* ``dense``: the same with the dense metric (``metric="dense"``, a per-law study setting, not the
-  default: on this law's correlated posterior it takes ~4× fewer steps, on weakly correlated
-  seed laws it passed the gate less often; ``benchmarks/bench_adaptation.py``);
+* ``dense``: the same with the dense metric in every chain (``metric="dense"``: on this law's
+  correlated posterior it takes ~4× fewer steps; on weakly correlated seed laws it passed the
+  gate less often, hence ``auto``; ``benchmarks/bench_adaptation.py``);
 * ``stan``: the same, with the warm-up's metric estimated and regularised as Stan and blackjax's
   ``mass_matrix_adaptation`` do (positions' variance, shrunk towards ``1e-3 I``) — patched in
   this benchmark's child only, to show the before/after side by side;
@@ -97,7 +100,7 @@ def bayesfric_child(args: argparse.Namespace) -> None:
         adaptation.DIAGONAL = "fisher"
     ds = dataset(args.rows)
     start = time.perf_counter()
-    metric = {"metric": "dense"} if args.child == "dense" else {}
+    metric = {"metric": args.child} if args.child in ("dense", "diag", "auto") else {}
     dt = fit(get_law("stribeck"), ds, seed=args.seed, draws=args.draws, tune=args.tune, chains=args.chains,
              **metric)
     seconds = time.perf_counter() - start
@@ -171,14 +174,15 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rows", type=int, nargs="+", default=[1000, 10_000, 100_000])
     parser.add_argument("--sides", nargs="+", default=["bayesfric", "stan", "nutpie"],
-                        choices=["bayesfric", "dense", "stan", "fisher", "nutpie"])
+                        choices=["bayesfric", "diag", "dense", "auto", "stan", "fisher", "nutpie"])
     parser.add_argument("--chains", type=int, default=4)
     parser.add_argument("--draws", type=int, default=1000)
     parser.add_argument("--tune", type=int, default=1000)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--cold", action="store_true", help="skip the cache-filling run (large sizes)")
     parser.add_argument("--save", action="store_true", help="bayesfric sides also write the fit; report its size")
-    parser.add_argument("--child", choices=["bayesfric", "dense", "stan", "fisher"], help=argparse.SUPPRESS)
+    parser.add_argument("--child", choices=["bayesfric", "diag", "dense", "auto", "stan", "fisher"],
+                        help=argparse.SUPPRESS)
     parser.add_argument("--one", type=int, dest="rows_one", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child:

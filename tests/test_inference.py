@@ -186,6 +186,38 @@ def test_a_dense_metric_learns_a_correlated_posterior_and_crosses_it_in_fewer_st
     assert dense_steps < 0.25 * diag_steps, (dense_steps, diag_steps)
 
 
+def test_the_auto_metric_goes_dense_on_strong_correlations_only():
+    """``auto`` (one ``nuts_chain``): on the 3-d Gaussian with correlations 0.999 the slow
+    windows keep their dense estimate (every draw samples with a dense metric, about as few
+    steps as ``dense``); on a Gaussian with independent coordinates of scales 1e-3 … 10 they
+    keep its diagonal, and the draws are the diagonal metric's, bit for bit (the diagonal of
+    the dense estimate is the diagonal estimate)."""
+    import jax
+
+    from bayesfric.inference.adaptation import nuts_chain, sampling_schedule
+    from bayesfric.runtime import configure
+
+    configure()
+    schedule = sampling_schedule(500, 1000)
+
+    def run(precision, imm, auto):
+        out = jax.jit(lambda z0, m: nuts_chain(jax.random.PRNGKey(4), z0, lambda x: -0.5 * x @ precision @ x,
+                                               schedule, m, 0.8, 10, auto))(np.full(3, 0.5), imm)
+        return (np.asarray(out.position)[500:], float(np.mean(np.asarray(out.n_steps)[500:])),
+                np.asarray(out.dense_metric)[500:])
+
+    correlated = np.linalg.inv(np.full((3, 3), 0.999) + 0.001 * np.eye(3))
+    _, auto_steps, dense_used = run(correlated, np.eye(3), True)
+    _, diag_steps, _ = run(correlated, np.ones(3), False)
+    assert dense_used.all() and auto_steps < 0.25 * diag_steps, (auto_steps, diag_steps)
+
+    independent = np.diag(1.0 / np.array([1e-3, 1.0, 10.0]) ** 2)
+    auto_draws, _, dense_used = run(independent, np.eye(3), True)
+    diag_draws, _, _ = run(independent, np.ones(3), False)
+    assert not dense_used.any()
+    np.testing.assert_array_equal(auto_draws, diag_draws)
+
+
 def test_the_engine_takes_a_dense_metric_through_fit_and_warm_started_folds(simulator):
     """``NutsEngine(metric="dense")``: the fit records it, a warm start begins from the fit's
     covariance, its folds sample; an unknown metric is refused."""
@@ -209,3 +241,31 @@ def test_the_engine_takes_a_dense_metric_through_fit_and_warm_started_folds(simu
     folds = warm.run(masks, seed=1)
     assert np.isfinite(folds.lpd).all() and folds.samples["T_C"].shape[:2] == (2, 2)
     assert engine.compilations == 1  # the fit and the warm-started folds share one compiled sampler
+
+
+def test_the_auto_metric_records_its_choice_and_falls_back_to_the_diagonal_one(simulator):
+    """``NutsEngine`` (default ``auto``) on Coulomb-viscous data at speeds 1-2 rad/s only, where
+    T_C and c_v are strongly anti-correlated: every chain goes dense, the fit says so, and warm
+    folds start from the fit's covariance. With a gate no fit can pass, a fit that went dense is
+    sampled again with the diagonal metric (no dense draw, recorded), on the same compiled
+    sampler."""
+    from bayesfric.compare.refit import RefitEngine
+    from bayesfric.inference.diagnostics import Gate
+    from bayesfric.model import build_program
+
+    law = get_law("coulomb_viscous")
+    ds = simulator(law, {"velocity": np.linspace(1, 2, 30)}, {"T_C": 1.0, "c_v": 0.5}, sigma=0.05, seed=2)
+    engine = RefitEngine(build_program(law, ds), draws=600, tune=300, chains=2)
+    assert engine.metric == "auto"
+    dt = engine.fit(ds)
+    settings = json.loads(dt.attrs["sampler_settings"])
+    assert settings["metric"].startswith("auto: dense in 2 of 2 chains") and "retried" not in settings
+    warm = engine.warm_started(dt, 150)
+    assert np.asarray(warm._init_imm).ndim == 2 and np.asarray(warm._init_imm)[0, 1] != 0
+    strict = RefitEngine(build_program(law, ds), draws=300, tune=300, chains=2, gate=Gate(ess_bulk_min=1e9))
+    fits = strict.run(np.ones((1, 30), dtype=bool))
+    assert fits.diagonal.tolist() == [True] and not fits.stats["dense_metric"].any()
+    assert not fits.verdicts[0].passed and strict.compilations == 1
+    retried = json.loads(strict.fit(ds).attrs["sampler_settings"])
+    assert retried["retried"].startswith("failed the gate: sampled again at 0.9 with the diagonal metric")
+    assert retried["metric"].startswith("auto: dense in 0 of 2")

@@ -142,7 +142,7 @@ def test_evidence_pair_end_to_end(tmp_path, data_csv):
 @pytest.mark.parametrize(("sampler", "full", "quick"), [
     ("draws = 1000\ntune = 500\nchains = 2\n",
      {"draws": 1000, "tune": 500, "chains": 2, "target_accept": 0.9, "retry_target_accept": 0.99,
-      "metric": "diag", "init": "median"},
+      "metric": "auto", "init": "median"},
      {"draws": 300, "tune": 300, "chains": 2}),
     ('name = "emcee"\ndraws = 5000\ntune = 2000\nwalkers = 16\nthin = 20\n',
      {"draws": 5000, "tune": 2000, "walkers": 16, "thin": 20}, {"draws": 1000, "tune": 1000, "thin": 10}),
@@ -176,7 +176,7 @@ def test_the_divergence_retry_is_a_sampler_key_that_reaches_the_engine(tmp_path,
     assert _base_engine(job).retry_target_accept == engine_retry
 
 
-@pytest.mark.parametrize(("line", "metric"), [("", "diag"), ('metric = "dense"\n', "dense")])
+@pytest.mark.parametrize(("line", "metric"), [("", "auto"), ('metric = "dense"\n', "dense")])
 def test_the_mass_matrix_is_a_sampler_key_that_reaches_the_engine(tmp_path, data_csv, line, metric):
     """``[sampler] metric`` sets the compiled engine's metric (and so its unit keys)."""
     from bayesfric.datasets import load_dataset, resolve
@@ -208,7 +208,7 @@ def test_a_law_entry_sets_its_own_mass_matrix(tmp_path, data_csv):
     schemes = _fold_schemes(study, ds, 0, kfold)
     jobs = [p[0] for p in _plan_laws(study, ds, schemes, settings, 0)]
     before = [p[0] for p in _plan_laws(plain, ds, schemes, settings, 0)]
-    assert jobs[0].settings["metric"] == "dense" and jobs[1].settings["metric"] == "diag"
+    assert jobs[0].settings["metric"] == "dense" and jobs[1].settings["metric"] == "auto"
     assert jobs[0].key != before[0].key and [j.key for j in jobs[1:]] == [j.key for j in before[1:]]
 
 

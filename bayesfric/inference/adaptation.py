@@ -29,6 +29,17 @@ One rule differs from Stan's, so that the warm-up does not degrade as data grow:
   ``1e-3 I`` as Stan does (the metric starts at the identity), later ones towards a thousandth
   of the scale already estimated.
 
+* **The ``auto`` metric (the engine's default).** Every slow window estimates a *dense*
+  covariance; the chain keeps it dense when the condition number κ of its correlation matrix
+  exceeds :data:`DENSE_ABOVE` (20: a diagonal metric then needs about √κ times the leapfrog
+  steps per U-turn) and the window has at least 10 draws per coordinate, else its diagonal,
+  which is exactly the diagonal metric's estimate (:func:`_auto_metric`). The kernel gets
+  blackjax's Gaussian metric of both forms and selects per call (:func:`_switching_metric`),
+  so a weakly correlated posterior gets the diagonal metric's draws bit for bit
+  (``tests/test_inference.py``). Why not always dense: on curved or weakly identified
+  posteriors (robot_joint ``coulomb_viscous``, the unwinder's ``thermal_vogel_power``) a dense
+  metric passed the gate less often than the diagonal one.
+
 * **Measured, not adopted: the Fisher diagonal.** :data:`DIAGONAL` = ``"fisher"`` estimates a
   diagonal metric as ``sqrt(Var[x] / Var[∇ log p])`` per coordinate (the Fisher-divergence
   diagonal nutpie uses, from positions and gradients: :func:`_fisher_metric`). It cut the steps
@@ -54,6 +65,7 @@ import numpy as np
 from blackjax.adaptation.mass_matrix import welford_algorithm
 from blackjax.adaptation.step_size import dual_averaging_adaptation
 from blackjax.adaptation.window_adaptation import build_schedule
+from blackjax.mcmc.metrics import Metric, gaussian_euclidean
 
 __all__ = ["ChainDraws", "sampling_schedule", "nuts_chain", "chain_start", "chain_steps", "step_keys"]
 
@@ -66,6 +78,7 @@ class ChainDraws(NamedTuple):
     energy: jax.Array
     n_steps: jax.Array
     acceptance_rate: jax.Array
+    dense_metric: jax.Array  # whether the step's metric was dense (``auto`` and ``dense`` metrics)
 
 
 def sampling_schedule(steps: int, draws: int, active: int | None = None, warm: bool = True) -> np.ndarray:
@@ -105,7 +118,8 @@ class _Adaptation(NamedTuple):
     mass_matrix: tuple
 
 
-def nuts_chain(key, z0, logdensity, schedule, init_imm, target_accept: float, depth: int) -> ChainDraws:
+def nuts_chain(key, z0, logdensity, schedule, init_imm, target_accept: float, depth: int,
+               auto: bool = False) -> ChainDraws:
     """Warm up and sample one chain along ``schedule`` (rows of :func:`sampling_schedule`).
 
     ``init_imm`` is the initial inverse mass matrix: a vector for a diagonal metric (ones, or a
@@ -120,8 +134,8 @@ def nuts_chain(key, z0, logdensity, schedule, init_imm, target_accept: float, de
     :func:`chain_steps` on consecutive slices of the schedule and keys instead (the same
     draws: the chain's carry and its per-step keys do not depend on the slicing).
     """
-    carry = chain_start(z0, logdensity, init_imm)
-    _, out = chain_steps(carry, step_keys(key, schedule.shape[0]), schedule, logdensity, target_accept, depth)
+    carry = chain_start(z0, logdensity, init_imm, auto)
+    _, out = chain_steps(carry, step_keys(key, schedule.shape[0]), schedule, logdensity, target_accept, depth, auto)
     return out
 
 
@@ -130,23 +144,30 @@ def step_keys(key, steps: int) -> jax.Array:
     return jax.random.split(key, steps)
 
 
-def chain_start(z0, logdensity, init_imm) -> tuple:
-    """The carry of a chain before its first step: NUTS state at ``z0`` and fresh adaptation."""
-    mm_init = (_fisher_metric() if init_imm.ndim == 1 and DIAGONAL == "fisher"
-               else _scale_relative_metric(init_imm.ndim == 1))[0]
+def chain_start(z0, logdensity, init_imm, auto: bool = False) -> tuple:
+    """The carry of a chain before its first step: NUTS state at ``z0`` and fresh adaptation.
+
+    ``auto``: ``init_imm`` is a square matrix used as a diagonal metric while it is diagonal
+    and as a dense one otherwise, and each slow window picks one of the two
+    (:func:`_auto_metric`)."""
+    mm_init = _estimator(init_imm, auto)[0]
     da_init = dual_averaging_adaptation(0.8)[0]  # the initial state does not depend on the target
     adapt0 = _Adaptation(jnp.asarray(1.0, dtype=z0.dtype), init_imm, da_init(1.0), mm_init(z0.shape[0]))
     # python scalars in blackjax's initial states become arrays: the carry is a function's output
     return jax.tree.map(jnp.asarray, (blackjax.nuts.init(z0, logdensity), adapt0))
 
 
-def chain_steps(carry, keys, schedule, logdensity, target_accept: float, depth: int) -> tuple[tuple, ChainDraws]:
-    """Advance a chain's ``carry`` (:func:`chain_start`) by the rows of ``schedule`` with one key
-    per row; return the new carry and every step's output (inactive rows: zeros)."""
+def chain_steps(carry, keys, schedule, logdensity, target_accept: float, depth: int,
+                auto: bool = False, dense_above=None) -> tuple[tuple, ChainDraws]:
+    """Advance a chain's ``carry`` (:func:`chain_start`, the same ``auto``) by the rows of
+    ``schedule`` with one key per row; return the new carry and every step's output (inactive
+    rows: zeros). ``dense_above``: the ``auto`` metric's threshold (default
+    :data:`DENSE_ABOVE`; an argument of the compiled code, so ``inf``, the diagonal metric,
+    compiles nothing new)."""
     da_init, da_update, da_final = dual_averaging_adaptation(target_accept)
-    _, mm_update, mm_final = (_fisher_metric() if carry[1].inverse_mass_matrix.ndim == 1 and DIAGONAL == "fisher"
-                              else _scale_relative_metric(carry[1].inverse_mass_matrix.ndim == 1))
+    _, mm_update, mm_final = _estimator(carry[1].inverse_mass_matrix, auto, dense_above)
     kernel = blackjax.nuts.build_kernel()
+    metric_of = _switching_metric if auto else (lambda imm: imm)
 
     def adapt_step(adapt: _Adaptation, row, position, grad, acceptance_rate) -> _Adaptation:
         da = da_update(adapt.dual_averaging, acceptance_rate)
@@ -164,17 +185,18 @@ def chain_steps(carry, keys, schedule, logdensity, target_accept: float, depth: 
         state, adapt = carry
         sampling = row[3] == 1  # adaptation frozen; the averaged step size of the warm-up
         step_size = jnp.where(sampling, da_final(adapt.dual_averaging), adapt.step_size)
-        state, info = kernel(k, state, logdensity, step_size, adapt.inverse_mass_matrix, max_num_doublings=depth)
+        imm = adapt.inverse_mass_matrix
+        state, info = kernel(k, state, logdensity, step_size, metric_of(imm), max_num_doublings=depth)
         updated = adapt_step(adapt, row, state.position, state.logdensity_grad, info.acceptance_rate)
         adapt = jax.tree.map(lambda old, new: jnp.where(sampling, old, new), adapt, updated)
         out = ChainDraws(state.position, info.is_divergent, info.energy, info.num_integration_steps,
-                         info.acceptance_rate)
+                         info.acceptance_rate, _is_dense(imm))
         return (state, adapt), out
 
     def idle(carry):  # an inactive row: the chain untouched, zeros for the step's output
         position = carry[0].position
         return carry, ChainDraws(jnp.zeros_like(position), jnp.zeros((), bool), jnp.zeros((), position.dtype),
-                                 jnp.zeros((), int), jnp.zeros((), position.dtype))
+                                 jnp.zeros((), int), jnp.zeros((), position.dtype), jnp.zeros((), bool))
 
     def step(carry, xs):
         k, row = xs
@@ -231,3 +253,63 @@ def _fisher_metric():
 
     return (lambda n: (wc_init(n), wc_init(n)),
             lambda state, position, grad: (wc_update(state[0], position), wc_update(state[1], grad)), final)
+
+
+#: ``auto`` metric: a slow window's estimate is used dense when the condition number of its
+#: correlation matrix exceeds this (a diagonal metric then needs about sqrt(κ) times the steps
+#: of a dense one), and only from a window of at least ``DENSE_MIN_DRAWS_PER_DIM`` draws per
+#: coordinate (the sample correlation of fewer draws is ill-conditioned by chance alone).
+DENSE_ABOVE = 20.0
+DENSE_MIN_DRAWS_PER_DIM = 10
+
+
+def _estimator(init_imm, auto: bool, dense_above=None):
+    """(init, update, final) of the windowed metric estimate of a chain started at ``init_imm``."""
+    if auto:
+        return _auto_metric(DENSE_ABOVE if dense_above is None else dense_above)
+    if init_imm.ndim == 1 and DIAGONAL == "fisher":
+        return _fisher_metric()
+    return _scale_relative_metric(init_imm.ndim == 1)
+
+
+def _auto_metric(dense_above):
+    """(init, update, final) of the ``auto`` metric: the dense estimate of
+    :func:`_scale_relative_metric`, kept dense where its correlations are strong (condition
+    number of the correlation matrix above ``dense_above``) and cut to its diagonal
+    otherwise, so a weakly correlated posterior samples with the diagonal metric it would have
+    had (the diagonal of the dense estimate is the diagonal estimate)."""
+    wc_init, wc_update, wc_final = welford_algorithm(False)
+
+    def final(state, current):
+        covariance, count, _ = wc_final(state)
+        estimate = _regularised(covariance, count, current, False)
+        scale = jnp.sqrt(jnp.diag(estimate))
+        eigenvalues = jnp.linalg.eigvalsh(estimate / jnp.outer(scale, scale))
+        kappa = eigenvalues[-1] / eigenvalues[0]
+        dense = (jnp.isfinite(kappa) & (eigenvalues[0] > 0) & (kappa > dense_above)
+                 & (count >= DENSE_MIN_DRAWS_PER_DIM * estimate.shape[0]))
+        return jnp.where(dense, estimate, jnp.diag(jnp.diag(estimate))), wc_init(covariance.shape[0])
+
+    return wc_init, lambda state, position, grad: wc_update(state, position), final
+
+
+def _is_dense(imm) -> jax.Array:
+    """Whether ``imm`` is used as a dense metric: a matrix with a nonzero off-diagonal entry."""
+    if imm.ndim == 1:
+        return jnp.zeros((), bool)
+    return jnp.any(imm != jnp.diag(jnp.diag(imm)))
+
+
+def _switching_metric(imm) -> Metric:
+    """blackjax's Gaussian metric of the square matrix ``imm``: dense where it has a nonzero
+    off-diagonal entry, else the diagonal metric of its diagonal. Both are evaluated and one
+    is selected (they cost O(dim²) against the log density's gradient per step)."""
+    dense, diagonal, use_dense = gaussian_euclidean(imm), gaussian_euclidean(jnp.diag(imm)), _is_dense(imm)
+
+    def pick(name: str):
+        def picked(*args, **kwargs):
+            return jax.tree.map(lambda a, b: jnp.where(use_dense, a, b), getattr(dense, name)(*args, **kwargs),
+                                getattr(diagonal, name)(*args, **kwargs))
+        return picked
+
+    return Metric(**{name: pick(name) for name in Metric._fields})

@@ -42,10 +42,14 @@ class FoldFits:
         Wall time of the call (compilation included when it happened).
     stats : dict of str to ndarray
         Per-draw sampler statistics shaped ``(fold, chain, draw)``: ``diverging``, ``energy``,
-        ``n_steps`` (leapfrog steps) and ``acceptance_rate``.
+        ``n_steps`` (leapfrog steps), ``acceptance_rate`` and ``dense_metric`` (whether the draw's
+        metric was dense).
     target_accept : ndarray
         ``(fold,)``: the target acceptance each fold's draws were adapted to (the engine's, or
         its ``retry_target_accept`` where the first run diverged).
+    diagonal : ndarray
+        ``(fold,)``: whether the fold was sampled again with the diagonal metric (``auto``
+        metric: its first run, dense in some chain, failed the gate).
     """
 
     samples: dict[str, np.ndarray]
@@ -54,6 +58,7 @@ class FoldFits:
     seconds: float
     stats: dict[str, np.ndarray] = field(default_factory=dict)
     target_accept: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    diagonal: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
 
     @property
     def failed(self) -> list[int]:

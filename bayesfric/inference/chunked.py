@@ -55,21 +55,26 @@ class ChunkedSampler:
     parts : dict
         The engine's disk-cache key parts (each program adds what it is).
     example : tuple
-        ``(keys, masks, response, starts, init_imm, schedule, target_accept)``: shapes of a call.
+        ``(keys, masks, response, starts, init_imm, schedule, target_accept, dense_above)``:
+        shapes of a call.
     depth : int
         Maximum tree depth of NUTS.
     tune : int
         Warm-up rows of the schedule (the rest are draws).
     chunk : int
         Schedule rows per call of the advance program.
+    auto : bool
+        The ``auto`` metric (:func:`bayesfric.inference.adaptation.chain_start`).
     on_trace : callable
         Called once per trace of the advance program (the engine counts its compilations).
     """
 
     def __init__(self, density: Any, data_of: Callable, vmap: Callable, finish: Callable, parts: dict,
-                 example: tuple, depth: int, tune: int, chunk: int, on_trace: Callable[[], None]):
-        keys, masks, response, starts, init_imm, schedule, target = example
+                 example: tuple, depth: int, tune: int, chunk: int, on_trace: Callable[[], None],
+                 auto: bool = False):
+        keys, masks, response, starts, init_imm, schedule, target, dense_above = example
         self.density, self.data_of, self.vmap, self.depth, self.on_trace = density, data_of, vmap, depth, on_trace
+        self.auto = bool(auto)
         self.rows = schedule.shape[0]
         self.tune = tune
         self.chunk = max(1, min(int(chunk), self.rows))
@@ -82,7 +87,7 @@ class ChunkedSampler:
                                      start_args, ahead=True)
         chunk_keys = jax.ShapeDtypeStruct((n_folds, n_chains, self.chunk) + keys_shape.shape[3:], keys_shape.dtype)
         chunk_rows = jax.ShapeDtypeStruct((self.chunk,) + schedule.shape[1:], schedule.dtype)
-        advance_args = (jax.tree.leaves(carry_shapes), chunk_keys, masks, response, chunk_rows, target)
+        advance_args = (jax.tree.leaves(carry_shapes), chunk_keys, masks, response, chunk_rows, target, dense_above)
         self.advance, self.loaded = exported_jit(self._advance, parts | dict(what="chunked advance"),
                                                  advance_args, ahead=True)
         dim = starts.shape[-1]
@@ -109,7 +114,7 @@ class ChunkedSampler:
                 return self.density.log_joint(x, mask, data)
 
             def one_chain(key, x0):
-                return chain_start(x0, logdensity, init_imm), step_keys(key, self.rows)
+                return chain_start(x0, logdensity, init_imm, self.auto), step_keys(key, self.rows)
 
             return self.vmap(one_chain)(fold_keys, starts)
 
@@ -119,7 +124,7 @@ class ChunkedSampler:
         carry, step = self._start_tree(keys, masks, response, starts, init_imm)
         return jax.tree.leaves(carry), step
 
-    def _advance(self, leaves, keys, masks, response, rows, target_accept):
+    def _advance(self, leaves, keys, masks, response, rows, target_accept, dense_above):
         self.on_trace()
         data = self.data_of(response)
         carry = jax.tree.unflatten(self.treedef, leaves)
@@ -129,7 +134,7 @@ class ChunkedSampler:
                 return self.density.log_joint(x, mask, data)
 
             def one_chain(c, k):
-                return chain_steps(c, k, rows, logdensity, target_accept, self.depth)
+                return chain_steps(c, k, rows, logdensity, target_accept, self.depth, self.auto, dense_above)
 
             return self.vmap(one_chain)(fold_carry, fold_keys)
 
@@ -137,7 +142,7 @@ class ChunkedSampler:
         return jax.tree.leaves(carry), out._asdict()
 
     # -- the loop ----------------------------------------------------------------------------
-    def __call__(self, keys, masks, response, starts, init_imm, schedule, target_accept,
+    def __call__(self, keys, masks, response, starts, init_imm, schedule, target_accept, dense_above,
                  report: Callable[[int, np.ndarray], None] | None = None) -> tuple:
         """``(constrained, stats, lpd)`` of one call of the unchunked sampler: the draws after
         the warm-up, per-draw statistics and the pointwise predictive density. ``report(rows,
@@ -153,7 +158,7 @@ class ChunkedSampler:
         for lo in range(0, self.padded, self.chunk):
             part = rows[lo:lo + self.chunk]
             leaves, out = self.advance(leaves, step[:, :, lo:lo + self.chunk], masks, response, part,
-                                       target_accept)
+                                       target_accept, dense_above)
             outs.append(out)  # the carry and the output stay where the program put them
             if report is not None:
                 sampling = (part[:, 2] == 1) & (part[:, 3] == 1)

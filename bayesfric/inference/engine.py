@@ -59,7 +59,7 @@ import numpy as np
 import xarray as xr
 
 from bayesfric.fingerprint import program_parts
-from bayesfric.inference.adaptation import sampling_schedule
+from bayesfric.inference.adaptation import DENSE_ABOVE, sampling_schedule
 from bayesfric.inference.batching import FoldFits, available_cpus, chain_batch_of, join_chains, vmap_or_squeeze
 from bayesfric.inference.chunked import CHUNK_STEPS, ChunkedSampler
 from bayesfric.inference.datatree import assemble, draw_tables_args, tables_jit
@@ -73,7 +73,7 @@ from bayesfric.model import Program
 __all__ = ["NutsEngine", "FoldFits", "available_cpus", "METRICS"]
 
 #: Mass matrices the warm-up can estimate (``NutsEngine(metric=...)``, study key ``[sampler] metric``).
-METRICS = ("diag", "dense")
+METRICS = ("diag", "dense", "auto")
 
 
 class NutsEngine:
@@ -91,10 +91,17 @@ class NutsEngine:
         about one fold in ten on simple laws, hence the full 1000.
     target_accept, max_tree_depth
         Target acceptance of the step-size adaptation and the largest tree depth (doublings).
-    metric : {"diag", "dense"}
-        The mass matrix the warm-up estimates (Stan's ``diag_e`` / ``dense_e``). Diagonal by
-        default; dense for posteriors whose coefficients are strongly correlated, which a
-        diagonal metric crosses in many short leapfrog steps. Measured on the unwinder's
+    metric : {"auto", "diag", "dense"}
+        The mass matrix the warm-up estimates (Stan's ``diag_e`` / ``dense_e``). ``auto`` (the
+        default) estimates a dense one in every slow window and keeps it dense only where the
+        condition number of its correlation matrix exceeds
+        :data:`~bayesfric.inference.adaptation.DENSE_ABOVE` (20), else its diagonal: per chain,
+        re-decided at each window, recorded in the fit's ``metric`` setting and per draw in
+        ``dense_metric``. On weakly correlated posteriors it is the diagonal metric, draw for
+        draw; on the strongly correlated Stribeck posterior of ``benchmarks/bench_scale_rows.py``
+        (κ ≈ 96 after diagonal preconditioning) it took 6.2 steps per draw against 25.8 at 10⁴
+        rows, with 4.3× the worst bulk ESS. Dense for posteriors whose coefficients are strongly
+        correlated, which a diagonal metric crosses in many short leapfrog steps. Measured on the unwinder's
         ``thermal_poly_surface`` (15 polynomial coefficients, correlations up to |r| = 0.97):
         540 leapfrog steps per draw on average, 19 % of the draws at the tree-depth limit (1023
         steps), with the diagonal metric (see ``studies/unwinder.toml`` for the dense figures). A dense
@@ -109,7 +116,12 @@ class NutsEngine:
         0.08-0.89× the whole warm-cache fit on robot_joint's six laws
         (``benchmarks/bench_retry.py``); folds without divergences pay nothing. Before it, a
         single divergent transition in 4000 draws flipped which robot_joint fits and claims
-        passed, with the chains' floating-point path.
+        passed, with the chains' floating-point path. Under the ``auto`` metric a fold that
+        fails the gate after a chain chose the dense metric is also sampled again (at this
+        target when it diverged, else at ``target_accept``) with the diagonal metric (the
+        threshold is an argument of the compiled sampler too), and the fit records it: a dense
+        metric fails on some curved posteriors where the diagonal one passes (the unwinder's
+        ``thermal_vogel_power``: tail ESS below the gate, dense in all four chains).
     fold_batch : int
         Number of folds sampled together in one vectorised call (``vmap`` over
         ``fold_batch × chains`` NUTS chains). Fixed per engine so one compilation serves any K.
@@ -168,7 +180,7 @@ class NutsEngine:
         chains: int = 4,
         target_accept: float = 0.9,
         max_tree_depth: int = 10,
-        metric: str = "diag",
+        metric: str = "auto",
         retry_target_accept: float | None = 0.99,
         fold_batch: int = 1,
         gate: Gate = GATE,
@@ -207,7 +219,7 @@ class NutsEngine:
         # warm-up and sampling in chunks of chunk_steps rows, for progress (bayesfric.inference.chunked)
         self._sampler = ChunkedSampler(self._density, self._data, vmap_or_squeeze, self._finish_batch,
                                        self._program_parts(), self._example_args(), self.max_tree_depth,
-                                       self.tune, chunk_steps, self._traced)
+                                       self.tune, chunk_steps, self._traced, auto=self.metric == "auto")
         self.loaded = self._sampler.loaded
         self._tables = None  # the full fit's DataTree tables, compiled on the first fit
         self.compilations += int(self.loaded)  # a program read from disk counts as its one compilation
@@ -288,15 +300,15 @@ class NutsEngine:
                     warm_start="from the full fit's draws and mass matrix" if self.warm else "no")
 
     def _unit_imm(self) -> np.ndarray:
-        """The inverse mass matrix chains start cold with: ones, or the identity (dense)."""
+        """The inverse mass matrix chains start cold with: ones, or the identity (dense, auto)."""
         dim = self._density.dim
-        return np.eye(dim) if self.metric == "dense" else np.ones(dim)
+        return np.ones(dim) if self.metric == "diag" else np.eye(dim)
 
     # -- the compiled function ------------------------------------------------------------
     def _program_parts(self) -> dict:
         """What the traced sampler depends on besides the package source (its disk-cache key)."""
         return dict(program=program_parts(self.program, response=False), what="NutsEngine",
-                    draws=self.draws, max_tree_depth=self.max_tree_depth)
+                    draws=self.draws, max_tree_depth=self.max_tree_depth, metric=self.metric)
 
     def _example_args(self) -> tuple:
         keys = jax.ShapeDtypeStruct((self.fold_batch, self.chain_batch) + jax.random.PRNGKey(0).shape, jnp.uint32)
@@ -306,7 +318,7 @@ class NutsEngine:
         starts = jax.ShapeDtypeStruct((self.chain_batch, self._density.dim), self._init_imm.dtype)
         return (keys, masks, jax.ShapeDtypeStruct(y.shape, y.dtype), starts, self._init_imm,
                 jax.ShapeDtypeStruct(schedule.shape, schedule.dtype),
-                jax.ShapeDtypeStruct((), self._init_imm.dtype))
+                jax.ShapeDtypeStruct((), self._init_imm.dtype), jax.ShapeDtypeStruct((), self._init_imm.dtype))
 
     def _traced(self) -> None:
         self.compilations += 1  # runs only while tracing the sampler's step, i.e. once per compilation
@@ -345,23 +357,32 @@ class NutsEngine:
             raise ValueError("a fold trains on no observation")
         start = time.perf_counter()
         folds = np.arange(masks.shape[0])
-        samples, stats, lpd = self._sample(masks, folds, seed, self.target_accept)
+        samples, stats, lpd = self._sample(masks, folds, seed, self.target_accept, DENSE_ABOVE)
         targets = np.full(folds.size, self.target_accept)
         verdicts = self._verdicts(samples, stats)
-        retry = [i for i, v in enumerate(verdicts) if not v.passed and v.divergences]
-        if retry and self.retry_target_accept is not None and self.retry_target_accept > self.target_accept:
-            again = self._sample(masks[retry], folds[retry], seed, self.retry_target_accept)
+        raise_target = self.retry_target_accept is not None and self.retry_target_accept > self.target_accept
+        went_dense = (stats["dense_metric"].any(axis=(1, 2)) if self.metric == "auto"
+                      else np.zeros(folds.size, bool))
+        retry = [i for i, v in enumerate(verdicts)
+                 if not v.passed and ((v.divergences and raise_target) or went_dense[i])]
+        diagonal = np.zeros(folds.size, bool)
+        if retry:
+            target = self.retry_target_accept if raise_target else self.target_accept
+            again = self._sample(masks[retry], folds[retry], seed, target,
+                                 np.inf if self.metric == "auto" else DENSE_ABOVE)
             for whole, part in ((samples, again[0]), (stats, again[1])):
                 for name in whole:
                     whole[name][retry] = part[name]
-            lpd[retry], targets[retry] = again[2], self.retry_target_accept
+            lpd[retry], targets[retry], diagonal[retry] = again[2], target, went_dense[retry]
             for i, verdict in zip(retry, self._verdicts(again[0], again[1]), strict=True):
                 verdicts[i] = verdict
-        return FoldFits(samples, lpd, verdicts, time.perf_counter() - start, stats, targets)
+        return FoldFits(samples, lpd, verdicts, time.perf_counter() - start, stats, targets, diagonal)
 
-    def _sample(self, masks: np.ndarray, folds: np.ndarray, seed: int, target_accept: float) -> tuple:
+    def _sample(self, masks: np.ndarray, folds: np.ndarray, seed: int, target_accept: float,
+                dense_above: float) -> tuple:
         """Draws, statistics and lpd of the folds ``folds`` (indices of the run, which fix
-        their keys) with training masks ``masks``, at ``target_accept``."""
+        their keys) with training masks ``masks``, at ``target_accept`` (and the ``auto``
+        metric's threshold ``dense_above``)."""
         n_folds, b = masks.shape[0], self.fold_batch
         n_pad = (-n_folds) % b
         padded = np.concatenate([masks, np.repeat(masks[:1], n_pad, axis=0)])
@@ -372,7 +393,8 @@ class NutsEngine:
         # host arrays: a device-committed start would count as another signature of the
         # exported program and compile it again
         starts, cb = np.asarray(self._starts()), self.chain_batch
-        fixed = (np.asarray(self._init_imm), np.asarray(self._schedule), np.asarray(target_accept, dtype=float))
+        fixed = (np.asarray(self._init_imm), np.asarray(self._schedule), np.asarray(target_accept, dtype=float),
+                 np.asarray(dense_above, dtype=float))
         idle = self.tune - self.active_tune
         shown = SamplingProgress(current(), n_folds, self.chains, idle, self.active_tune, self.draws)
 
@@ -426,14 +448,20 @@ class NutsEngine:
         fits = self.run(np.ones((1, self.program.n_obs), dtype=bool), seed=seed)
         samples = {k: v[0] for k, v in fits.samples.items()}
         stats = {k: v[0] for k, v in fits.stats.items()}
+        dense = stats.pop("dense_metric").any(axis=-1)  # per chain: sampled with a dense metric
         settings = dict(draws=self.draws, tune=self.active_tune, chains=self.chains,
                         target_accept=float(fits.target_accept[0]), max_tree_depth=self.max_tree_depth,
                         init=self.init, algorithm="blackjax NUTS, Stan window adaptation")
-        if self.metric != "diag":  # recorded when not the default, so existing fits keep their attrs
+        if self.metric == "auto":
+            settings["metric"] = (f"auto: dense in {int(dense.sum())} of {dense.size} chains (correlation "
+                                  f"condition number above {DENSE_ABOVE:g}), diagonal in the others")
+        elif self.metric != "diag":  # recorded when not the default, so existing fits keep their attrs
             settings["metric"] = self.metric
-        if fits.target_accept[0] != self.target_accept:
-            settings["retried"] = (f"divergent transitions at target_accept {self.target_accept}: "
-                                   f"sampled again at {fits.target_accept[0]}")
+        raised = fits.target_accept[0] != self.target_accept
+        if raised or fits.diagonal[0]:
+            why = f"divergent transitions at target_accept {self.target_accept}" if raised else "failed the gate"
+            how = " with the diagonal metric (the warm-up had chosen a dense one)" if fits.diagonal[0] else ""
+            settings["retried"] = f"{why}: sampled again at {fits.target_accept[0]}{how}"
         return assemble(self.program, ds, samples, stats, sampler="nuts", settings=settings, seed=seed,
                         tables=self._tables)
 

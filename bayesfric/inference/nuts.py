@@ -33,7 +33,7 @@ def sample_nuts(
     seed: int = 0,
     target_accept: float = 0.9,
     max_tree_depth: int = 10,
-    metric: str = "diag",
+    metric: str = "auto",
     init: Init = "median",
     retry_target_accept: float = 0.99,
     progress: bool = False,

@@ -7,7 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 import xarray as xr
 
-from bayesfric.inference.adaptation import PSEUDO_COUNT, SHRINK_TO
+from bayesfric.inference.adaptation import DENSE_ABOVE, PSEUDO_COUNT, SHRINK_TO
 from bayesfric.model import Program
 
 __all__ = ["warm_start_from"]
@@ -23,7 +23,8 @@ def warm_start_from(program: Program, fit: xr.DataTree, chains: int, seed: int, 
     coordinate the data pin down hard keeps its own scale), or for a dense metric their
     covariance, regularised towards a thousandth of its own diagonal as the warm-up's own
     estimates are (:mod:`bayesfric.inference.adaptation`: weight n / (n + 5) on the sample
-    covariance).
+    covariance). For the ``auto`` metric, that covariance where its correlations are strong
+    (:func:`strongly_correlated`), else the diagonal metric's variances as a diagonal matrix.
     """
     density = program.density(seed)
     post = fit["posterior"]
@@ -36,13 +37,25 @@ def warm_start_from(program: Program, fit: xr.DataTree, chains: int, seed: int, 
     unconstrained = density.to_unconstrained(flat)
     rng = np.random.default_rng(seed)
     picks = np.array([(c % n_chain) * n_draw + rng.integers(n_draw) for c in range(chains)])
-    if metric == "dense":
+    if metric in ("dense", "auto"):
         draws = np.asarray(unconstrained)
         n = draws.shape[0]
         cov = np.atleast_2d(np.cov(draws, rowvar=False))
         scale = np.diag(cov)
         target = SHRINK_TO * np.diag(np.maximum(scale, 1e-16 * scale.max() + 1e-300))
-        return unconstrained[picks], (n / (n + PSEUDO_COUNT)) * cov + (PSEUDO_COUNT / (n + PSEUDO_COUNT)) * target
+        imm = (n / (n + PSEUDO_COUNT)) * cov + (PSEUDO_COUNT / (n + PSEUDO_COUNT)) * target
+        if metric == "auto" and not strongly_correlated(imm):
+            var = np.var(draws, axis=0)  # the diagonal metric's start, as a diagonal matrix
+            imm = np.diag(np.maximum(var, 1e-16 * np.max(var) + 1e-300))
+        return unconstrained[picks], imm
     var = jnp.var(unconstrained, axis=0)
     imm = jnp.maximum(var, 1e-16 * jnp.max(var) + 1e-300)
     return unconstrained[picks], imm
+
+
+def strongly_correlated(covariance: np.ndarray) -> bool:
+    """Whether the ``auto`` metric uses ``covariance`` dense: the condition number of its
+    correlation matrix is above :data:`~bayesfric.inference.adaptation.DENSE_ABOVE`."""
+    scale = np.sqrt(np.diag(covariance))
+    eigenvalues = np.linalg.eigvalsh(covariance / np.outer(scale, scale))
+    return bool(eigenvalues[0] > 0 and eigenvalues[-1] / eigenvalues[0] > DENSE_ABOVE)

@@ -24,7 +24,7 @@ sampler settings, comparison methods and extrapolation folds::
     chains = 4                         # nuts only, ≥ 1
     target_accept = 0.9                # nuts only, in (0, 1)
     retry_target_accept = 0.99         # nuts only: sample draws with divergences again at this target; 0: off
-    metric = "diag"                    # nuts only: diag | dense (mass matrix; dense for correlated coefficients)
+    metric = "auto"                    # nuts only: auto | diag | dense (auto: dense where correlations are strong)
     init = "median"                    # nuts only: median | pathfinder (chains start at Pathfinder draws)
     # walkers = 32                     # emcee only: ≥ 2 × free parameters (default max(32, 4 × them))
     # thin = 10                        # emcee only, ≥ 1

@@ -77,7 +77,8 @@ SAMPLER = Schema((
           doc="draws with divergent transitions are sampled again at this target acceptance "
               "(above target_accept); 0 switches the retry off"),
     Field("metric", "str", _backend("metric"), choices=METRICS, only=("name", NUTS),
-          doc="mass matrix of the warm-up: diagonal, or dense for strongly correlated coefficients"),
+          doc="mass matrix of the warm-up: auto (dense where the warm-up finds strong correlations, "
+              "else diagonal), diag, or dense"),
     Field("init", "str", _backend("init"), choices=INITS, only=("name", NUTS),
           doc="chain starts: prior medians, or multi-path Pathfinder draws (posteriors with minor modes)"),
     Field("walkers", "int", _backend("walkers"), min=2, only=("name", EMCEE),
