@@ -35,8 +35,9 @@ One rule differs from Stan's, so that the warm-up does not degrade as data grow:
   steps per U-turn) and the window has at least 10 draws per coordinate, else its diagonal,
   which is exactly the diagonal metric's estimate (:func:`_auto_metric`). The kernel gets
   blackjax's Gaussian metric of both forms and selects per call (:func:`_switching_metric`),
-  so a weakly correlated posterior gets the diagonal metric's draws bit for bit
-  (``tests/test_inference.py``). Why not always dense: on curved or weakly identified
+  so a chain none of whose windows went dense gets the diagonal metric's draws bit for bit
+  (``tests/test_inference.py``; a chain dense in an early window only samples with its last
+  window's diagonal but has moved differently on the way). Why not always dense: on curved or weakly identified
   posteriors (robot_joint ``coulomb_viscous``, the unwinder's ``thermal_vogel_power``) a dense
   metric passed the gate less often than the diagonal one.
 
@@ -302,14 +303,14 @@ def _is_dense(imm) -> jax.Array:
 
 def _switching_metric(imm) -> Metric:
     """blackjax's Gaussian metric of the square matrix ``imm``: dense where it has a nonzero
-    off-diagonal entry, else the diagonal metric of its diagonal. Both are evaluated and one
-    is selected (they cost O(dim²) against the log density's gradient per step)."""
+    off-diagonal entry, else the diagonal metric of its diagonal, chosen per call by
+    ``lax.cond`` (one branch runs; under ``vmap`` both run and one is selected)."""
     dense, diagonal, use_dense = gaussian_euclidean(imm), gaussian_euclidean(jnp.diag(imm)), _is_dense(imm)
 
     def pick(name: str):
         def picked(*args, **kwargs):
-            return jax.tree.map(lambda a, b: jnp.where(use_dense, a, b), getattr(dense, name)(*args, **kwargs),
-                                getattr(diagonal, name)(*args, **kwargs))
+            return jax.lax.cond(use_dense, lambda *a: getattr(dense, name)(*a, **kwargs),
+                                lambda *a: getattr(diagonal, name)(*a, **kwargs), *args)
         return picked
 
     return Metric(**{name: pick(name) for name in Metric._fields})

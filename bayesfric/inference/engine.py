@@ -97,7 +97,7 @@ class NutsEngine:
         condition number of its correlation matrix exceeds
         :data:`~bayesfric.inference.adaptation.DENSE_ABOVE` (20), else its diagonal: per chain,
         re-decided at each window, recorded in the fit's ``metric`` setting and per draw in
-        ``dense_metric``. On weakly correlated posteriors it is the diagonal metric, draw for
+        ``dense_metric``. Where no slow window goes dense it is the diagonal metric, draw for
         draw; on the strongly correlated Stribeck posterior of ``benchmarks/bench_scale_rows.py``
         (κ ≈ 96 after diagonal preconditioning) it took 6.2 steps per draw against 25.8 at 10⁴
         rows, with 4.3× the worst bulk ESS. Dense for posteriors whose coefficients are strongly
