@@ -37,6 +37,7 @@ the folder keeps at most :data:`EXPORTED_MAX_BYTES`, the least recently used fil
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import os
@@ -168,7 +169,8 @@ def _load(path: Path) -> jax.export.Exported | None:
         return None
     except Exception:  # noqa: BLE001 -- any unreadable entry (truncated, other JAX) is a miss
         return None
-    os.utime(path)  # least recently *used* leaves first
+    with contextlib.suppress(FileNotFoundError):  # another process may have evicted it since
+        os.utime(path)  # least recently *used* leaves first
     return exported
 
 
@@ -190,13 +192,21 @@ def _save(path: Path, exported: jax.export.Exported) -> None:
 
 
 def _evict(folder: Path, keep: Path) -> None:
-    files = sorted(folder.glob(f"*{SUFFIX}"), key=lambda p: p.stat().st_mtime)
-    total = sum(p.stat().st_size for p in files)
-    for old in files:
+    """Remove the least recently used files of ``folder`` beyond :data:`EXPORTED_MAX_BYTES`.
+    Other processes evict from the same folder: a file gone in between is skipped."""
+    files = []
+    for p in folder.glob(f"*{SUFFIX}"):
+        try:
+            files.append((p.stat(), p))
+        except FileNotFoundError:
+            continue
+    files.sort(key=lambda f: f[0].st_mtime)
+    total = sum(st.st_size for st, _ in files)
+    for st, old in files:
         if total <= EXPORTED_MAX_BYTES:
             break
         if old != keep:
-            total -= old.stat().st_size
+            total -= st.st_size
             old.unlink(missing_ok=True)
 
 

@@ -119,6 +119,27 @@ def test_the_folder_stays_under_its_bound(cache, data, monkeypatch):
     assert sum(p.stat().st_size for p in left) <= limit
 
 
+def test_a_file_another_process_evicted_meanwhile_is_skipped(tmp_path, monkeypatch):
+    """Processes share the folder: a file listed but gone before its ``stat`` (the CI failure of
+    2026-11-26, pytest workers evicting at once) is skipped, and the rest is still evicted."""
+    for i, name in enumerate(("a", "b", "c")):
+        (tmp_path / f"{name}{exported.SUFFIX}").write_bytes(b"x" * 100)
+        os.utime(tmp_path / f"{name}{exported.SUFFIX}", (i + 1, i + 1))
+    gone = tmp_path / f"b{exported.SUFFIX}"
+    real_glob = type(tmp_path).glob
+
+    def glob_then_evict(self, pattern):  # lists b, then "another process" removes it
+        listed = list(real_glob(self, pattern))
+        gone.unlink()
+        return listed
+
+    monkeypatch.setattr(type(tmp_path), "glob", glob_then_evict)
+    monkeypatch.setattr(exported, "EXPORTED_MAX_BYTES", 100)
+    exported._evict(tmp_path, keep=tmp_path / f"c{exported.SUFFIX}")
+    monkeypatch.undo()
+    assert sorted(p.name for p in tmp_path.iterdir()) == [f"c{exported.SUFFIX}"]
+
+
 PROBE = textwrap.dedent("""
     import json, jax.monitoring
     traces = []

@@ -108,7 +108,7 @@ def full_fit(viscous_data):
 
 def test_warm_start_begins_at_the_full_posterior(viscous_data, full_fit):
     program = build_program(get_law("coulomb_viscous"), viscous_data)
-    warm = RefitEngine(program, warm_start=full_fit, warm_tune=150, **SMALL)
+    warm = RefitEngine(program, warm_start=full_fit, warm_tune=150, metric="diag", **SMALL)
     assert warm.tune == 150 and warm.settings["warm_start"] != "no"
     # the 150-step schedule: fast 50, one slow window of 50 ending in a mass-matrix update, fast 50
     stages, ends = warm._schedule[:150, 0], warm._schedule[:150, 1]
@@ -122,6 +122,11 @@ def test_warm_start_begins_at_the_full_posterior(viscous_data, full_fit):
     # inverse mass matrix = variance of the unconstrained draws (log scale here)
     expected = sorted(np.var(np.log(post[n].values)) for n in ("T_C", "c_v", "sigma"))
     np.testing.assert_allclose(sorted(np.asarray(warm._init_imm)), expected, rtol=1e-6)
+    # the auto metric (default): a matrix whose diagonal is that variance (shrunk by n / (n + 5)
+    # where the draws are strongly correlated and the matrix is their covariance)
+    auto = np.asarray(RefitEngine(program, warm_start=full_fit, warm_tune=150, **SMALL)._init_imm)
+    assert auto.shape == (3, 3)
+    np.testing.assert_allclose(sorted(np.diag(auto)), expected, rtol=0.01)
 
 
 def test_warm_start_gives_the_same_fold_posteriors(engine, viscous_data, full_fit):
@@ -171,8 +176,8 @@ def test_full_fit_and_every_fold_share_one_compilation(viscous_data):
 
 
 def test_the_inputs_are_constants_and_the_response_an_argument(viscous_data):
-    """Keys, masks, response, starts, mass matrix, schedule and target acceptance are arguments;
-    the inputs are folded in.
+    """Keys, masks, response, starts, mass matrix, schedule, target acceptance and the auto
+    metric's threshold are arguments; the inputs are folded in.
 
     With the inputs as arguments, input-only work (the skf_2014 ball-load solve) ran at every
     leapfrog step; as constants XLA evaluates it once, at compile time.
@@ -188,9 +193,9 @@ def test_the_inputs_are_constants_and_the_response_an_argument(viscous_data):
                                                               tuple(engine._init_imm.shape)]
     leaves, step = sampler.start(keys, masks, y, starts, engine._init_imm)
     rows = np.asarray(engine._schedule)[:sampler.chunk]
-    lowered = sampler.advance.lower(leaves, np.asarray(step)[:, :, :sampler.chunk], masks, y, rows, 0.9)
+    lowered = sampler.advance.lower(leaves, np.asarray(step)[:, :, :sampler.chunk], masks, y, rows, 0.9, 20.0)
     shapes = [tuple(a.shape) for a in jax.tree.leaves(lowered.in_avals[0])][len(leaves):]
-    assert shapes == [(1, engine.chain_batch, sampler.chunk, 2), masks.shape, y.shape, rows.shape, ()]
+    assert shapes == [(1, engine.chain_batch, sampler.chunk, 2), masks.shape, y.shape, rows.shape, (), ()]
 
 
 def test_another_response_is_refitted_by_the_same_compiled_sampler(viscous_data):
