@@ -97,8 +97,8 @@ class NutsEngine:
         condition number of its correlation matrix exceeds
         :data:`~bayesfric.inference.adaptation.DENSE_ABOVE` (20), else its diagonal: per chain,
         re-decided at each window, recorded in the fit's ``metric`` setting (and per draw in
-        the ``dense_metric`` statistic of :meth:`run`'s folds). Where no slow window goes dense it is the diagonal metric, draw for
-        draw; on the strongly correlated Stribeck posterior of ``benchmarks/bench_scale_rows.py``
+        the ``dense_metric`` statistic of :meth:`run`'s folds). Where no slow window goes dense
+        it is the diagonal metric, draw for draw; on the strongly correlated Stribeck posterior of ``benchmarks/bench_scale_rows.py``
         (κ ≈ 96 after diagonal preconditioning) it took 6.2 steps per draw against 25.8 at 10⁴
         rows, with 4.3× the worst bulk ESS. Dense for posteriors whose coefficients are strongly
         correlated, which a diagonal metric crosses in many short leapfrog steps. Measured on the unwinder's
