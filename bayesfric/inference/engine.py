@@ -96,16 +96,17 @@ class NutsEngine:
         default) estimates a dense one in every slow window and keeps it dense only where the
         condition number of its correlation matrix exceeds
         :data:`~bayesfric.inference.adaptation.DENSE_ABOVE` (20), else its diagonal: per chain,
-        re-decided at each window, recorded in the fit's ``metric`` setting (and per draw in
-        the ``dense_metric`` statistic of :meth:`run`'s folds). Where no slow window goes dense
-        it is the diagonal metric, draw for draw; on the strongly correlated Stribeck posterior of ``benchmarks/bench_scale_rows.py``
-        (κ ≈ 96 after diagonal preconditioning) it took 6.2 steps per draw against 25.8 at 10⁴
-        rows, with 4.3× the worst bulk ESS. Dense for posteriors whose coefficients are strongly
-        correlated, which a diagonal metric crosses in many short leapfrog steps. Measured on the unwinder's
-        ``thermal_poly_surface`` (15 polynomial coefficients, correlations up to |r| = 0.97):
-        540 leapfrog steps per draw on average, 19 % of the draws at the tree-depth limit (1023
-        steps), with the diagonal metric (see ``studies/unwinder.toml`` for the dense figures). A dense
-        matrix costs O(dim²) per step instead of O(dim): nothing at these dimensions.
+        re-decided at each window, recorded in the fit's ``metric`` setting (and per draw in the
+        ``dense_metric`` statistic of :meth:`run`'s folds). Where no slow window goes dense it is
+        the diagonal metric, draw for draw; on the strongly correlated Stribeck posterior of
+        ``benchmarks/bench_scale_rows.py`` (κ ≈ 96 after diagonal preconditioning) it took 6.2 steps
+        per draw against 25.8 at 10⁴ rows, with 4.3× the worst bulk ESS. Dense for posteriors whose
+        coefficients are strongly correlated, which a diagonal metric crosses in many short leapfrog
+        steps. Measured on the unwinder's ``thermal_poly_surface`` (15 polynomial coefficients,
+        correlations up to |r| = 0.97): 540 leapfrog steps per draw on average, 19 % of the draws at
+        the tree-depth limit (1023 steps), with the diagonal metric (see ``studies/unwinder.toml``
+        for the dense figures). A dense matrix costs O(dim²) per step instead of O(dim): nothing at
+        these dimensions.
     retry_target_accept : float or None
         A fold (the full fit included) whose draws have divergent transitions is sampled once
         more, same keys and starts, with this target acceptance (default 0.99: Stan's advice
