@@ -224,3 +224,27 @@ def test_a_study_without_ranking_criterion_reports_that_instead_of_crashing(tmp_
     assert "no ranking criterion" in (folder / "report.html").read_text()
     with (folder / "ranking.csv").open() as fh:
         assert {r["law"] for r in csv.DictReader(fh)} == {"coulomb", "coulomb_viscous"}
+
+
+def test_a_law_entry_is_built_once_and_travels_as_its_recipe(tmp_path, data_csv):
+    """Every part of a run (checks, claims, unit keys, units) gets the same Law object of an entry;
+    a pickled entry (a ``main --jobs`` process, a Dask worker) carries the recipe and builds its own,
+    equal to the original. Constants enter the law once, as its constants."""
+    import pickle
+
+    from bayesfric.model import build_program
+    from bayesfric.study.plan import load_study_data
+
+    laws = '[[laws]]\nname = "helical_gear"\nconstants = { omega_ref = 2.0 }\nfixed = { delta = 0.5 }\n'
+    (tmp_path / "s.toml").write_text(study_text(laws))
+    spec = load_study(tmp_path / "s.toml").laws[0]
+    law = spec.build()
+    assert spec.build() is law
+    copy = pickle.loads(pickle.dumps(spec))
+    assert "_built" not in copy.__dict__ and copy == spec
+    again = copy.build()
+    assert again is not law and again.name == law.name and set(again.params) == set(law.params)
+    assert law.constants["omega_ref"].value == 2.0 and law.constants["delta"].value == 0.5
+    assert "delta" not in law.params
+    program = build_program(law, load_study_data(load_study(tmp_path / "s.toml")), priors=spec.priors)
+    assert program.constants["omega_ref"] == 2.0 and program.constants["delta"] == 0.5

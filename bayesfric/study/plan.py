@@ -80,7 +80,7 @@ def validate_against_data(study: Study, ds) -> None:
             raise StudyError(f"{where}: laws[{i}] ({spec.name}) predicts {law.response}, the data has "
                              f"{ds.attrs['response']}")
         try:
-            program = build_program(law, ds, priors=spec.priors, noise=study.noise, constants=spec.constants)
+            program = build_program(law, ds, priors=spec.priors, noise=study.noise)
         except PriorError as exc:  # exc.key: priors.<parameter>.<key in its spec>
             key = f"laws[{i}].{exc.key}" if exc.key else f"laws[{i}]"
             raise StudyError(f"{where}: {key}: {exc.problem} (law {spec.name!r})") from None

@@ -53,11 +53,25 @@ class LawSpec:
     def build(self) -> Law:
         """The entry's law: the registered law with its options applied, named by the label.
 
-        The study's law files are loaded first (once per process), so this works in any process:
-        a ``main --jobs`` study process, a Dask worker."""
-        load_modules(self.modules)
-        return vary(get_law(self.law or self.name), name=self.name, add=self.add, asymmetric=self.asymmetric,
-                    fixed=self.constants | self.fixed)
+        Built once per process and kept on the entry: the study's checks, claims, unit keys and
+        every unit of the law use the same :class:`~bayesfric.laws.Law` object. The entry's
+        ``constants`` and ``fixed`` values enter here only (held as the law's constants). A
+        pickled entry (sent to a ``main --jobs`` process or a Dask worker) carries its recipe,
+        not the law: the study's law files are loaded there first (once per process) and the law
+        is built again from them.
+        """
+        built = self.__dict__.get("_built")
+        if built is None:
+            load_modules(self.modules)
+            built = vary(get_law(self.law or self.name), name=self.name, add=self.add,
+                         asymmetric=self.asymmetric, fixed=self.constants | self.fixed)
+            object.__setattr__(self, "_built", built)  # a cache, not a field: frozen otherwise
+        return built
+
+    def __getstate__(self) -> dict[str, Any]:
+        """The recipe without the built law: a law's functions may come from a law file that
+        the receiving process has not loaded yet (:meth:`build` loads it)."""
+        return {k: v for k, v in self.__dict__.items() if k != "_built"}
 
 
 @dataclass(frozen=True)

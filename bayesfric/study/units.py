@@ -80,7 +80,7 @@ class Unit:
 
 def make_job(spec, noise: Noise, ds: xr.Dataset, sampler: str, settings: dict, seed: int) -> LawJob:
     """The :class:`LawJob` of a study's law, keyed by everything the law's results depend on."""
-    program = build_program(spec.build(), ds, priors=spec.priors, noise=noise, constants=spec.constants)
+    program = build_program(spec.build(), ds, priors=spec.priors, noise=noise)
     law = program.law  # the entry's variant as it runs on this data, named by the entry's label
     key = unit_key(law=law.name, law_code=law_fingerprint(law), priors=dict(program.priors),
                    resolved=dict(program.resolved), noise=noise, constants=dict(program.constants),
@@ -114,8 +114,7 @@ _ENGINES: dict[str, Any] = {}  # this process's compiled engine of ONE law (fit 
 
 
 def _program(job: LawJob):
-    return build_program(job.spec.build(), job.ds, priors=job.spec.priors, noise=job.noise,
-                         constants=job.spec.constants)
+    return build_program(job.spec.build(), job.ds, priors=job.spec.priors, noise=job.noise)
 
 
 def _base_engine(job: LawJob):
