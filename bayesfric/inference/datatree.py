@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import json
-from functools import partial
+from functools import cache, partial
 from importlib.metadata import version
 from typing import Any
 
@@ -34,6 +34,13 @@ def _chains(flat: dict[str, Any], n_chains: int) -> dict[str, np.ndarray]:
     return {k: np.asarray(v).reshape((n_chains, -1) + np.shape(v)[1:]) for k, v in flat.items()}
 
 
+@cache
+def _versions() -> str:
+    """The versions a fit records, read once per process (``importlib.metadata`` scans the
+    installed distributions: about 2 ms a package, 10 ms a fit)."""
+    return json.dumps({p: version(p) for p in ("bayesfric", "numpyro", "jax", "arviz", "emcee")})
+
+
 def provenance(program: Program, ds: xr.Dataset, sampler: str, settings: dict, seed: int) -> dict:
     """Provenance attrs stored on every fit (strings and numbers only, NetCDF-safe)."""
     return {
@@ -46,7 +53,7 @@ def provenance(program: Program, ds: xr.Dataset, sampler: str, settings: dict, s
         "sampler": sampler,
         "sampler_settings": json.dumps(settings),
         "seed": int(seed),
-        "versions": json.dumps({p: version(p) for p in ("bayesfric", "numpyro", "jax", "arviz", "emcee")}),
+        "versions": _versions(),
     }
 
 

@@ -233,7 +233,10 @@ def test_coastdown_recovery(simulator, name):
     law = get_law(name)
     ds = simulator(law, {"time": COAST_TIME, "initial_velocity": COAST_OMEGA0}, COAST_TRUTHS[name],
                    sigma=0.3, seed=4, groups={"run": COAST_RUN}, trajectory="run")
-    dt = fit(law, ds, draws=400, tune=400, chains=2, seed=1)
+    # the diffrax law integrates the ODE at every gradient: at target_accept 0.9 this test took 84 s
+    # of the suite; at 0.99 one run passes and covers the truth (41 s alone, measured 2026-11-26)
+    accept = 0.99 if name == "coastdown_coulomb_viscous" else 0.9
+    dt = fit(law, ds, draws=400, tune=400, chains=2, seed=1, target_accept=accept)
     _assert_recovered(dt, COAST_TRUTHS[name], name)
 
 
