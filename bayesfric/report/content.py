@@ -224,13 +224,13 @@ def build(outcome: StudyOutcome, figures: list[FigureRef], sizing_figures: dict[
 
 def _unit_seconds(outcome) -> str:
     """``" (units computed in this run: 3 s; reused: 12 units, 812 s of computing saved)"``, from
-    the runner's ``extra["unit_seconds"]``; empty without it."""
-    seconds = outcome.extra.get("unit_seconds")
-    if not seconds:
+    the runner's ``unit_seconds``; empty without it."""
+    seconds = outcome.unit_seconds
+    if seconds is None:
         return ""
-    text = f" (units computed in this run: {seconds['computed']:.0f} s"
-    if seconds["reused"]:
-        text += f"; reused from earlier runs: {seconds['reused']} units, {seconds['saved']:.0f} s of computing saved"
-        if seconds["unknown"]:
-            text += f" ({seconds['unknown']} of them stored without their seconds)"
+    text = f" (units computed in this run: {seconds.computed:.0f} s"
+    if seconds.reused:
+        text += f"; reused from earlier runs: {seconds.reused} units, {seconds.saved:.0f} s of computing saved"
+        if seconds.unknown:
+            text += f" ({seconds.unknown} of them stored without their seconds)"
     return text + ")"

@@ -135,12 +135,12 @@ def findings(outcome: StudyOutcome, table: pd.DataFrame) -> list[Finding]:
         if w.law.recipe.get("asymmetric"):
             lines += [_f("Direction asymmetry of ", _law(w.name), f": {_asymmetry(a)}.") for a in asymmetry(w.fit)]
     lines += counted_winners(outcome, table) + _warnings(outcome)
-    for label, reason in outcome.extra.get("weight_errors", []):
+    for label, reason in outcome.weight_errors:
         lines.append(plain(f"{label} weights not computed: {reason}", warning=True))
-    if outcome.extra.get("quick"):
-        quick = outcome.extra["quick"]
-        used = ", ".join(f"{k}={v}" for k, v in quick["settings"].items() if k in ("draws", "tune", "chains", "thin"))
-        asked, folds = quick["kfold"]
+    if outcome.quick is not None:
+        quick = outcome.quick
+        used = ", ".join(f"{k}={v}" for k, v in quick.settings.items() if k in ("draws", "tune", "chains", "thin"))
+        asked, folds = quick.kfold
         kfold = f"; random K-fold with {folds} folds (the study asks {asked})" if asked else ""
         lines.append(plain(f"QUICK MODE: sampler {used}{kfold} — a pipeline smoke test, not a basis for decisions.",
                            warning=True))
@@ -268,7 +268,7 @@ def summary_block(outcome: StudyOutcome, table: pd.DataFrame, extra_warnings: li
     if loo_winner and blocked_winners and loo_winner not in blocked_winners:
         warnings.insert(0, _f("The best law inside the tested envelope (", _law(loo_winner), ") is not the best "
                               "outside it: choose by the extrapolation criterion for sizing.", warning=True))
-    if outcome.extra.get("quick"):
+    if outcome.quick is not None:
         warnings.append(plain("QUICK MODE: short chains and few folds — not a basis for decisions.", warning=True))
     rec = sizing_basis(outcome, table, recommendation(outcome, table))
     return Summary(outcome.study.question, answers, rec, warnings)

@@ -225,7 +225,7 @@ def _root_attrs(outcome: StudyOutcome) -> dict:
     return {"study": outcome.study.name, "dataset": str(outcome.data.attrs.get("name", "")),
             "data_hash": str(outcome.data.attrs.get("data_hash", "")), "bayesfric_version": __version__,
             "seconds": float(outcome.seconds), "schemes": "; ".join(outcome.schemes),
-            "blocked_schemes": "; ".join(outcome.blocked), "quick": int("quick" in outcome.extra),
+            "blocked_schemes": "; ".join(outcome.blocked), "quick": int(outcome.quick is not None),
             "ranking_sensitivity": str(outcome.ranking_sensitivity), "ranking_changed": int(outcome.ranking_changed)}
 
 

@@ -16,7 +16,7 @@ from bayesfric.inference.diagnostics import Verdict
 from bayesfric.laws.base import Law
 from bayesfric.study.spec import Study
 
-__all__ = ["Checks", "LawOutcome", "StudyOutcome", "Weight"]
+__all__ = ["Checks", "LawOutcome", "QuickRun", "StudyOutcome", "UnitSeconds", "Weight"]
 
 
 @dataclass(frozen=True)
@@ -129,6 +129,25 @@ def _disagreement(agreement) -> str:
     return f"evidence estimators disagree by {abs(agreement.difference):.2f} nat ({why}); not ranked by evidence"
 
 
+@dataclass(frozen=True)
+class QuickRun:
+    """The settings a ``--quick`` run capped: the sampler's, and K-fold's (asked, used)."""
+
+    settings: Mapping[str, Any]
+    kfold: tuple[int, int]
+
+
+@dataclass(frozen=True)
+class UnitSeconds:
+    """Seconds the units computed in this run took, and what the reused ones cost when computed
+    (``unknown``: reused units stored without their seconds)."""
+
+    computed: float
+    reused: int
+    saved: float
+    unknown: int
+
+
 @dataclass
 class StudyOutcome:
     """The study, its data and every law's outcome, plus study-level findings."""
@@ -139,14 +158,15 @@ class StudyOutcome:
     schemes: list[str]  # CV scheme labels in display order
     blocked: list[str]  # the blocked-extrapolation labels among them
     heldout: dict[str, np.ndarray] = field(default_factory=dict)
-    findings: list[Any] = field(default_factory=list)  # bayesfric.report.findings.Finding
     ranking_sensitivity: str = ""
     ranking_changed: bool = False  # the LOO ranking changes under power-scaled priors
     seconds: float = 0.0
-    extra: dict[str, Any] = field(default_factory=dict)
+    weight_errors: list[tuple[str, str]] = field(default_factory=list)  # (weighting, why it was not computed)
+    quick: QuickRun | None = None  # the capped settings of a --quick run
+    unit_seconds: UnitSeconds | None = None  # what the run's units cost, computed or reused
     sizing: Any = None  # bayesfric.sizing.SizingResult when the study asks sizing questions
     table: Any = None  # the law × metric table (bayesfric.study.scores.score_table), computed once
-    claims: list[Any] = field(default_factory=list)  # bayesfric.report.claims.ClaimResult per [[claims]] entry
+    claims: list[Any] = field(default_factory=list)  # bayesfric.study.claims.ClaimResult per [[claims]] entry
     # the per-law nodes of the result tree (/weights, /diagnostics, /checks, /sizing_basis), built once
     # after the weights (bayesfric.report.results.law_nodes); sizing reads them, the tree holds them
     nodes: dict[str, Any] = field(default_factory=dict)

@@ -39,7 +39,7 @@ from bayesfric.study import units
 from bayesfric.study.claims import evaluate_claims
 from bayesfric.study.config import Study, StudyError
 from bayesfric.study.executor import open_client, run_units, timing_table, write_timings
-from bayesfric.study.outcome import LawOutcome, StudyOutcome, Weight
+from bayesfric.study.outcome import LawOutcome, QuickRun, StudyOutcome, UnitSeconds, Weight
 from bayesfric.study.plan import (  # checked and planned before anything is written; re-exported
     QUICK,
     QUICK_KFOLD,
@@ -130,13 +130,13 @@ def _run_laws(study: Study, ds, work: Path, plans: list, schemes, *, out_root: P
     return outcomes
 
 
-def _unit_seconds(rows: list) -> dict:
+def _unit_seconds(rows: list) -> UnitSeconds:
     """Seconds the units computed in this run took, and what the reused ones cost when computed
     (the report's footer: a resumed run's wall time alone hides the real cost)."""
     reused = [r.stored_seconds for r in rows if r.status == "reused"]
-    return dict(computed=float(sum(r.seconds for r in rows if r.status == "computed")), reused=len(reused),
-                saved=float(sum(s for s in reused if math.isfinite(s))),
-                unknown=sum(not math.isfinite(s) for s in reused))
+    return UnitSeconds(computed=float(sum(r.seconds for r in rows if r.status == "computed")), reused=len(reused),
+                       saved=float(sum(s for s in reused if math.isfinite(s))),
+                       unknown=sum(not math.isfinite(s) for s in reused))
 
 
 def _assign_weights(out: StudyOutcome) -> None:
@@ -155,7 +155,7 @@ def _assign_weights(out: StudyOutcome) -> None:
             weights = compare.model_weights(results, method=method, include_failed=out.study.include_failed,
                                             fits=fits)
         except ValueError as exc:  # e.g. every fit excluded
-            out.extra.setdefault("weight_errors", []).append((label, str(exc)))
+            out.weight_errors.append((label, str(exc)))
             continue
         for name in by_law:
             excluded = weights.excluded.get(name, "")
@@ -253,7 +253,7 @@ def _write_study(prepared, out_root: Path, quick: bool, fresh: bool, client, tim
                                blocked=[s[0] for s in schemes if s[2] == "blocked"],
                                heldout={s[0]: s[1].heldout.any(axis=0) for s in schemes})
         if quick:
-            outcome.extra["quick"] = {"settings": settings, "kfold": (study.kfold, kfold)}
+            outcome.quick = QuickRun(settings, (study.kfold, kfold))
         _assign_weights(outcome)
         from bayesfric.report.results import law_nodes  # here: bayesfric.report reads bayesfric.study
 
@@ -269,7 +269,7 @@ def _write_study(prepared, out_root: Path, quick: bool, fresh: bool, client, tim
         outcome.table = score_table(outcome)
         outcome.claims = evaluate_claims(study.claims, outcome, outcome.table)
         outcome.seconds = time.perf_counter() - start
-        outcome.extra["unit_seconds"] = _unit_seconds(rows)
+        outcome.unit_seconds = _unit_seconds(rows)
         from bayesfric.report.summary import write_reports  # here: bayesfric.report reads bayesfric.study
 
         write_reports(outcome, work)
