@@ -395,10 +395,12 @@ def program_of_fit(fit: xr.DataTree) -> Program:
     attrs = fit.attrs
     law, noise = law_of_fit(attrs), _noise_of(attrs)
     declared = {k: Prior.from_dict(v) for k, v in json.loads(attrs["priors"]).items()}
-    data = fit["constant_data"].to_dataset()
+    # all of them in a fit; a fit made by hand (posterior and attrs only) may lack its data
+    data = fit["constant_data"].to_dataset() if "constant_data" in fit.children else xr.Dataset()
     inputs = {k: np.asarray(data[k].values, dtype=bool if k == TRAJECTORY_START else float)
-              for k in law.inputs if k in data}  # all of them in a fit; a fit made by hand may lack some
-    response = np.asarray(fit["observed_data"][OBS_SITE].values, dtype=float)
+              for k in law.inputs if k in data}
+    response = (np.asarray(fit["observed_data"][OBS_SITE].values, dtype=float) if "observed_data" in fit.children
+                else np.zeros(0))
     if "data_scale" in attrs:
         recorded = json.loads(attrs["data_scale"])
         scale = DataScale(float(recorded["response"]), {k: float(v) for k, v in recorded["inputs"].items()})

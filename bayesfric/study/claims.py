@@ -46,7 +46,6 @@ state no uncertainty); the study file says how it was chosen.
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -93,23 +92,17 @@ class ClaimResult:
 def mean_draws(fit: xr.DataTree, points: Mapping[str, float], fixed: Mapping[str, float] | None = None) -> np.ndarray:
     """Mean-function draws, shaped (chain · draw,), of a fit at one operating point.
 
-    The fit's program is rebuilt from its provenance on a one-point data set
-    (:func:`bayesfric.compare.refit.program_from_fit`): the variant that was fitted (recipe,
-    ``fixed`` values, added terms) with the constants it was fitted with. ``fixed`` parameters or
-    constants replace the posterior's (a fully fixed law gives one value for every draw); a
-    partial-pooled group offset is not applied (the population mean).
+    Through the fit's own program (:func:`bayesfric.model.program_of_fit`) at the point
+    (:meth:`~bayesfric.model.Program.at`): the variant that was fitted (recipe, ``fixed`` values,
+    added terms) with the constants it was fitted with. ``fixed`` parameters or constants replace
+    the posterior's (a fully fixed law gives one value for every draw); a partial-pooled group
+    offset is not applied (the population mean).
     """
-    from bayesfric.compare.refit import program_from_fit
-    from bayesfric.datasets.synthetic import make_dataset
-    from bayesfric.laws.variants import law_of_fit
+    from bayesfric.model import program_of_fit
 
     fixed = dict(fixed or {})
-    law = law_of_fit(fit.attrs)
-    group = json.loads(fit.attrs["noise"]).get("group")
-    query = make_dataset({k: np.asarray([points[k]], dtype=float) for k in law.operating_inputs}, np.zeros(1),
-                         response_quantity=law.response, groups={group: np.array(["new unit"])} if group else None,
-                         name="claim point")
-    program = program_from_fit(fit, query)
+    program = program_of_fit(fit)
+    program = program.at({k: np.asarray([points[k]], dtype=float) for k in program.law.operating_inputs})
     post = fit["posterior"].to_dataset()
     s = post.sizes["chain"] * post.sizes["draw"]
     params = {k: jnp.full((s,), fixed[k]) if k in fixed else
