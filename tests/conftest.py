@@ -36,7 +36,8 @@ def pytest_configure(config):
 #: The files with the most test seconds, most first (a clean-clone ``--durations=0`` run on the quiet
 #: 2-core machine, 2026-11-26: 260, 182, 137, 130, 121, 110, 100, 97, 74, 70 s ... of 2290 s in all).
 #: They run first: pytest-xdist's ``--dist loadfile`` hands a worker its next file when the worker is
-#: nearly done with the last one, so a long file started late leaves the other core idle at the end.
+#: nearly done with the last one, so a long file started late leaves the other core idle at the end
+#: (the Makefile passes ``--no-loadscope-reorder``, else xdist orders files by their number of tests).
 HEAVY_FIRST = tuple(f"tests/{name}.py" for name in (
     "test_runstore", "test_recovery_classical", "laws/test_slip_recovery", "test_sizing_calibration",
     "test_runtime", "test_mainjob", "laws/test_drum", "test_api", "test_tribometer", "test_gms_loops",
