@@ -19,17 +19,13 @@ import sys
 from typing import NoReturn
 
 from bayesfric import commands
-from bayesfric.datasets.loader import DataError
 from bayesfric.datasets.reduce import add_arguments as reduce_arguments
 from bayesfric.errors import UserError
-from bayesfric.laws.base import LawDeclarationError
-from bayesfric.priors import PriorError
-from bayesfric.quantities import UnitError
 
 __all__ = ["main", "UserError", "UsageError", "build_parser"]
 
 
-USER_ERRORS = (DataError, PriorError, UnitError, UserError, LawDeclarationError)
+USER_ERRORS = (UserError,)  # every input error is one (bayesfric.errors): data, prior, unit, law, study ...
 
 
 class UsageError(UserError):

@@ -1,11 +1,61 @@
-"""User-facing error types shared by the CLI and the study runner."""
+"""The one error class of everything a user gives bayesfric: :class:`UserError`, keyed.
+
+Every mistake in what a user gives -- a data file, a sidecar, a study file, a prior, a unit, a
+law declaration or variant, a sizing question, a path, a command line -- raises a subclass of
+:class:`UserError`: a one-line ``problem`` and the ``key`` it concerns (a file, a key path, an
+option; empty when the message already says where). The CLI reports any of them as one line,
+exit status 2 (:mod:`bayesfric.cli`); a caller that knows more of the place puts its prefix
+before the key with :meth:`UserError.within`. The subclasses say which input it was; they keep
+the constructor their callers use.
+"""
+
+from __future__ import annotations
+
+__all__ = ["UserError", "DataError"]
 
 
 class UserError(ValueError):
-    """A mistake in what the user asked for (reported in one line, exit code 2)."""
+    """A mistake in what the user asked for (reported in one line, exit code 2).
+
+    Parameters
+    ----------
+    problem : str
+        What is wrong, one line.
+    key : str, optional
+        What it concerns (``"fixed.i"``, ``"[sampler] draws"``, a file); the message is
+        ``"key: problem"`` when it is given.
+
+    Examples
+    --------
+    >>> err = UserError("must be ≥ 1, got 0", "draws")
+    >>> str(err), str(err.within("[sampler]"))
+    ('draws: must be ≥ 1, got 0', '[sampler].draws: must be ≥ 1, got 0')
+    """
+
+    def __init__(self, problem: str = "", key: str = ""):
+        super().__init__(f"{key}: {problem}" if key else problem)
+        self.key, self.problem = key, problem
+
+    def within(self, prefix: str, sep: str = ".") -> UserError:
+        """The same error (same class) with ``prefix`` placed before its key."""
+        return _rebuilt(type(self), self.problem, f"{prefix}{sep}{self.key}" if self.key else prefix,
+                        self.__dict__)
+
+    def __reduce__(self):
+        # the subclasses' constructors differ (key first, a key path ...): rebuild from the fields,
+        # so any of them pickles (a Dask worker's error reaches the client)
+        return _rebuilt, (type(self), self.problem, self.key, self.__dict__)
 
 
-class DataError(ValueError):
+def _rebuilt(cls: type[UserError], problem: str, key: str, fields: dict) -> UserError:
+    """An error of class ``cls`` with ``problem`` and ``key``, and the other ``fields`` it had."""
+    err = cls.__new__(cls)
+    err.__dict__.update(fields)
+    UserError.__init__(err, problem, key)
+    return err
+
+
+class DataError(UserError):
     """Bad input data: the message is one line naming file, column and row where they apply.
 
     Declared here, in a base module, because the laws raise it too (a law that cannot run on a data

@@ -48,6 +48,8 @@ from typing import Any
 import numpy as np
 import numpyro.distributions as dist
 
+from bayesfric.errors import UserError
+
 __all__ = ["Prior", "DataScale", "PriorError", "DISTRIBUTIONS", "MAX_POWER", "MAX_LOG10", "resolve_all"]
 
 #: Largest |power| of a data scale in ``scaled_by`` (module docstring).
@@ -59,17 +61,12 @@ MAX_POWER = 2.0
 MAX_LOG10 = 100.0
 
 
-class PriorError(ValueError):
+class PriorError(UserError):
     """An invalid prior spec: a one-line ``problem`` and the ``key`` inside the spec it concerns
     (``scaled_by.response``, ``scale``; empty for the spec as a whole)."""
 
     def __init__(self, problem: str, key: str = ""):
-        super().__init__(f"{key}: {problem}" if key else problem)
-        self.problem, self.key = problem, key
-
-    def within(self, prefix: str) -> PriorError:
-        """The same problem, its key placed under ``prefix`` (e.g. ``priors.T_C``)."""
-        return PriorError(self.problem, f"{prefix}.{self.key}" if self.key else prefix)
+        super().__init__(problem, key)
 
 
 # name -> (numpyro class, allowed args, location/scale args that the scaling rule multiplies)

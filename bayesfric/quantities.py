@@ -14,6 +14,8 @@ from functools import lru_cache
 import numpy as np
 import pint
 
+from bayesfric.errors import UserError
+
 __all__ = [
     "QUANTITIES",
     "Quantity",
@@ -84,7 +86,7 @@ ureg.define("inch_ounce = inch * force_ounce = in_oz = inoz")
 ureg.define("newton_metre = newton * meter = Nm")
 
 
-class UnitError(ValueError):
+class UnitError(UserError):
     """A unit string that pint cannot parse, or a unit of the wrong dimension."""
 
 

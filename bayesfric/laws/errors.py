@@ -1,11 +1,14 @@
 """The errors of law declarations and variants, below every module of :mod:`bayesfric.laws`
 (:mod:`bayesfric.laws.base` raises both and re-exports them, as does :mod:`bayesfric.laws.variants`)."""
 
+from bayesfric.errors import UserError
+
 __all__ = ["LawDeclarationError", "VariantError"]
 
 
-class LawDeclarationError(TypeError):
-    """A law declaration that is inconsistent with its function or the vocabulary."""
+class LawDeclarationError(UserError, TypeError):
+    """A law declaration that is inconsistent with its function or the vocabulary (a
+    :class:`~bayesfric.errors.UserError`; also a ``TypeError``, as declaration errors were)."""
 
 
 class VariantError(LawDeclarationError):
@@ -16,5 +19,4 @@ class VariantError(LawDeclarationError):
     """
 
     def __init__(self, problem: str, key: str = ""):
-        super().__init__(f"{key}: {problem}" if key else problem)
-        self.key, self.problem = key, problem
+        UserError.__init__(self, problem, key)

@@ -43,8 +43,7 @@ class SizingError(UserError):
     """A bad sizing question: ``key`` (what it concerns, may be empty) and a one-line ``problem``."""
 
     def __init__(self, key: str, problem: str):
-        super().__init__(f"{key}: {problem}" if key else problem)
-        self.key, self.problem = key, problem
+        super().__init__(problem, key)
 
 
 @dataclass(frozen=True)

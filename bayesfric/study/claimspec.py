@@ -14,6 +14,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+from bayesfric.errors import UserError
 from bayesfric.laws import Law, get_law
 from bayesfric.sizing.points import SizingError, parse_value
 from bayesfric.study.metrics import METRICS
@@ -25,12 +26,11 @@ KINDS = ("ratio", "parameter", "score", "best")
 BASES = ("evidence", "pipeline check")
 
 
-class ClaimError(ValueError):
+class ClaimError(UserError):
     """A claim that cannot be checked: ``key`` (relative to ``claims[i]``) and a one-line problem."""
 
     def __init__(self, key: str, problem: str):
-        super().__init__(f"{key}: {problem}")
-        self.key, self.problem = key, problem
+        super().__init__(problem, key)
 
 
 @dataclass(frozen=True)

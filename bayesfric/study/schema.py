@@ -22,6 +22,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from bayesfric.errors import UserError
 from bayesfric.fsutil import name_problem
 
 __all__ = ["REQUIRED", "KINDS", "Field", "Schema", "SchemaError", "parse", "location"]
@@ -49,12 +50,12 @@ KINDS = {
 }
 
 
-class SchemaError(ValueError):
+class SchemaError(UserError):
     """A value that does not fit its schema: ``where`` (a key path) and a one-line ``problem``."""
 
     def __init__(self, where: tuple[str | int, ...], problem: str):
-        super().__init__(f"{location(where)}: {problem}" if where else problem)
-        self.where, self.problem = where, problem
+        super().__init__(problem, location(where) if where else "")
+        self.where = where
 
 
 @dataclass(frozen=True)
