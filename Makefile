@@ -13,9 +13,7 @@ main: venv
 
 # Both cores (or up to four): pytest-xdist runs whole test files per worker (--dist loadfile), so a
 # file's module-scoped fixtures and compiled programs are built once; workers share the compile cache.
-# Files go out in the order tests/conftest.py gives them (the heaviest first), not re-sorted by their
-# number of tests (xdist's default): a long file with few tests started last left a core idle.
-PYTEST_PARALLEL := -n auto --maxprocesses 4 --dist loadfile --no-loadscope-reorder
+PYTEST_PARALLEL := -n auto --maxprocesses 4 --dist loadfile
 
 test: venv
 	.venv/bin/python -m ruff check bayesfric tests benchmarks data examples
