@@ -23,9 +23,9 @@ INTERVAL_S = 0.1
 #: (module, attribute) of the functions traced; a unit's label adds its stage and law.
 STAGES = [
     ("bayesfric.study.executor", "compute"),
-    ("bayesfric.study.units", "fit_to_bytes"),
+    ("bayesfric.study.store", "fit_to_bytes"),
     ("bayesfric.study.units", "assemble"),
-    ("bayesfric.study.executor", "release_fit"),
+    ("bayesfric.study.store", "load_fit_bytes"),
     ("bayesfric.study.runner", "_assign_weights"),
     ("bayesfric.study.runner", "score_table"),
     ("bayesfric.study.runner", "evaluate_claims"),

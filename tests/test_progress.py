@@ -8,6 +8,7 @@ import math
 import jax
 import numpy as np
 import pytest
+import xarray as xr
 
 from bayesfric.datasets.synthetic import simulate
 from bayesfric.inference.adaptation import chain_start, chain_steps, nuts_chain, sampling_schedule, step_keys
@@ -157,7 +158,7 @@ def test_time_left_scales_with_each_laws_fit_cost():
 
 def test_a_reused_fit_reports_the_cost_it_saved(tmp_path):
     store = RunStore(tmp_path)
-    store.put("k", "nc", b"x")
+    store.put("k", "nc", xr.DataTree(xr.Dataset({"x": 1.0})))
     assert math.isnan(store.seconds("k", "nc"))  # stored by an older run
     store.put_seconds("k", "nc", 12.5)
     assert store.seconds("k", "nc") == 12.5

@@ -11,10 +11,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import xarray as xr
 
 from bayesfric.study import load_study
 from bayesfric.study.plan import _fold_schemes, _run_settings, load_study_data
-from bayesfric.study.store import STORE_ENV, RunStore, pack_record, unpack_record
+from bayesfric.study.store import STORE_ENV, Record, RunStore
 from bayesfric.study.units import make_job, plan_law
 from tests.hostile.harness import assert_user_error
 from tests.test_study import data_csv, study_text, write_bench_data  # noqa: F401 - the fixture is used by name
@@ -62,14 +63,16 @@ def test_unit_keys_change_with_every_input_and_only_then(tmp_path, data_csv):  #
 def test_store_entries_round_trip_and_a_damaged_entry_is_a_miss(tmp_path):
     store = RunStore(tmp_path / "store")
     key = "a" * 32
-    payload = pack_record({"key": key, "value": 1.5}, {"x": np.arange(3.0)})
-    store.put(key, "npz", payload)
-    record, arrays = unpack_record(store.get(key, "npz"))
-    assert record["value"] == 1.5 and np.array_equal(arrays["x"], np.arange(3.0))
+    result = Record({"key": key, "value": 1.5}, {"x": np.arange(3.0)})
+    store.put(key, "npz", result)
+    back = store.get(key, "npz")
+    assert back.record == {"key": key, "value": 1.5} and list(back.arrays) == ["x"]
+    assert np.array_equal(back.arrays["x"], np.arange(3.0))
     assert RunStore(tmp_path / "store", read=False).get(key, "npz") is None  # --fresh
     other = "b" * 32
-    store.put(other, "npz", payload)  # an entry under another key's name: not trusted
+    store.put(other, "npz", result)  # an entry under another key's name: not trusted
     assert store.get(other, "npz") is None
+    payload = store.path(key, "npz").read_bytes()
     store.path(key, "npz").write_bytes(payload[: len(payload) // 2])  # truncated
     assert store.get(key, "npz") is None
     store.path(key, "nc").write_bytes(b"not a NetCDF file")
@@ -254,31 +257,26 @@ def test_progress_lines_without_a_terminal_and_the_stage_table(tmp_path):
     assert text[0] == "study,law,stage,label,status,seconds,stored_seconds" and len(text) == 4
 
 
-def test_a_computed_fit_reads_back_identical_so_it_is_kept_unopened(monkeypatch):
-    """A study's units after a fit use the fit as computed (``remember_fit``) rather than opening
-    its stored bytes: sound only because the bytes read back identical, which this checks."""
-    import io
-
-    import xarray as xr
-
+def test_a_stored_fit_reads_back_identical_to_the_computed_one(tmp_path):
+    """A study hands the fit it computed to the law's units and to its outcome as it is, and a
+    resumed run reads it back from the store: sound only because the two are identical (values,
+    dimensions, dtypes, attributes), which this checks; what is read back is fully in memory."""
     from bayesfric.datasets.synthetic import simulate
     from bayesfric.inference import fit
     from bayesfric.laws import get_law
-    from bayesfric.study.store import fit_to_bytes, load_fit_bytes, remember_fit
 
     law = get_law("coulomb_viscous")
     ds = simulate(law, {"velocity": np.linspace(-2, 2, 16)}, {"T_C": 1.0, "c_v": 0.5}, sigma=0.05, seed=0)
     dt = fit(law, ds, draws=60, tune=60, chains=2)
-    payload = fit_to_bytes(dt)
-    opened = xr.open_datatree(io.BytesIO(payload), engine="h5netcdf").load()
+    store = RunStore(tmp_path / "store")
+    key = "f" * 32
+    store.put(key, "nc", dt)
+    opened = store.get(key, "nc")
     assert sorted(opened.children) == sorted(dt.children) and opened.attrs == dt.attrs
     for node in dt.subtree:
         other = opened[node.path]
         xr.testing.assert_identical(node.to_dataset(), other.to_dataset())
         for name, var in node.variables.items():
             assert isinstance(var.values, np.ndarray) and var.dtype == other[name].dtype, (node.path, name)
-    remember_fit(payload, dt)
-    monkeypatch.setattr(xr, "open_datatree", lambda *a, **k: pytest.fail("a remembered fit was opened"))
-    again = load_fit_bytes(payload)
-    xr.testing.assert_identical(again, dt)
-    assert again is not dt  # a copy of its own: a caller's changes do not reach the kept fit
+    store.path(key, "nc").unlink()  # fully loaded: nothing of it is read from the file any more
+    xr.testing.assert_identical(opened, dt)

@@ -5,11 +5,12 @@ the store is read back; the others are computed here (serial) or on the workers 
 ``Client`` (``--workers N`` starts a ``LocalCluster`` of N single-threaded processes;
 ``--scheduler ADDRESS`` connects to a running cluster, see :func:`open_client`). A law's fit runs
 first; when it is done (or read back) its other units are scheduled, all independent of each
-other, and the laws are independent of each other. Results travel back to this process as bytes
-and are written to the store here, one atomic file per unit as soon as it is done, so a worker
-that dies, or a run that is killed, loses only the units in flight, and the workers need no file
-system shared with the client. Serial and parallel runs compute the same units from the same
-inputs and seeds, hence the same numbers.
+other, and the laws are independent of each other. Results (the fit, or a
+:class:`~bayesfric.study.store.Record`) travel back to this process as objects (pickled by Dask
+from a worker, handed over as they are in this process) and are written to the store here, one
+atomic file per unit as soon as it is done, so a worker that dies, or a run that is killed, loses
+only the units in flight, and the workers need no file system shared with the client. Serial
+and parallel runs compute the same units from the same inputs and seeds, hence the same numbers.
 
 Progress: a tqdm bar (units done / total, the law and stage last finished, elapsed and estimated
 time left) on a terminal; plain lines when stdout is not one (CI logs). Inside a unit run in this
@@ -41,7 +42,7 @@ from bayesfric.compare import verdict_of
 from bayesfric.csvout import write_csv
 from bayesfric.errors import UserError
 from bayesfric.inference.progress import reporting
-from bayesfric.study.store import RunStore, load_fit_bytes, release_fit
+from bayesfric.study.store import Result, RunStore
 from bayesfric.study.units import COSTLY, LawJob, Unit, compute, compute_seconds
 
 #: Seconds to wait for ``--scheduler ADDRESS`` to answer.
@@ -202,33 +203,34 @@ def open_client(workers: int = 0, scheduler: str | None = None) -> Iterator[obje
 
 class _Serial:
     """In-process executor with the interface :func:`run_units` needs; a law's units run together.
-    Each unit runs inside ``inside(unit)`` (its chains' progress)."""
+    Each unit runs inside ``inside(unit)`` (its chains' progress) and gets a shallow copy of the
+    fit (a unit's changes to the tree's structure or attributes do not reach the others)."""
 
     def __init__(self, inside=None):
         self.queue: deque = deque()
         self.inside = inside or (lambda unit: contextlib.nullcontext())
 
-    def submit(self, job, unit, fit_payload, first: bool) -> None:
-        (self.queue.appendleft if first else self.queue.append)((job, unit, fit_payload))
+    def submit(self, job, unit, fit, first: bool) -> None:
+        (self.queue.appendleft if first else self.queue.append)((job, unit, fit))
 
-    def completed(self) -> Iterator[tuple[LawJob, Unit, bytes, float]]:
+    def completed(self) -> Iterator[tuple[LawJob, Unit, Result, float]]:
         while self.queue:
-            job, unit, fit_payload = self.queue.popleft()
+            job, unit, fit = self.queue.popleft()
             with self.inside(unit):
-                payload, seconds = compute(job, unit, fit_payload)
-            yield job, unit, payload, seconds
+                result, seconds = compute(job, unit, None if fit is None else fit.copy())
+            yield job, unit, result, seconds
 
 
-def compute_reporting(study: str, job: LawJob, unit: Unit, fit_payload) -> tuple[bytes, float]:
+def compute_reporting(study: str, job: LawJob, unit: Unit, fit) -> tuple[Result, float]:
     """:func:`compute` on a Dask worker, its chains reporting in plain lines on the worker's stderr
     (a local cluster's workers share the terminal; a remote worker's lines go to its log), one
     every :data:`bayesfric.inference.progress.PLAIN_INTERVAL_S` seconds, none for a short unit."""
     with reporting(f"{study} {unit.law} {unit.label}", live=False):
-        return compute(job, unit, fit_payload)
+        return compute(job, unit, fit)
 
 
 class _Dask:
-    """Units as Dask futures; the fit's bytes are scattered once and shared by the law's units."""
+    """Units as Dask futures; the fit is scattered once and shared by the law's units."""
 
     def __init__(self, client, study: str = ""):
         from distributed import as_completed
@@ -238,92 +240,64 @@ class _Dask:
         self.meta: dict = {}
         self.shared: dict[int, object] = {}
 
-    def submit(self, job, unit, fit_payload, first: bool) -> None:
-        if fit_payload is not None:
-            ident = id(fit_payload)
-            if ident not in self.shared:
-                self.shared[ident] = self.client.scatter(fit_payload)
-            fit_payload = self.shared[ident]
-        future = self.client.submit(compute_reporting, self.study, job, unit, fit_payload, pure=False,
+    def submit(self, job, unit, fit, first: bool) -> None:
+        if fit is not None:
+            ident = id(fit)
+            if ident not in self.shared:  # hash=False: no tokenising of every array of the fit
+                self.shared[ident] = self.client.scatter(fit, hash=False)
+            fit = self.shared[ident]
+        future = self.client.submit(compute_reporting, self.study, job, unit, fit, pure=False,
                                     key=f"{unit.law}-{unit.stage}-{unit.key[:12]}")
         self.meta[future.key] = (job, unit)
         self.pending.add(future)
 
-    def completed(self) -> Iterator[tuple[LawJob, Unit, bytes, float]]:
+    def completed(self) -> Iterator[tuple[LawJob, Unit, Result, float]]:
         for future in self.pending:
             job, unit = self.meta.pop(future.key)
-            payload, seconds = future.result()  # a unit's error (or a lost worker, after retries) stops the run
+            result, seconds = future.result()  # a unit's error (or a lost worker, after retries) stops the run
             future.release()
-            yield job, unit, payload, seconds
-
-
-class _Fits:
-    """Each law's fit once its units are done: the opened fit kept in ``opened``, its bytes taken
-    out of ``payloads`` and out of the cache of opened fits (:func:`release_fit`), so that they
-    leave memory; the run store keeps them on disk."""
-
-    def __init__(self, plans: list, payloads: dict[str, bytes]):
-        self.payloads = payloads
-        self.opened: dict[str, object] = {}
-        self.waiting: dict[str, int] = {}  # fit key -> its units still computing
-        self.fit_of = {u.key: fit.key for _, fit, rest in plans for u in rest}
-
-    def scheduled(self, fit_key: str, units: int) -> None:
-        """``units`` of the fit's units were submitted (the others reused or skipped)."""
-        self.waiting[fit_key] = units
-        if not units:
-            self.opened[fit_key] = release_fit(self.payloads.pop(fit_key))
-
-    def done(self, unit_key: str) -> None:
-        """A unit was computed (a fit's: nothing to count)."""
-        fit_key = self.fit_of.get(unit_key)
-        if fit_key is not None:
-            self.scheduled(fit_key, self.waiting[fit_key] - 1)
+            yield job, unit, result, seconds
 
 
 def run_units(plans: list[tuple[LawJob, Unit, list[Unit]]], store: RunStore, *, study: str,
               failed_fits: str = "skip", client=None, stream=None, live: bool | None = None
-              ) -> tuple[dict[str, bytes], dict[str, list[Unit]], list[Timing], dict[str, object]]:
+              ) -> tuple[dict[str, Result], dict[str, list[Unit]], list[Timing]]:
     """Results of every unit of ``plans`` (law job, fit unit, units after the fit), reusing the store.
 
     Returns
     -------
-    payloads : dict
-        Unit key -> stored bytes (every unit after a fit that ran or was reused).
+    results : dict
+        Unit key -> result: the fit (an ``xarray.DataTree``, fully in memory; its file is in the
+        store, ``store.path(key, "nc")``) or a :class:`~bayesfric.study.store.Record`, computed
+        in this run or read back from the store.
     skipped : dict
         Law -> units not run because its fit failed the gate (``failed_fits = "skip"``).
     timings : list of Timing
         One row per unit.
-    fits : dict
-        Fit unit key -> the fit (an ``xarray.DataTree``); its bytes are in the store
-        (``store.path(key, "nc")``). They leave memory as soon as the law's units are done
-        (:func:`~bayesfric.study.store.release_fit`): a fit of 10⁵ rows is 0.4 GB as bytes and
-        as much again opened, and a study held every law's both ways to its end.
     """
     every = [u for _, fit, rest in plans for u in [fit, *rest]]
     progress = Progress(len(every), study, stream, live, units=every)
     executor = _Serial(progress.inside) if client is None else _Dask(client, study)
-    payloads: dict[str, bytes] = {}
+    results: dict[str, Result] = {}
     skipped: dict[str, list[Unit]] = {job.spec.name: [] for job, _, _ in plans}
     timings: list[Timing] = []
     follow = {fit.key: rest for _, fit, rest in plans}
-    fits = _Fits(plans, payloads)
 
-    def finished(job: LawJob, unit: Unit, payload: bytes, status: str, seconds: float) -> None:
-        payloads[unit.key] = payload
-        if status == "computed":
-            fits.done(unit.key)
+    def finished(job: LawJob, unit: Unit, result: Result, status: str, seconds: float) -> None:
+        results[unit.key] = result
         if status == "computed":
             cost = seconds
         elif unit.kind == "nc":  # a fit's seconds lie beside it in the store
             cost = store.seconds(unit.key, unit.kind)
         else:
-            cost = compute_seconds(unit, payload)
+            cost = compute_seconds(unit, result)
         timings.append(Timing(study, unit.law, unit.stage, unit.label, status, seconds, cost))
         progress.step(unit, status, seconds, cost)
-        if unit.stage != "fit":
-            return
-        passed = verdict_of(load_fit_bytes(payload)).passed
+        if unit.stage == "fit":
+            _follow(job, unit, result)
+
+    def _follow(job: LawJob, unit: Unit, fit) -> None:
+        passed = verdict_of(fit).passed
         misses = []
         for nxt in follow[unit.key]:
             if not passed and failed_fits == "skip" and nxt.stage in COSTLY:
@@ -333,8 +307,7 @@ def run_units(plans: list[tuple[LawJob, Unit, list[Unit]]], store: RunStore, *, 
             elif not reuse(job, nxt):
                 misses.append(nxt)
         for nxt in reversed(misses):  # reversed: each goes to the front of the serial queue, so they run in order
-            executor.submit(job, nxt, payload, first=True)
-        fits.scheduled(unit.key, len(misses))
+            executor.submit(job, nxt, fit, first=True)
 
     def reuse(job: LawJob, unit: Unit) -> bool:
         hit = store.get(unit.key, unit.kind)
@@ -346,14 +319,14 @@ def run_units(plans: list[tuple[LawJob, Unit, list[Unit]]], store: RunStore, *, 
         for job, fit, _ in plans:
             if not reuse(job, fit):
                 executor.submit(job, fit, None, first=False)
-        for job, unit, payload, seconds in executor.completed():
-            store.put(unit.key, unit.kind, payload)
+        for job, unit, result, seconds in executor.completed():
+            store.put(unit.key, unit.kind, result)
             if unit.kind == "nc":
                 store.put_seconds(unit.key, unit.kind, seconds)
-            finished(job, unit, payload, "computed", seconds)
+            finished(job, unit, result, "computed", seconds)
     finally:
         progress.close()
-    return payloads, skipped, timings, fits.opened
+    return results, skipped, timings
 
 
 def timing_table(rows: list[Timing], title: str = "time per stage") -> str:

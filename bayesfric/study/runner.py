@@ -113,8 +113,8 @@ def _run_laws(study: Study, ds, work: Path, plans: list, schemes, *, out_root: P
     for tmp in store.clean():
         print(f"[{study.name}] removed a temporary file of an interrupted run: {tmp}", flush=True)
     failed_fits = "run" if quick else study.failed_fits
-    payloads, skipped, rows, fits = run_units(plans, store, study=study.name, failed_fits=failed_fits,
-                                              client=client, live=live_progress)
+    results, skipped, rows = run_units(plans, store, study=study.name, failed_fits=failed_fits,
+                                       client=client, live=live_progress)
     timings += rows
     kinds = {label: kind for label, _, kind in schemes}
     outcomes = []
@@ -123,7 +123,7 @@ def _run_laws(study: Study, ds, work: Path, plans: list, schemes, *, out_root: P
         fit_file.parent.mkdir(parents=True, exist_ok=True)
         # inside the work folder: installed atomically with the report; the bytes are the store's
         shutil.copyfile(store.path(fit.key, fit.kind), fit_file)
-        out = units.assemble(fits[fit.key], fit_file, rest, payloads, kinds, skipped[job.spec.name], failed_fits)
+        out = units.assemble(results[fit.key], fit_file, rest, results, kinds, skipped[job.spec.name], failed_fits)
         seconds = {r.label if r.stage != "cv" else f"cv {r.label}": r.seconds for r in rows
                    if r.law == job.spec.name and r.status == "computed"}
         outcomes.append(dataclasses.replace(out, timings=seconds))

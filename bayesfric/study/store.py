@@ -9,9 +9,12 @@ constants, the content of the selected data, the scheme's masks, the sampler set
 A unit whose key is in the store is read back instead of computed.
 
 Layout: ``<root>/<key>.nc`` (a full fit, NetCDF) or ``<root>/<key>.npz`` (every other unit: its
-arrays plus one JSON record, which holds the unit's compute seconds). A fit's compute seconds
-lie beside it in ``<root>/<key>.nc.json`` (:meth:`RunStore.put_seconds`), outside the NetCDF
-bytes so a fit's file stays a function of its inputs; a reused unit reports what it saved.
+:class:`Record`, arrays plus one JSON record, which holds the unit's compute seconds). A fit's
+compute seconds lie beside it in ``<root>/<key>.nc.json`` (:meth:`RunStore.put_seconds`), outside the
+NetCDF file so a fit's file stays a function of its inputs; a reused unit reports what it saved.
+The store holds results as objects in memory and as files on disk: :meth:`RunStore.put` encodes
+a result as it writes it and :meth:`RunStore.get` decodes it as it reads it, the only places a
+result becomes bytes (a run's units hand each other the objects themselves).
 ``root`` is :func:`store_folder`: ``$BAYESFRIC_STORE_DIR/<study>``
 if that variable is set, else ``<reports root>/.store/<study>``; below the reports root it is
 reached through real folders only, never a symbolic link. Each entry is one file written
@@ -30,7 +33,7 @@ import os
 import secrets
 import socket
 import zipfile
-from collections.abc import Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -39,7 +42,7 @@ import xarray as xr
 
 from bayesfric.fsutil import PathError, check_output_folder, lexically_inside, real_folders
 
-__all__ = ["RunStore", "store_folder", "STORE_ENV"]
+__all__ = ["RunStore", "Record", "Result", "store_folder", "STORE_ENV"]
 
 #: Environment variable that moves the store out of the reports folder.
 STORE_ENV = "BAYESFRIC_STORE_DIR"
@@ -92,18 +95,35 @@ def _atomic_write(path: Path, payload: bytes) -> None:
             tmp.unlink()
 
 
-def pack_record(record: dict[str, Any], arrays: Mapping[str, np.ndarray] | None = None) -> bytes:
-    """One unit's result as npz bytes: its arrays plus the JSON ``record`` under ``__record__``."""
-    buffer = io.BytesIO()
-    np.savez(buffer, __record__=np.array(json.dumps(record)), **{k: np.asarray(v) for k, v in (arrays or {}).items()})
-    return buffer.getvalue()
+@dataclass(frozen=True)
+class Record:
+    """The result of a unit other than a fit: a JSON-able ``record`` and named ``arrays``.
+
+    Stored as one npz file (:meth:`to_bytes`): the arrays plus the record as JSON under
+    ``__record__``. ``record["key"]`` is the unit's key (a file under another key's name is not
+    trusted) and ``record["compute_s"]`` the seconds it took to compute.
+    """
+
+    record: dict[str, Any]
+    arrays: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def to_bytes(self) -> bytes:
+        """The npz bytes of the store's file."""
+        buffer = io.BytesIO()
+        np.savez(buffer, __record__=np.array(json.dumps(self.record)),
+                 **{k: np.asarray(v) for k, v in self.arrays.items()})
+        return buffer.getvalue()
+
+    @classmethod
+    def from_bytes(cls, payload: bytes) -> Record:
+        """Inverse of :meth:`to_bytes`."""
+        with np.load(io.BytesIO(payload), allow_pickle=False) as npz:
+            arrays = {k: npz[k] for k in npz.files}
+        return cls(json.loads(str(arrays.pop("__record__"))), arrays)
 
 
-def unpack_record(payload: bytes) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-    """Inverse of :func:`pack_record`."""
-    with np.load(io.BytesIO(payload), allow_pickle=False) as npz:
-        arrays = {k: npz[k] for k in npz.files}
-    return json.loads(str(arrays.pop("__record__"))), arrays
+#: A unit's result: the fit (a DataTree) or a :class:`Record`.
+Result = xr.DataTree | Record
 
 
 class RunStore:
@@ -125,24 +145,22 @@ class RunStore:
         """File of the entry ``key``; ``kind`` is ``"nc"`` (a fit) or ``"npz"``."""
         return self.folder / f"{key}.{kind}"
 
-    def get(self, key: str, kind: str) -> bytes | None:
-        """The entry's bytes if present and readable back, else None (a miss, never an error)."""
+    def get(self, key: str, kind: str) -> Result | None:
+        """The entry, read back (a fit fully loaded into memory), if present and readable, else
+        None (a miss, never an error)."""
         if not self.read:
             return None
         path = self.path(key, kind)
         try:
             payload = path.read_bytes()
             if kind == "npz":
-                record, _ = unpack_record(payload)
-                if record.get("key") != key:
-                    return None
-            else:
-                load_fit_bytes(payload)
+                result = Record.from_bytes(payload)
+                return result if result.record.get("key") == key else None
+            return load_fit_bytes(payload)
         except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, json.JSONDecodeError):
             return None
         except Exception:  # noqa: BLE001 - h5py/netCDF raise their own types on a damaged file: a miss
             return None
-        return payload
 
     def clean(self) -> list[Path]:
         """Remove temporary files of writes killed part-way (their process on this host is gone)."""
@@ -158,10 +176,11 @@ class RunStore:
             removed.append(tmp)
         return removed
 
-    def put(self, key: str, kind: str, payload: bytes) -> Path:
-        """Write an entry atomically (an existing one is replaced)."""
+    def put(self, key: str, kind: str, result: Result) -> Path:
+        """Write an entry atomically (an existing one is replaced): a fit as NetCDF, a
+        :class:`Record` as npz."""
         path = self.path(key, kind)
-        _atomic_write(path, payload)
+        _atomic_write(path, result.to_bytes() if isinstance(result, Record) else fit_to_bytes(result))
         return path
 
     def put_seconds(self, key: str, kind: str, seconds: float) -> None:
@@ -206,47 +225,5 @@ def _local_locks():
 
 
 def load_fit_bytes(payload: bytes) -> xr.DataTree:
-    """Inverse of :func:`fit_to_bytes` (the fit fully loaded into memory; a copy of its own).
-
-    Opening a fit costs 0.1-0.5 s; a run opens each fit several times (every unit after the
-    fit, then the study's outcome), so the last few opened are kept (keyed by their bytes). The
-    copy is shallow (it shares the arrays), so a kept fit costs no memory the outcome does not
-    hold anyway. Eight: more than a seed study's laws (at most six), so the outcome finds every
-    law's fit still open; with four, a six-law study opened each fit twice (robot_joint: 12
-    opens, 4.7 s of a 68 s warm run). A fit computed in this process is kept as it was
-    computed (:func:`remember_fit`) and never opened at all.
-    """
-    payload = bytes(payload)
-    fit = _OPENED.pop(payload, None)
-    if fit is None:
-        fit = xr.open_datatree(io.BytesIO(payload), engine="h5netcdf").load()
-    _keep(payload, fit)
-    return fit.copy()
-
-
-def remember_fit(payload: bytes, fit: xr.DataTree) -> None:
-    """Keep ``fit``, just written as ``payload`` by :func:`fit_to_bytes`, for :func:`load_fit_bytes`.
-
-    The written fit reads back identical (values, dimensions, dtypes and attributes; tested), so
-    the units after a fit use it without opening its bytes again: 0.2-0.4 s per law.
-    """
-    _keep(bytes(payload), fit)
-
-
-def release_fit(payload: bytes) -> xr.DataTree:
-    """The fit of ``payload`` (:func:`load_fit_bytes`), no longer kept under its bytes: once a
-    law's units are done its caller holds the tree alone, and the bytes (as large as the fit
-    again: 0.2-0.4 GB from 10⁴ rows) can leave memory; the run store keeps them on disk."""
-    fit = _OPENED.pop(bytes(payload), None)
-    return xr.open_datatree(io.BytesIO(payload), engine="h5netcdf").load() if fit is None else fit
-
-
-_OPENED: dict[bytes, xr.DataTree] = {}  # most recently used last
-_KEEP_FITS = 8
-
-
-def _keep(payload: bytes, fit: xr.DataTree) -> None:
-    _OPENED.pop(payload, None)
-    _OPENED[payload] = fit
-    while len(_OPENED) > _KEEP_FITS:
-        del _OPENED[next(iter(_OPENED))]
+    """Inverse of :func:`fit_to_bytes` (the fit fully loaded into memory)."""
+    return xr.open_datatree(io.BytesIO(payload), engine="h5netcdf").load()

@@ -1,15 +1,16 @@
 """A law's work in a study, split into units with explicit inputs and plain serialisable outputs.
 
-Units of one law (:func:`plan_law`): ``fit`` (the full fit, NetCDF), then — all reading the fit —
+Units of one law (:func:`plan_law`): ``fit`` (the full fit), then — all reading the fit —
 ``loo`` (PSIS-LOO with exact refits of high-k points), one ``cv`` unit per cross-validation scheme,
 ``bridge`` and ``importance`` evidence estimates, ``smc`` (opt-in) and ``checks`` (prior
 predictive, LOO-PIT, power-scaling sensitivity). Every unit runs through :func:`compute`, a pure
 function of a :class:`LawJob` (the law, its priors and constants, noise, selected data, sampler
-settings, seed), the :class:`Unit` and the fit's bytes; it returns bytes (NetCDF for the fit, an npz
-of arrays plus a JSON record otherwise), so a result can be stored (:mod:`bayesfric.study.store`),
-read back, or sent from a Dask worker. Each unit gets the study seed explicitly (no random stream
-is shared between units), so the order in which units run — serially or on any number of workers —
-does not change a number. :func:`assemble` turns the results back into a
+settings, seed), the :class:`Unit` and the fit; it returns the fit (a DataTree) or a
+:class:`~bayesfric.study.store.Record` (arrays plus a JSON-able record), plain objects that the run
+store writes and reads back (:mod:`bayesfric.study.store`) and a Dask worker sends as they are; in
+one process the units hand each other the objects, never their bytes. Each unit gets the study
+seed explicitly (no random stream is shared between units), so the order in which units run —
+serially or on any number of workers — does not change a number. :func:`assemble` turns the results back into a
 :class:`~bayesfric.study.outcome.LawOutcome`; the same function reads fresh and stored results.
 
 The fit's verdict decides the rest: under ``[compare] failed_fits = "skip"`` (the default) a law
@@ -37,7 +38,7 @@ from bayesfric.inference.diagnostics import Verdict
 from bayesfric.laws.variants import law_of_fit
 from bayesfric.model import Noise, build_program
 from bayesfric.study.outcome import Checks, LawOutcome
-from bayesfric.study.store import fit_to_bytes, load_fit_bytes, pack_record, remember_fit, unpack_record
+from bayesfric.study.store import Record, Result
 
 __all__ = ["LawJob", "Unit", "make_job", "plan_law", "compute", "assemble", "COSTLY"]
 
@@ -194,11 +195,11 @@ def _compute_rest(job: LawJob, unit: Unit, fit: xr.DataTree) -> tuple[dict, dict
     raise ValueError(f"unknown unit stage {unit.stage!r}")
 
 
-def compute(job: LawJob, unit: Unit, fit_payload: bytes | None = None) -> tuple[bytes, float]:
-    """Compute one unit; return its stored form (bytes) and its wall seconds.
+def compute(job: LawJob, unit: Unit, fit: xr.DataTree | None = None) -> tuple[Result, float]:
+    """Compute one unit; return its result (the fit, or a :class:`Record`) and its wall seconds.
 
-    ``fit_payload`` (the fit unit's bytes) is required by every unit except the fit itself. Runs
-    in this process or on a Dask worker alike.
+    ``fit`` (the law's fit) is required by every unit except the fit itself. Runs in this process
+    or on a Dask worker alike.
     """
     start = time.perf_counter()
     if unit.stage == "fit":
@@ -206,48 +207,46 @@ def compute(job: LawJob, unit: Unit, fit_payload: bytes | None = None) -> tuple[
             dt = _base_engine(job).fit(job.ds)
         else:
             dt = SAMPLERS[job.sampler](_program(job), job.ds, seed=job.seed, **job.settings)
-        payload = fit_to_bytes(dt)
-        remember_fit(payload, dt)  # the law's next units use it as it is, not opened from the bytes
-        return payload, time.perf_counter() - start
-    record, arrays = _compute_rest(job, unit, load_fit_bytes(fit_payload))
+        return dt, time.perf_counter() - start
+    record, arrays = _compute_rest(job, unit, fit)
     seconds = time.perf_counter() - start
-    return pack_record({"key": unit.key, "stage": unit.stage, "compute_s": seconds} | record, arrays), seconds
+    return Record({"key": unit.key, "stage": unit.stage, "compute_s": seconds} | record, arrays), seconds
 
 
-def compute_seconds(unit: Unit, payload: bytes) -> float:
-    """Wall seconds the stored unit took when it was computed (NaN for a fit: its seconds lie beside
-    it in the store, :meth:`bayesfric.study.store.RunStore.seconds`)."""
-    if unit.kind == "nc":
+def compute_seconds(unit: Unit, result: Result) -> float:
+    """Wall seconds the unit took when it was computed (NaN for a fit: its seconds lie beside it
+    in the store, :meth:`bayesfric.study.store.RunStore.seconds`)."""
+    if not isinstance(result, Record):
         return float("nan")
-    return float(unpack_record(payload)[0].get("compute_s", float("nan")))
+    return float(result.record.get("compute_s", float("nan")))
 
 
 # -- assembling ----------------------------------------------------------------------------------
-def _evidence(payload: bytes) -> compare.Evidence:
-    record, _ = unpack_record(payload)
+def _evidence(result: Record) -> compare.Evidence:
+    record = result.record
     return compare.Evidence(record["log_z"], record["error"], record["method"], record["diagnostics"])
 
 
-def assemble(fit: xr.DataTree, fit_file, units: list[Unit], payloads: dict[str, bytes],
+def assemble(fit: xr.DataTree, fit_file, units: list[Unit], results: dict[str, Result],
              kinds: dict[str, str], skipped: list[Unit], failed_fits: str) -> LawOutcome:
     """The :class:`LawOutcome` of a law from its fit and its units' results (fresh or stored).
 
     ``kinds`` maps a CV label to its scheme kind (kfold, grouped, blocked); ``skipped`` lists the
     units not run because the fit failed the gate.
     """
-    by_stage = {u.label: payloads[u.key] for u in units if u.key in payloads}
+    by_stage = {u.label: results[u.key] for u in units if u.key in results}
     loo = None
     if "loo" in by_stage:
-        record, arrays = unpack_record(by_stage["loo"])
+        record, arrays = by_stage["loo"].record, by_stage["loo"].arrays
         loo = loo_from_values(fit, arrays["elpd_i"], record["handling"], record["refit_failed"], record["refitted"])
-    cv = {u.label: _cv(payloads[u.key]) for u in units if u.stage == "cv" and u.key in payloads}
+    cv = {u.label: _cv(results[u.key]) for u in units if u.stage == "cv" and u.key in results}
     penalties = {label: compare.extrapolation_penalty(loo, result) for label, result in cv.items()
                  if kinds[label] == "blocked" and loo is not None}
     evidence = {name: _evidence(by_stage[name]) for name in ("bridge", "importance", "SMC") if name in by_stage}
     # Two estimators that share only the density (bench_evidence.py); never averaged.
     agreement = (compare.compare_estimators(evidence["bridge"], evidence["importance"])
                  if {"bridge", "importance"} <= set(evidence) else None)
-    checks = _checks(*unpack_record(by_stage["checks"])) if "checks" in by_stage else None
+    checks = _checks(by_stage["checks"].record, by_stage["checks"].arrays) if "checks" in by_stage else None
     return LawOutcome(law=law_of_fit(fit.attrs), fit=fit, fit_file=fit_file, verdict=compare.verdict_of(fit),
                       loo=loo, cv=cv, penalty={k: p.per_point for k, p in penalties.items()},
                       penalty_se={k: p.se for k, p in penalties.items()}, evidence=evidence, agreement=agreement,
@@ -255,8 +254,8 @@ def assemble(fit: xr.DataTree, fit_file, units: list[Unit], payloads: dict[str, 
                       skipped=tuple(u.label for u in skipped), failed_fits=failed_fits)
 
 
-def _cv(payload: bytes) -> compare.CVResult:
-    record, arrays = unpack_record(payload)
+def _cv(result: Record) -> compare.CVResult:
+    record, arrays = result.record, result.arrays
     return compare.CVResult(law=record["law"], scheme=record["scheme"], elpd=record["elpd"], se=record["se"],
                             elpd_i=arrays["elpd_i"], heldout=arrays["heldout"].astype(bool),
                             verdicts=[Verdict.from_json(v) for v in record["verdicts"]], seconds=record["seconds"],
