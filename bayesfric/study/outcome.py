@@ -7,7 +7,7 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import xarray as xr
@@ -15,6 +15,10 @@ import xarray as xr
 from bayesfric.inference.diagnostics import Verdict
 from bayesfric.laws.base import Law
 from bayesfric.study.spec import Study
+
+if TYPE_CHECKING:  # annotations only (compare is below study: no cycle at any level)
+    from bayesfric.compare import CVResult, EstimatorAgreement, Evidence, LooResult, PitShape
+    from bayesfric.sizing import SizingResult
 
 __all__ = ["Checks", "LawOutcome", "QuickRun", "StudyOutcome", "UnitSeconds", "Weight"]
 
@@ -30,7 +34,7 @@ class Checks:
     psense: tuple[str, ...] = ()  # parameters power-scaling flags as prior- or likelihood-sensitive
     pit: np.ndarray | None = field(default=None, compare=False, repr=False)  # the LOO-PIT values
     pit_band: np.ndarray | None = field(default=None, compare=False, repr=False)  # (points, lower, upper) of the ECDF
-    pit_shape: Any = None  # bayesfric.compare.PitShape: which way the PIT departs from uniform
+    pit_shape: PitShape | None = None  # which way the PIT departs from uniform
 
     @property
     def prior_sensitivity(self) -> str:
@@ -60,12 +64,12 @@ class LawOutcome:
     fit: xr.DataTree
     fit_file: Path
     verdict: Verdict
-    loo: Any = None  # bayesfric.compare.LooResult
-    cv: Mapping[str, Any] = field(default_factory=dict)  # scheme label -> bayesfric.compare.CVResult
+    loo: LooResult | None = None
+    cv: Mapping[str, CVResult] = field(default_factory=dict)  # scheme label -> its result
     penalty: Mapping[str, float] = field(default_factory=dict)  # blocked label -> nats per held-out point
     penalty_se: Mapping[str, float] = field(default_factory=dict)  # blocked label -> its standard error
-    evidence: Mapping[str, Any] = field(default_factory=dict)  # estimator -> bayesfric.compare.Evidence
-    agreement: Any = None  # bayesfric.compare.EstimatorAgreement of bridge and importance
+    evidence: Mapping[str, Evidence] = field(default_factory=dict)  # estimator -> its estimate
+    agreement: EstimatorAgreement | None = None  # of bridge and importance
     checks: Checks | None = None
     weights: Mapping[str, Weight] = field(default_factory=dict)  # weighting -> weight
     skipped: tuple[str, ...] = ()  # stages not run: the full fit failed the gate
@@ -122,7 +126,7 @@ class LawOutcome:
         return out
 
 
-def _disagreement(agreement) -> str:
+def _disagreement(agreement: EstimatorAgreement) -> str:
     importance = agreement.b
     why = (f"importance weights heavy-tailed (Pareto k = {importance.diagnostics['pareto_k']:.2f})"
            if not importance.diagnostics.get("reliable", True) else f"> {agreement.threshold:.2f} nat")
@@ -164,7 +168,7 @@ class StudyOutcome:
     weight_errors: list[tuple[str, str]] = field(default_factory=list)  # (weighting, why it was not computed)
     quick: QuickRun | None = None  # the capped settings of a --quick run
     unit_seconds: UnitSeconds | None = None  # what the run's units cost, computed or reused
-    sizing: Any = None  # bayesfric.sizing.SizingResult when the study asks sizing questions
+    sizing: SizingResult | None = None  # when the study asks sizing questions
     table: Any = None  # the law × metric table (bayesfric.study.scores.score_table), computed once
     claims: list[Any] = field(default_factory=list)  # bayesfric.study.claims.ClaimResult per [[claims]] entry
     # the per-law nodes of the result tree (/weights, /diagnostics, /checks, /sizing_basis), built once
