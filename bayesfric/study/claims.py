@@ -48,7 +48,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import jax
@@ -56,7 +55,16 @@ import jax.numpy as jnp
 import numpy as np
 
 from bayesfric.study import scores as sc
-from bayesfric.study.claimspec import BASES, KINDS, Claim, ClaimError, basis_problem, check_claim, make_claim
+from bayesfric.study.claimspec import (
+    BASES,
+    KINDS,
+    Claim,
+    ClaimError,
+    ClaimResult,
+    basis_problem,
+    check_claim,
+    make_claim,
+)
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -64,28 +72,14 @@ if TYPE_CHECKING:
 
     from bayesfric.study.outcome import StudyOutcome
 
-# KINDS, BASES, Claim, ClaimError, make_claim, check_claim, basis_problem: the claim specification
-# (bayesfric.study.claimspec), re-exported here.
+# KINDS, BASES, Claim, ClaimError, ClaimResult, make_claim, check_claim, basis_problem: the claim
+# specification and its result type (bayesfric.study.claimspec), re-exported here.
 __all__ = ["KINDS", "BASES", "Claim", "ClaimError", "ClaimResult", "make_claim", "check_claim", "basis_problem",
            "evaluate_claims", "mean_draws", "VERDICTS"]
 
 VERDICTS = ("reproduced", "not reproduced", "not testable")
 #: Equal-tailed posterior interval shown with each claim.
 INTERVAL = (0.05, 0.95)
-
-
-@dataclass(frozen=True)
-class ClaimResult:
-    """A claim with what the posterior says: ``value`` (median or estimate), ``lo``/``hi`` (90 %
-    interval, or ± one standard error for scores), ``winner`` for ``best``, the verdict and why."""
-
-    claim: Claim
-    verdict: str
-    value: float = math.nan
-    lo: float = math.nan
-    hi: float = math.nan
-    winner: str = ""
-    why: str = ""
 
 
 # -- predictions through the fit's own program ----------------------------------------------------

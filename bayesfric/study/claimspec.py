@@ -19,7 +19,7 @@ from bayesfric.laws import Law, get_law
 from bayesfric.sizing.points import SizingError, parse_value
 from bayesfric.study.metrics import METRICS
 
-__all__ = ["KINDS", "BASES", "Claim", "ClaimError", "make_claim", "check_claim", "basis_problem"]
+__all__ = ["KINDS", "BASES", "Claim", "ClaimError", "ClaimResult", "make_claim", "check_claim", "basis_problem"]
 
 KINDS = ("ratio", "parameter", "score", "best")
 #: ``basis`` values: whether the claim's number was used to build the data (a pipeline check) or not.
@@ -194,3 +194,17 @@ def basis_problem(claim: Claim, provenance: str) -> str | None:
                 "it (basis = \"pipeline check\": a verdict checks the pipeline, not the paper) or not "
                 "(basis = \"evidence\"); its README lists the facts used")
     return None
+
+
+@dataclass(frozen=True)
+class ClaimResult:
+    """A claim with what the posterior says: ``value`` (median or estimate), ``lo``/``hi`` (90 %
+    interval, or ± one standard error for scores), ``winner`` for ``best``, the verdict and why."""
+
+    claim: Claim
+    verdict: str
+    value: float = math.nan
+    lo: float = math.nan
+    hi: float = math.nan
+    winner: str = ""
+    why: str = ""

@@ -17,8 +17,11 @@ from bayesfric.laws.base import Law
 from bayesfric.study.spec import Study
 
 if TYPE_CHECKING:  # annotations only (compare is below study: no cycle at any level)
+    import pandas as pd
+
     from bayesfric.compare import CVResult, EstimatorAgreement, Evidence, LooResult, PitShape
     from bayesfric.sizing import SizingResult
+    from bayesfric.study.claimspec import ClaimResult
 
 __all__ = ["Checks", "LawOutcome", "QuickRun", "StudyOutcome", "UnitSeconds", "Weight"]
 
@@ -169,8 +172,8 @@ class StudyOutcome:
     quick: QuickRun | None = None  # the capped settings of a --quick run
     unit_seconds: UnitSeconds | None = None  # what the run's units cost, computed or reused
     sizing: SizingResult | None = None  # when the study asks sizing questions
-    table: Any = None  # the law × metric table (bayesfric.study.scores.score_table), computed once
-    claims: list[Any] = field(default_factory=list)  # bayesfric.study.claims.ClaimResult per [[claims]] entry
+    table: pd.DataFrame | None = None  # the law × metric table (bayesfric.study.scores.score_table), computed once
+    claims: list[ClaimResult] = field(default_factory=list)  # one per [[claims]] entry
     # the per-law nodes of the result tree (/weights, /diagnostics, /checks, /sizing_basis), built once
     # after the weights (bayesfric.report.results.law_nodes); sizing reads them, the tree holds them
     nodes: dict[str, Any] = field(default_factory=dict)
