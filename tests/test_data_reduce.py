@@ -220,18 +220,31 @@ evidence = false
 def test_study_on_reduction_ranks_laws_as_on_raw_log(tmp_path, monkeypatch):
     """Truth Stribeck + viscous (armstrong_helouvry); the raw log (8 speeds, 960 rows, AR(1)
     noise, transients) and its 8-row reduction give the same PSIS-LOO order of the three laws
-    (``place``, by score: a short run may leave a fit below the ESS gate, which ranks nothing)."""
+    (``place``, by score: a short run may leave a fit below the ESS gate, which ranks nothing)
+    wherever the data decide it.
+
+    On the raw log every gap is decisive (hundreds of nats). On the 8 rows of the reduction the
+    truth is still first by far (≈ 20 nat), but Coulomb and Coulomb + viscous are within a tenth of
+    a nat of each other (a few nats of standard error: 8 speeds cannot show the viscous slope), so
+    their order there is a coin toss that changed with the installed package versions (2026-11-26);
+    the test asks only that the reduction does not reverse them by more than one standard error.
+    """
     from bayesfric.study.runner import run_study
 
     monkeypatch.setenv("BAYESFRIC_STORE_DIR", str(tmp_path / "store"))
     csv, _ = raw_log(tmp_path, signs=(1,), plateau=100)
     assert main(["data", "reduce", str(csv)]) == 0
-    order = {}
+    rows = {}
     for data in ("raw", "raw_reduced"):
         study = tmp_path / f"{data}.study.toml"
         study.write_text(STUDY.format(name=f"s_{data}", data=f"{data}.csv"))
         folder = run_study(study, tmp_path / "reports", live_progress=False)
         with open(folder / "ranking.csv", newline="") as fh:
-            rows = sorted(csv_module.DictReader(fh), key=lambda r: int(r["place"]))
-        order[data] = [r["law"] for r in rows]
-    assert order["raw"] == order["raw_reduced"] == ["armstrong_helouvry", "coulomb_viscous", "coulomb"], order
+            rows[data] = sorted(csv_module.DictReader(fh), key=lambda r: int(r["place"]))
+    expected = ["armstrong_helouvry", "coulomb_viscous", "coulomb"]
+    assert [r["law"] for r in rows["raw"]] == expected, rows["raw"]
+    elpd = {r["law"]: (float(r["elpd_loo"]), float(r["elpd_loo_se"])) for r in rows["raw_reduced"]}
+    assert rows["raw_reduced"][0]["law"] == "armstrong_helouvry", rows["raw_reduced"]
+    assert elpd["armstrong_helouvry"][0] - max(elpd["coulomb"][0], elpd["coulomb_viscous"][0]) > 5, elpd
+    (viscous, se_v), (coulomb, se_c) = elpd["coulomb_viscous"], elpd["coulomb"]
+    assert viscous > coulomb - max(se_v, se_c), elpd  # not reversed beyond one standard error
