@@ -17,7 +17,7 @@ to Dahl's on the same data (the issue's budget: ≤ 3×). Seconds move with the 
 load, printed with each row.
 
 Run: ``PYTHONPATH=. .venv/bin/python benchmarks/bench_stateful_loops.py [--design 800] [--laws dahl lugre]
-[--limit 1800]``. Writes ``reports/benchmarks/bench_stateful_loops.json``.
+[--limit 1800] [--init pathfinder]``. Writes ``reports/benchmarks/bench_stateful_loops.json``.
 """
 
 from __future__ import annotations
@@ -38,8 +38,9 @@ DESIGNS = {"tribo": {"per_cycle": 60, "cycles": 2, "runs": (10e-6, 20e-6, 30e-6)
            "800": {"per_cycle": 200, "cycles": 1, "runs": (10e-6, 20e-6, 30e-6, 40e-6)}}
 
 
-def child(law_name: str, design: str, seed: int) -> dict:
-    """Simulate the Dahl loops of ``design``, fit ``law_name`` with defaults, return the row."""
+def child(law_name: str, design: str, seed: int, init: str = "median") -> dict:
+    """Simulate the Dahl loops of ``design``, fit ``law_name`` with defaults (chains started by
+    ``init``: prior medians, the default, or ``"pathfinder"``), return the row."""
     import numpy as np
 
     from bayesfric.compare import verdict_of
@@ -58,19 +59,19 @@ def child(law_name: str, design: str, seed: int) -> dict:
         finally:
             tt._loops = original
         start = time.perf_counter()
-        dt = fit(get_law(law_name), ds, seed=1)
+        dt = fit(get_law(law_name), ds, seed=1, **({} if init == "median" else {"init": init}))
         seconds = time.perf_counter() - start
     verdict = verdict_of(dt)
     steps = float(np.asarray(dt["sample_stats"]["n_steps"]).mean()) if "n_steps" in dt["sample_stats"] else None
-    return {"law": law_name, "design": design, "rows": int(ds.sizes["obs"]), "seconds": seconds,
+    return {"law": law_name, "design": design, "init": init, "rows": int(ds.sizes["obs"]), "seconds": seconds,
             "passed": bool(verdict.passed), "rhat_max": verdict.rhat_max, "ess_bulk_min": verdict.ess_bulk_min,
             "ess_tail_min": verdict.ess_tail_min, "divergences": verdict.divergences,
             "steps_per_draw": steps, "problems": list(verdict.problems)}
 
 
-def run_one(law_name: str, design: str, seed: int, limit: float) -> dict:
+def run_one(law_name: str, design: str, seed: int, limit: float, init: str = "median") -> dict:
     """One law in a fresh process under ``limit`` seconds."""
-    cmd = [sys.executable, __file__, "--child", law_name, "--design", design, "--seed", str(seed)]
+    cmd = [sys.executable, __file__, "--child", law_name, "--design", design, "--seed", str(seed), "--init", init]
     start = time.perf_counter()
     load = os.getloadavg()[0]
     try:
@@ -92,21 +93,24 @@ def main() -> None:
     parser.add_argument("--laws", nargs="+", default=LAWS)
     parser.add_argument("--seed", type=int, default=3)
     parser.add_argument("--limit", type=float, default=1800.0, help="seconds per law (a fit past it is cut)")
+    parser.add_argument("--init", choices=["median", "pathfinder"], default="median",
+                        help="chain starts of every law (the default: prior medians)")
     parser.add_argument("--child", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child:
-        print(json.dumps(child(args.child, args.design, args.seed)), flush=True)
+        print(json.dumps(child(args.child, args.design, args.seed, args.init)), flush=True)
         return
     rows = []
     for name in args.laws:
-        row = run_one(name, args.design, args.seed, args.limit)
+        row = run_one(name, args.design, args.seed, args.limit, args.init)
         rows.append(row)
         dahl = next((r["seconds"] for r in rows if r["law"] == "dahl" and "seconds" in r), None)
         if "seconds" in row and dahl:
             row["vs_dahl"] = row["seconds"] / dahl
         print(json.dumps(row), flush=True)
         OUT.parent.mkdir(parents=True, exist_ok=True)
-        OUT.write_text(json.dumps({"design": args.design, "seed": args.seed, "rows": rows}, indent=1))
+        summary = {"design": args.design, "seed": args.seed, "init": args.init, "rows": rows}
+        OUT.write_text(json.dumps(summary, indent=1))
 
 
 if __name__ == "__main__":
