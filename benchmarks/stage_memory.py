@@ -28,6 +28,7 @@ STAGES = [
     ("bayesfric.study.store", "load_fit_bytes"),
     ("bayesfric.study.runner", "_assign_weights"),
     ("bayesfric.study.runner", "score_table"),
+    ("bayesfric.study.runner", "study_tree"),
     ("bayesfric.study.runner", "evaluate_claims"),
     ("bayesfric.compare", "loo_pit_check"),
     ("bayesfric.compare", "prior_sensitivity"),

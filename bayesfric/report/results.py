@@ -1,31 +1,13 @@
 """A study's results as one ``xarray.DataTree``, saved as ``results.nc`` beside the report.
 
-The tree holds what the study computed, in numbers a notebook can use without parsing a CSV
-file (``xarray.open_datatree("reports/<study>/results.nc")``):
+The study run builds its result tree once (:func:`bayesfric.study.tree.study_tree`: root attrs,
+``/scores``, ``/pointwise``, ``/weights``, ``/diagnostics``, ``/checks``, ``/sizing_basis``,
+``/fits/<law>``); sizing and the claims read it. :func:`result_tree` adds what the report is
+rendered from, so a notebook can use the numbers without parsing a CSV file
+(``xarray.open_datatree("reports/<study>/results.nc")``):
 
-``/``
-    attrs: study, data set, data hash, bayesfric version, run seconds, CV schemes, the prior-power
-    ranking sensitivity (``ranking_sensitivity``, ``ranking_changed``).
-``/scores``
-    over ``(law, criterion)``: ``estimate``, ``se``, ``reliable``, ``reason``; a criterion is a
-    metric and its scheme (``elpd_loo``, ``elpd_cv[<scheme>]``, ``penalty[<scheme>]``,
-    ``log_evidence[<estimator>]``, ``weight[<weighting>]``), with ``metric`` and ``scheme``
-    coordinates (the rows of ``scores.csv``).
-``/pointwise``
-    ``elpd`` over ``(criterion, law, obs)``: PSIS-LOO and each CV scheme's pointwise elpd (NaN
-    where a point is not held out or the stage did not run); ``heldout`` over ``(scheme, obs)``;
-    ``pareto_k`` over ``(law, obs)`` (NaN where LOO did not run or was subsampled).
-``/weights``
-    over ``(law, weighting)``: ``weight`` and ``excluded`` (why the weighting left the law out).
-``/sizing_basis``
-    what sizing reads besides ``/weights`` and ``/diagnostics``: each law's fit file, measured
-    misses on the blocked schemes and extrapolation penalties, and the schemes
-    (:mod:`bayesfric.sizing.store`; ``bayesfric size STUDY.toml`` reads these three nodes).
-``/diagnostics``, ``/checks``
-    over ``law``: the gate's verdict (``passed``, ``problems``, ``verdict`` as the report writes
-    it), the law's ``flags`` (one line each), ``p_loo``, ``n_high_k``, ``seconds`` and ``timing``
-    over ``(law, stage)``; the checks unit's LOO-PIT (``pit`` over ``(law, pit_row)``, p-value,
-    band coverage ``ci_prob``, direction) and prior checks.
+``/`` attrs
+    ``seconds``: the run's wall time.
 ``/ranking``, ``/parameters``, ``/claims``, ``/sizing``, ``/score_rows``
     the report's CSV tables over ``row`` (the rows of ``ranking.csv``, ``parameters.csv``,
     ``claims.csv``, ``sizing.csv``, ``scores.csv``; attribute ``csv_file``), each column typed so
@@ -34,18 +16,13 @@ file (``xarray.open_datatree("reports/<study>/results.nc")``):
 ``/report``, ``/report/figures``
     the report's content model (section texts, tables, findings, as JSON in ``content``) and its
     figure files (PNG bytes).
-``/fits/<law>``
-    each law's posterior, sample statistics and observed data; the pointwise log-likelihood and
-    predictive draws stay in the full fit, ``fits/<law>.nc`` (attribute ``fit_file``).
 
 The report is rendered from this tree alone: the study run writes ``results.nc`` and renders
 every report file from the tree it holds (:func:`bayesfric.report.summary.render_report`), the
 function ``bayesfric report results.nc --out FOLDER`` calls on the saved tree; a test checks that
-both give the same bytes. What is not yet
-true (issue 31 item 1): the tree is built from the in-memory ``StudyOutcome``, and the report's
-content model (texts, tables, findings) and figures are computed from that outcome before they are
-stored; the run store and claims read the outcome, not the tree; sizing reads the tree's per-law nodes
-(:func:`law_nodes`), built once before the tree.
+both give the same bytes. What is not yet true (issue 31 item 1): the report's content model
+(texts, tables, findings) and figures are computed from the in-memory ``StudyOutcome`` before
+they are stored, not from the tree's numbers.
 """
 
 from __future__ import annotations
@@ -54,179 +31,35 @@ import math
 import os
 import secrets
 from pathlib import Path
-from typing import TYPE_CHECKING
 
-import numpy as np
 import pandas as pd
 import xarray as xr
 
-from bayesfric._version import __version__
 from bayesfric.report.stored import CSV_FILES, table_dataset
-from bayesfric.sizing.store import basis_node
 
-if TYPE_CHECKING:
-    from bayesfric.study.outcome import StudyOutcome
-
-__all__ = ["RESULTS", "result_tree", "law_nodes", "write_results", "table_dataset"]
+__all__ = ["RESULTS", "result_tree", "write_results", "table_dataset"]
 
 #: The file name of the saved tree in a report folder.
 RESULTS = "results.nc"
-#: Groups of a fit copied into ``/fits/<law>`` (the per-row groups stay in the fit file).
-FIT_GROUPS = ("posterior", "sample_stats", "observed_data", "constant_data")
 
 
-def _criterion(metric: str, scheme: str) -> str:
-    return metric if not scheme else f"{metric}[{scheme}]"
-
-
-def _scores(outcome: StudyOutcome) -> xr.Dataset:
-    table = outcome.table
-    laws = [w.name for w in outcome.laws]
-    crit = list(dict.fromkeys(_criterion(m, s) for m, s in zip(table["metric"], table["scheme"], strict=True)))
-    meta = {_criterion(m, s): (m, s) for m, s in zip(table["metric"], table["scheme"], strict=True)}
-    shape = (len(laws), len(crit))
-    est, se = np.full(shape, np.nan), np.full(shape, np.nan)
-    reliable = np.zeros(shape, dtype=bool)
-    reason = np.full(shape, "", dtype=object)
-    li, ci = {n: i for i, n in enumerate(laws)}, {c: j for j, c in enumerate(crit)}
-    for row in table.itertuples(index=False):
-        i, j = li[row.law], ci[_criterion(row.metric, row.scheme)]
-        est[i, j], se[i, j] = row.estimate, row.se
-        reliable[i, j], reason[i, j] = bool(row.reliable), str(row.reason)
-    dims = ("law", "criterion")
-    return xr.Dataset(
-        {"estimate": (dims, est), "se": (dims, se), "reliable": (dims, reliable), "reason": (dims, reason.astype(str))},
-        coords={"law": laws, "criterion": crit, "metric": ("criterion", [meta[c][0] for c in crit]),
-                "scheme": ("criterion", [meta[c][1] for c in crit])},
-    )
-
-
-def _pointwise(outcome: StudyOutcome) -> xr.Dataset:
-    n = int(outcome.data.sizes["obs"])
-    laws = [w.name for w in outcome.laws]
-    crit = ["elpd_loo"] + [_criterion("elpd_cv", s) for s in outcome.schemes]
-    elpd = np.full((len(crit), len(laws), n), np.nan)
-    pareto_k = np.full((len(laws), n), np.nan)
-    for i, w in enumerate(outcome.laws):
-        if w.loo is not None:
-            elpd[0, i] = np.asarray(w.loo.elpd_i, dtype=float)
-            if np.size(w.loo.pareto_k) == n:  # every row scored (a subsampled LOO has k̂ on its subsample only)
-                pareto_k[i] = np.asarray(w.loo.pareto_k, dtype=float)
-        for j, scheme in enumerate(outcome.schemes, start=1):
-            cv = w.cv.get(scheme)
-            if cv is not None:
-                elpd[j, i] = np.asarray(cv.elpd_i, dtype=float)
-    schemes = list(outcome.heldout)
-    heldout = np.array([np.asarray(outcome.heldout[s], dtype=bool) for s in schemes]).reshape(len(schemes), n)
-    return xr.Dataset({"elpd": (("criterion", "law", "obs"), elpd), "heldout": (("scheme", "obs"), heldout),
-                       "pareto_k": (("law", "obs"), pareto_k)},
-                      coords={"criterion": crit, "law": laws, "scheme": schemes, "obs": np.arange(n)})
-
-
-def _weights(outcome: StudyOutcome) -> xr.Dataset:
-    laws = [w.name for w in outcome.laws]
-    names = list(dict.fromkeys(k for w in outcome.laws for k in w.weights))
-    value = np.full((len(laws), len(names)), np.nan)
-    excluded = np.full((len(laws), len(names)), "", dtype=object)
-    for i, w in enumerate(outcome.laws):
-        for j, k in enumerate(names):
-            if k in w.weights:
-                value[i, j], excluded[i, j] = w.weights[k].value, w.weights[k].excluded
-    dims = ("law", "weighting")
-    return xr.Dataset({"weight": (dims, value), "excluded": (dims, excluded.astype(str))},
-                      coords={"law": laws, "weighting": names})
-
-
-def _per_law(outcome: StudyOutcome) -> tuple[xr.Dataset, xr.Dataset]:
-    laws = [w.name for w in outcome.laws]
-    diag = xr.Dataset({
-        "passed": ("law", [bool(w.verdict.passed) for w in outcome.laws]),
-        "problems": ("law", ["; ".join(w.verdict.problems) for w in outcome.laws]),
-        "evidence_agree": ("law", [bool(w.evidence_agree) for w in outcome.laws]),
-        "skipped": ("law", [", ".join(w.skipped) for w in outcome.laws]),
-        "seconds": ("law", [float(w.seconds) for w in outcome.laws]),
-        "verdict": ("law", [str(w.verdict) for w in outcome.laws]),
-        "flags": ("law", ["\n".join(w.flags) for w in outcome.laws]),
-        "p_loo": ("law", [float(w.loo.p_loo) if w.loo is not None else math.nan for w in outcome.laws]),
-        "n_high_k": ("law", [int(w.loo.n_high_k) if w.loo is not None else -1 for w in outcome.laws]),
-    }, coords={"law": laws})
-    diag["flags"].attrs["description"] = "one line per problem found in the law's results (LawOutcome.flags)"
-    diag["n_high_k"].attrs["description"] = "PSIS-LOO points above the Pareto-k threshold; -1: no LOO"
-    stages = list(dict.fromkeys(k for w in outcome.laws for k in w.timings))
-    diag["timing"] = (("law", "stage"), np.array([[float(w.timings.get(k, math.nan)) for k in stages]
-                                                  for w in outcome.laws]).reshape(len(laws), len(stages)))
-    diag = diag.assign_coords(stage=stages)
-    diag["timing"].attrs.update(units="s", description="wall seconds per stage computed in this run (NaN: reused)")
-    checks = [w.checks for w in outcome.laws]
-    nan = math.nan
-    chk = xr.Dataset({
-        "prior_implausible": ("law", [c.prior_implausible if c else nan for c in checks]),
-        "loo_pit_pvalue": ("law", [c.loo_pit_pvalue if c else nan for c in checks]),
-        "loo_pit_ok": ("law", [bool(c.loo_pit_ok) if c else True for c in checks]),
-        "loo_pit_direction": ("law", [c.pit_shape.label if c and c.pit_shape is not None else "" for c in checks]),
-        "psense": ("law", [", ".join(c.psense) if c else "" for c in checks]),
-        "ci_prob": ("law", [c.ci_prob if c else nan for c in checks]),
-    }, coords={"law": laws})
-    pits = [np.asarray(c.pit, dtype=float).ravel() if c is not None and c.pit is not None else np.zeros(0)
-            for c in checks]
-    width = max((len(p) for p in pits), default=0)
-    chk["pit"] = (("law", "pit_row"), np.array([np.pad(p, (0, width - len(p)), constant_values=nan) for p in pits])
-                  .reshape(len(laws), width))
-    chk["pit"].attrs["description"] = "LOO-PIT values of the rows the check read (NaN-padded)"
-    return diag, chk
-
-
-def law_nodes(outcome: StudyOutcome) -> dict[str, xr.Dataset]:
-    """The per-law nodes ``/weights``, ``/diagnostics``, ``/checks`` and ``/sizing_basis``
-    (:func:`bayesfric.sizing.store.basis_node`) of a study's outcome after its weights."""
-    diag, checks = _per_law(outcome)
-    return {"weights": _weights(outcome), "diagnostics": diag, "checks": checks,
-            "sizing_basis": basis_node(outcome)}
-
-
-def _fits(outcome: StudyOutcome) -> dict[str, xr.Dataset]:
-    nodes = {}
-    for w in outcome.laws:
-        for group in FIT_GROUPS:
-            if group in w.fit.children:
-                ds = w.fit[group].to_dataset()
-                nodes[f"fits/{w.name}/{group}"] = ds
-        nodes.setdefault(f"fits/{w.name}", xr.Dataset())
-    return nodes
-
-
-def result_tree(outcome: StudyOutcome, tables: dict[str, list[dict] | pd.DataFrame],
-                extra: dict[str, xr.Dataset] | None = None) -> xr.DataTree:
-    """The study's results as one DataTree (layout in the module docstring).
+def result_tree(core: xr.DataTree, tables: dict[str, list[dict] | pd.DataFrame],
+                extra: dict[str, xr.Dataset] | None = None, seconds: float = math.nan) -> xr.DataTree:
+    """The study's result tree ``core`` (:func:`bayesfric.study.tree.study_tree`) with the
+    report's nodes added (layout in the module docstring); ``core`` itself is left as it is.
 
     ``tables`` are the report's CSV tables by node name (:data:`bayesfric.report.stored.CSV_FILES`:
     ``ranking``, ``parameters``, ``claims``, ``sizing``, ``score_rows``) as records or a data frame,
     so the tree and the CSV files hold the same rows; ``extra`` adds nodes by path (the report's
-    content and figures, :mod:`bayesfric.report.stored`).
+    content and figures, :mod:`bayesfric.report.stored`); ``seconds`` is the run's wall time.
     """
-    nodes: dict[str, xr.Dataset] = {"/": xr.Dataset(attrs=_root_attrs(outcome)), "scores": _scores(outcome),
-                                    "pointwise": _pointwise(outcome)}
-    nodes.update(outcome.nodes or law_nodes(outcome))
-    nodes.update({name: table_dataset(rows, CSV_FILES[name]) for name, rows in tables.items()})
-    nodes.update(extra or {})
-    nodes.update(_fits(outcome))
-    tree = xr.DataTree.from_dict(nodes)
-    for w in outcome.laws:
-        tree[f"fits/{w.name}"].attrs.update({k: v for k, v in w.fit.attrs.items() if _attr_ok(v)}
-                                            | {"fit_file": f"fits/{w.fit_file.name}"})
+    tree = core.copy(deep=False)
+    tree.attrs["seconds"] = float(seconds)
+    for name, rows in tables.items():
+        tree[name] = xr.DataTree(table_dataset(rows, CSV_FILES[name]))
+    for path, node in (extra or {}).items():
+        tree[path] = xr.DataTree(node)
     return tree
-
-
-def _attr_ok(value) -> bool:
-    return isinstance(value, str | int | float | np.number) and not isinstance(value, bool)
-
-
-def _root_attrs(outcome: StudyOutcome) -> dict:
-    return {"study": outcome.study.name, "dataset": str(outcome.data.attrs.get("name", "")),
-            "data_hash": str(outcome.data.attrs.get("data_hash", "")), "bayesfric_version": __version__,
-            "seconds": float(outcome.seconds), "schemes": "; ".join(outcome.schemes),
-            "blocked_schemes": "; ".join(outcome.blocked), "quick": int(outcome.quick is not None),
-            "ranking_sensitivity": str(outcome.ranking_sensitivity), "ranking_changed": int(outcome.ranking_changed)}
 
 
 def write_results(tree: xr.DataTree, folder: Path) -> Path:

@@ -38,6 +38,7 @@ from bayesfric.report.results import RESULTS, result_tree, write_results
 from bayesfric.report.stored import content_node, figures_node, open_results, read_content, read_figures, table_records
 from bayesfric.report.study_figures import draw
 from bayesfric.report.tables import format_table, parameter_rows
+from bayesfric.study.tree import study_tree
 
 if TYPE_CHECKING:
     from bayesfric.study.outcome import StudyOutcome
@@ -141,7 +142,7 @@ def _claim_records(out: StudyOutcome) -> list[dict]:
              "high": r.hi, "winner": r.winner, "verdict": r.verdict, "why": r.why} for r in out.claims]
 
 
-def write_reports(out: StudyOutcome, folder: Path) -> None:
+def write_reports(out: StudyOutcome, folder: Path, tree: xr.DataTree | None = None) -> None:
     """Write ``folder/results.nc`` (the study's results as one DataTree,
     :mod:`bayesfric.report.results`, with the report's content, figures and tables) and render
     the report from that file alone (:func:`render_report`): figures, summary.md, report.html,
@@ -151,6 +152,8 @@ def write_reports(out: StudyOutcome, folder: Path) -> None:
     The figures are drawn into ``folder`` first (their bytes go into the tree); every file is then
     rendered from the tree by :func:`render_report`, the function ``bayesfric report results.nc``
     calls on the saved tree, so a re-rendering gives the same bytes (tested file by file).
+    ``tree`` is the study's result tree (:func:`bayesfric.study.tree.study_tree`), built from
+    ``out`` when not given.
     """
     figures, fans = draw(out, folder)
     content = build(out, figures, {i: f"figures/{p.name}" for i, p in fans.items()})
@@ -161,7 +164,7 @@ def write_reports(out: StudyOutcome, folder: Path) -> None:
         tables["sizing"] = sizing_report.records(out.sizing)
     tables["score_rows"] = out.table
     extra = {"report": content_node(content), "report/figures": figures_node(folder)}
-    tree = result_tree(out, tables, extra)
+    tree = result_tree(tree if tree is not None else study_tree(out), tables, extra, out.seconds)
     write_results(tree, folder)
     render_report(tree, folder)  # from the tree in memory; the file renders the same (tests/report/test_rerender.py)
 

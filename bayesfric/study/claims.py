@@ -70,8 +70,6 @@ if TYPE_CHECKING:
     import pandas as pd
     import xarray as xr
 
-    from bayesfric.study.outcome import StudyOutcome
-
 # KINDS, BASES, Claim, ClaimError, ClaimResult, make_claim, check_claim, basis_problem: the claim
 # specification and its result type (bayesfric.study.claimspec), re-exported here.
 __all__ = ["KINDS", "BASES", "Claim", "ClaimError", "ClaimResult", "make_claim", "check_claim", "basis_problem",
@@ -122,14 +120,17 @@ def _verdict(claim: Claim, value: float) -> str:
     return "reproduced" if claim.expect[0] <= value <= claim.expect[1] else "not reproduced"
 
 
-def _pointwise(outcome: StudyOutcome, name: str, metric: str, scheme: str) -> np.ndarray | None:
+def _pointwise(tree: xr.DataTree, name: str, metric: str, scheme: str) -> np.ndarray | None:
     """Pointwise elpd of a law under ``elpd_loo`` / ``elpd_cv`` (NaN where not scored), else None."""
-    w = {w.name: w for w in outcome.laws}[name]
-    result = w.loo if metric == "elpd_loo" else w.cv.get(scheme) if metric == "elpd_cv" else None
-    return None if result is None else np.asarray(result.elpd_i, dtype=float)
+    node = tree["pointwise"].to_dataset()
+    criterion = metric if metric == "elpd_loo" else f"{metric}[{scheme}]" if metric == "elpd_cv" else None
+    if criterion is None or criterion not in node["criterion"].values:
+        return None
+    elpd = np.asarray(node["elpd"].sel(criterion=criterion, law=name).values, dtype=float)
+    return None if not np.isfinite(elpd).any() else elpd
 
 
-def _score(claim: Claim, outcome: StudyOutcome, table: pd.DataFrame) -> ClaimResult:
+def _score(claim: Claim, tree: xr.DataTree, table: pd.DataFrame) -> ClaimResult:
     """A score, or with ``reference`` the difference of two scores (paired se for elpd)."""
     rows = [(name, sc.value(table, name, claim.metric, claim.scheme)) for name in (claim.law, claim.reference) if name]
     for name, row in rows:
@@ -140,7 +141,7 @@ def _score(claim: Claim, outcome: StudyOutcome, table: pd.DataFrame) -> ClaimRes
     est, se = float(rows[0][1]["estimate"]), float(rows[0][1]["se"])
     if claim.reference:
         est -= float(rows[1][1]["estimate"])
-        a, b = (_pointwise(outcome, n, claim.metric, claim.scheme) for n in (claim.law, claim.reference))
+        a, b = (_pointwise(tree, n, claim.metric, claim.scheme) for n in (claim.law, claim.reference))
         if a is not None and b is not None and (both := np.isfinite(a) & np.isfinite(b)).sum() > 1:
             d = a[both] - b[both]
             se = float(np.sqrt(d.size * np.var(d)))
@@ -149,33 +150,60 @@ def _score(claim: Claim, outcome: StudyOutcome, table: pd.DataFrame) -> ClaimRes
     return ClaimResult(claim, _verdict(claim, est), est, est - se, est + se)
 
 
-def _evaluate(claim: Claim, outcome: StudyOutcome, table: pd.DataFrame) -> ClaimResult:
-    laws = {w.name: w for w in outcome.laws}
-    if claim.kind in ("ratio", "parameter"):
-        used = [claim.law] if set(laws[claim.law].law.params) - set(claim.fixed) else []  # posterior read?
-        if claim.kind == "ratio":
-            used.append(claim.reference or claim.law)
-        for name in dict.fromkeys(used):
-            if not laws[name].reliable:
-                return ClaimResult(claim, "not testable", why=f"the fit of {name} failed the diagnostics gate")
+def _untestable(claim: Claim, tree: xr.DataTree) -> ClaimResult | None:
+    """``not testable`` when a posterior the claim reads comes from a fit that failed the gate."""
+    if claim.kind not in ("ratio", "parameter"):
+        return None
+    from bayesfric.model import program_of_fit
+
+    law = program_of_fit(tree[f"fits/{claim.law}"]).law
+    used = [claim.law] if set(law.params) - set(claim.fixed) else []  # posterior read?
     if claim.kind == "ratio":
-        num = _term(laws[claim.law].fit, claim.at, claim.minus, claim.fixed)
-        ref = laws[claim.reference or claim.law].fit
-        den = _term(ref, claim.reference_at, claim.reference_minus, {})
+        used.append(claim.reference or claim.law)
+    passed = tree["diagnostics"]["passed"]
+    for name in dict.fromkeys(used):
+        if not bool(passed.sel(law=name)):
+            return ClaimResult(claim, "not testable", why=f"the fit of {name} failed the diagnostics gate")
+    return None
+
+
+def _evaluate(claim: Claim, tree: xr.DataTree, table: pd.DataFrame) -> ClaimResult:
+    if (untestable := _untestable(claim, tree)) is not None:
+        return untestable
+    if claim.kind == "ratio":
+        num = _term(tree[f"fits/{claim.law}"], claim.at, claim.minus, claim.fixed)
+        den = _term(tree[f"fits/{claim.reference or claim.law}"], claim.reference_at, claim.reference_minus, {})
         mid, lo, hi = _interval(num / den - 1.0)
         return ClaimResult(claim, _verdict(claim, mid), mid, lo, hi)
     if claim.kind == "parameter":
-        draws = np.asarray(laws[claim.law].fit["posterior"][claim.parameter].values, dtype=float).ravel()
+        draws = np.asarray(tree[f"fits/{claim.law}/posterior"][claim.parameter].values, dtype=float).ravel()
         mid, lo, hi = _interval(draws)
         return ClaimResult(claim, _verdict(claim, mid), mid, lo, hi)
     if claim.kind == "score":
-        return _score(claim, outcome, table)
+        return _score(claim, tree, table)
     winner = sc.best(table, claim.metric, claim.scheme)
     if winner is None:
         return ClaimResult(claim, "not testable", why="no law could be ranked under this criterion")
     return ClaimResult(claim, "reproduced" if winner == claim.law else "not reproduced", winner=winner)
 
 
-def evaluate_claims(claims: list[Claim], outcome: StudyOutcome, table: pd.DataFrame) -> list[ClaimResult]:
-    """Every claim checked against the posterior (fits) and the law × metric table."""
-    return [_evaluate(c, outcome, table) for c in claims]
+def evaluate_claims(claims: list[Claim], tree: xr.DataTree) -> list[ClaimResult]:
+    """Every claim checked against a study's result tree alone (:mod:`bayesfric.study.tree`): the
+    posteriors and programs of ``/fits/<law>``, the gate's verdicts in ``/diagnostics``, the law ×
+    metric table in ``/scores`` and the pointwise elpd in ``/pointwise``. A saved ``results.nc``
+    gives the same results as the run that wrote it.
+
+    Parameters
+    ----------
+    claims : list of Claim
+        The study's ``[[claims]]`` (:func:`make_claim`).
+    tree : xarray.DataTree
+        The study's result tree, in memory or opened from ``results.nc``.
+
+    Returns
+    -------
+    list of ClaimResult
+        One per claim, in order.
+    """
+    table = sc.table_of(tree["scores"].to_dataset())
+    return [_evaluate(c, tree, table) for c in claims]

@@ -174,6 +174,3 @@ class StudyOutcome:
     sizing: SizingResult | None = None  # when the study asks sizing questions
     table: pd.DataFrame | None = None  # the law × metric table (bayesfric.study.scores.score_table), computed once
     claims: list[ClaimResult] = field(default_factory=list)  # one per [[claims]] entry
-    # the per-law nodes of the result tree (/weights, /diagnostics, /checks, /sizing_basis), built once
-    # after the weights (bayesfric.report.results.law_nodes); sizing reads them, the tree holds them
-    nodes: dict[str, Any] = field(default_factory=dict)

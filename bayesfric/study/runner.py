@@ -31,8 +31,6 @@ import shutil
 import time
 from pathlib import Path
 
-import xarray as xr
-
 from bayesfric import compare, fsutil, sizing
 from bayesfric.fingerprint import package_fingerprint
 from bayesfric.study import units
@@ -51,6 +49,7 @@ from bayesfric.study.plan import (  # checked and planned before anything is wri
 )
 from bayesfric.study.scores import score_table
 from bayesfric.study.store import RunStore, store_folder
+from bayesfric.study.tree import study_tree
 
 __all__ = ["run_study", "current_report", "validate_against_data", "sizing_questions", "load_study_data", "INPUTS_FILE",
            "QUICK", "QUICK_KFOLD"]
@@ -255,24 +254,19 @@ def _write_study(prepared, out_root: Path, quick: bool, fresh: bool, client, tim
         if quick:
             outcome.quick = QuickRun(settings, (study.kfold, kfold))
         _assign_weights(outcome)
-        from bayesfric.report.results import law_nodes  # here: bayesfric.report reads bayesfric.study
-
-        # The per-law nodes of results.nc, built once: sizing reads them here, `bayesfric size` from the file.
-        outcome.nodes = law_nodes(outcome)
+        outcome.table = score_table(outcome)
+        tree = study_tree(outcome)  # built once: sizing, the claims and the report read it
         if questions:
             print(f"[{study.name}] sizing {len(questions)} question(s) ...", flush=True)
-            basis = xr.DataTree.from_dict({k: outcome.nodes[k] for k in sizing.store.NODES})
-            law_sources = sizing.sources(basis, work, [w.name for w in outcome.laws],
-                                         fits={w.name: w.fit for w in outcome.laws})
-            outcome.sizing = sizing.size_study(questions, ds, law_sources, sizing.basis_schemes(basis),
-                                               study_name=study.name, seed=seed)
-        outcome.table = score_table(outcome)
-        outcome.claims = evaluate_claims(study.claims, outcome, outcome.table)
+            fits = {w.name: tree[f"fits/{w.name}"] for w in outcome.laws}
+            outcome.sizing = sizing.size_study(questions, ds, sizing.sources(tree, work, list(fits), fits=fits),
+                                               sizing.basis_schemes(tree), study_name=study.name, seed=seed)
+        outcome.claims = evaluate_claims(study.claims, tree)
         outcome.seconds = time.perf_counter() - start
         outcome.unit_seconds = _unit_seconds(rows)
         from bayesfric.report.summary import write_reports  # here: bayesfric.report reads bayesfric.study
 
-        write_reports(outcome, work)
+        write_reports(outcome, work, tree)
         (work / INPUTS_FILE).write_text(inputs_key + "\n")  # an unchanged rerun reuses the whole report
         try:
             fsutil.install_folder(work, final, study.name)

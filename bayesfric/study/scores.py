@@ -31,10 +31,12 @@ import pandas as pd
 from bayesfric.study.metrics import METRICS, Criterion
 
 if TYPE_CHECKING:
+    import xarray as xr
+
     from bayesfric.study.outcome import StudyOutcome
 
 __all__ = ["METRICS", "COLUMNS", "Criterion", "score_table", "best", "passed_over", "ranking_order", "criteria",
-           "value", "fold_failure"]
+           "value", "fold_failure", "table_of"]
 
 COLUMNS = ["law", "metric", "scheme", "estimate", "se", "reliable", "reason"]
 
@@ -115,6 +117,21 @@ def score_table(outcome: StudyOutcome) -> pd.DataFrame:
         rows += _weight_rows(w)
     table = pd.DataFrame(rows, columns=COLUMNS)
     return table.astype({"estimate": float, "se": float, "reliable": bool})
+
+
+def table_of(node: xr.Dataset) -> pd.DataFrame:
+    """The tidy table (:data:`COLUMNS`) back from a result tree's ``/scores`` node
+    (:mod:`bayesfric.study.tree`): one row per law and criterion the study scored, laws in the
+    node's order within each criterion (what :func:`value`, :func:`best` and :func:`passed_over`
+    read; ``scores.csv`` keeps the scorers' own row order)."""
+    flat = node.stack(row=("law", "criterion"))
+    flat = flat.isel(row=np.flatnonzero(flat["computed"].values))
+    table = pd.DataFrame({
+        "law": flat["law"].values.astype(str), "metric": flat["metric"].values.astype(str),
+        "scheme": flat["scheme"].values.astype(str), "estimate": flat["estimate"].values.astype(float),
+        "se": flat["se"].values.astype(float), "reliable": flat["reliable"].values.astype(bool),
+        "reason": flat["reason"].values.astype(str)})
+    return table[COLUMNS]
 
 
 def _select(table: pd.DataFrame, metric: str, scheme: str) -> pd.DataFrame:

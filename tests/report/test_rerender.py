@@ -15,6 +15,7 @@ from bayesfric.report.summary import write_reports
 from bayesfric.study import load_study
 from bayesfric.study.claims import evaluate_claims
 from bayesfric.study.runner import run_study
+from bayesfric.study.tree import study_tree
 from tests.report.fakes import outcome, write_bench_study
 
 #: The files the Done-when names, plus the other CSV tables and the figures.
@@ -48,7 +49,7 @@ def fake_report(tmp_path_factory):
         '[compare]\nevidence = false\n[[compare.blocked]]\naxis = "velocity"\nthreshold = 1.0\nlabel = "outside"\n'
         f'[[claims]]\ntext = "{HOSTILE}"\nsource = "@seed"\nkind = "best"\nlaw = "coulomb"\nmetric = "elpd_loo"\n')
     out = outcome(load_study(tmp / "tiny.toml"), tmp)
-    out.claims = evaluate_claims(out.study.claims, out, out.table)
+    out.claims = evaluate_claims(out.study.claims, study_tree(out))
     pit = np.linspace(0.01, 0.99, out.data.sizes["obs"])
     out.laws[0] = replace(out.laws[0], timings={"fit": 1.5, "loo": 0.25}, checks=replace(out.laws[0].checks, pit=pit))
     folder = tmp / "report"
@@ -130,3 +131,35 @@ def test_real_study_with_sizing_and_claims_rerenders_byte_identically(tmp_path, 
     after = _rerender_matches(folder, tmp_path / "again", capsys)
     assert set(NAMED) | {"sizing.csv", "claims.csv"} <= set(after)
     assert any(k.startswith("figures/sizing_") for k in after)
+
+
+def test_claims_read_the_saved_tree_alone(fake_report, tmp_path):
+    """Claims read the result tree only (issue 31 item 1): evaluated on ``results.nc`` copied
+    alone into an empty folder (no outcome, no fit files), every kind gives the run's result."""
+    import math
+    import shutil
+
+    from bayesfric.study.claims import make_claim
+    from bayesfric.study.config import CLAIM
+    from bayesfric.study.schema import parse
+
+    folder, out = fake_report
+    claims = [make_claim(parse(CLAIM, {"text": "t", "source": "s", **entry})) for entry in (
+        {"kind": "ratio", "law": "coulomb_viscous", "at": {"velocity": "3 rad/s"},
+         "reference_at": {"velocity": "0.5 rad/s"}, "expect": [0.8, 0.9]},
+        {"kind": "ratio", "law": "coulomb_viscous", "fixed": {"c_v": 4.0}, "at": {"velocity": "3 rad/s"},
+         "reference": "coulomb", "expect": [1.0, 2.0]},
+        {"kind": "parameter", "law": "coulomb_viscous", "parameter": "c_v", "expect": [1.5, 2.5]},
+        {"kind": "score", "law": "coulomb", "reference": "coulomb_viscous", "metric": "elpd_loo",
+         "expect": [-math.inf, 0.0]},
+        {"kind": "score", "law": "coulomb", "metric": "penalty", "scheme": "outside", "expect": [1.0, math.inf]},
+        {"kind": "best", "law": "coulomb", "metric": "elpd_cv", "scheme": "outside"})]
+    in_memory = evaluate_claims(claims, study_tree(out))
+    shutil.copyfile(folder / "results.nc", tmp_path / "results.nc")
+    with xr.open_datatree(tmp_path / "results.nc", engine="h5netcdf") as tree:
+        saved = evaluate_claims(claims, tree.load())
+    fields = ("verdict", "value", "lo", "hi", "winner", "why")
+    np.testing.assert_equal([[getattr(r, f) for f in fields] for r in saved],  # exact, NaN = NaN
+                            [[getattr(r, f) for f in fields] for r in in_memory])
+    assert [r.verdict for r in saved] == ["reproduced", "reproduced", "reproduced", "reproduced", "reproduced",
+                                          "not reproduced"]

@@ -1,0 +1,219 @@
+"""A study's results as one ``xarray.DataTree``, built once after the weights and the score table.
+
+Sizing, the claims and the report read this tree (the report adds its own nodes to it,
+:mod:`bayesfric.report.results`); it is saved as ``results.nc`` beside the report and opens with
+``xarray.open_datatree``. Nodes:
+
+``/``
+    attrs: study, data set, data hash, bayesfric version, CV schemes, blocked schemes, ``quick``,
+    the prior-power ranking sensitivity (``ranking_sensitivity``, ``ranking_changed``); the report
+    adds the run's ``seconds``.
+``/scores``
+    over ``(law, criterion)``: ``estimate``, ``se``, ``reliable``, ``reason``; a criterion is a
+    metric and its scheme (``elpd_loo``, ``elpd_cv[<scheme>]``, ``penalty[<scheme>]``,
+    ``log_evidence[<estimator>]``, ``weight[<weighting>]``), with ``metric`` and ``scheme``
+    coordinates; ``computed`` is False where the study did not score the law under the criterion
+    (:func:`bayesfric.study.scores.table_of` gives back the tidy table).
+``/pointwise``
+    ``elpd`` over ``(criterion, law, obs)``: PSIS-LOO and each CV scheme's pointwise elpd (NaN
+    where a point is not held out or the stage did not run); ``heldout`` over ``(scheme, obs)``;
+    ``pareto_k`` over ``(law, obs)`` (NaN where LOO did not run or was subsampled).
+``/weights``
+    over ``(law, weighting)``: ``weight`` and ``excluded`` (why the weighting left the law out).
+``/diagnostics``, ``/checks``
+    over ``law``: the gate's verdict (``passed``, ``problems``, ``verdict`` as the report writes
+    it), the law's ``flags`` (one line each), ``p_loo``, ``n_high_k``, ``seconds`` and ``timing``
+    over ``(law, stage)``; the checks unit's LOO-PIT (``pit`` over ``(law, pit_row)``, p-value,
+    band coverage ``ci_prob``, direction) and prior checks.
+``/sizing_basis``
+    what sizing reads besides ``/weights`` and ``/diagnostics`` (:mod:`bayesfric.sizing.store`).
+``/fits/<law>``
+    each law's posterior, sample statistics, observed and constant data, with the fit's
+    provenance attrs (its program is rebuilt from them, :func:`bayesfric.model.program_of_fit`)
+    and ``fit_file``; the pointwise log-likelihood and predictive draws stay in the full fit
+    ``fits/<law>.nc``.
+
+What is not yet true (issue 31 item 1): the tree is built from the in-memory
+:class:`~bayesfric.study.outcome.StudyOutcome`, not by the scorers themselves, and the report's
+content model and figures are still computed from that outcome.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+import xarray as xr
+
+from bayesfric._version import __version__
+from bayesfric.sizing.store import basis_node
+
+if TYPE_CHECKING:
+    from bayesfric.study.outcome import StudyOutcome
+
+__all__ = ["study_tree", "law_nodes", "criterion_name", "FIT_GROUPS", "LAW_NODES"]
+
+#: Groups of a fit copied into ``/fits/<law>`` (the per-row groups stay in the fit file).
+FIT_GROUPS = ("posterior", "sample_stats", "observed_data", "constant_data")
+#: The per-law nodes besides the scores and the fits.
+LAW_NODES = ("weights", "diagnostics", "checks", "sizing_basis")
+
+
+def criterion_name(metric: str, scheme: str) -> str:
+    """The ``criterion`` coordinate of ``metric`` under ``scheme`` (``elpd_cv[<scheme>]``)."""
+    return metric if not scheme else f"{metric}[{scheme}]"
+
+
+def _scores(outcome: StudyOutcome) -> xr.Dataset:
+    table = outcome.table
+    laws = [w.name for w in outcome.laws]
+    pairs = list(zip(table["metric"], table["scheme"], strict=True))
+    crit = list(dict.fromkeys(criterion_name(m, s) for m, s in pairs))
+    meta = {criterion_name(m, s): (m, s) for m, s in pairs}
+    shape = (len(laws), len(crit))
+    est, se = np.full(shape, np.nan), np.full(shape, np.nan)
+    reliable, computed = np.zeros(shape, dtype=bool), np.zeros(shape, dtype=bool)
+    reason = np.full(shape, "", dtype=object)
+    li, ci = {n: i for i, n in enumerate(laws)}, {c: j for j, c in enumerate(crit)}
+    for row in table.itertuples(index=False):
+        i, j = li[row.law], ci[criterion_name(row.metric, row.scheme)]
+        est[i, j], se[i, j] = row.estimate, row.se
+        reliable[i, j], reason[i, j], computed[i, j] = bool(row.reliable), str(row.reason), True
+    dims = ("law", "criterion")
+    node = xr.Dataset(
+        {"estimate": (dims, est), "se": (dims, se), "reliable": (dims, reliable),
+         "reason": (dims, reason.astype(str)), "computed": (dims, computed)},
+        coords={"law": laws, "criterion": crit, "metric": ("criterion", [meta[c][0] for c in crit]),
+                "scheme": ("criterion", [meta[c][1] for c in crit])},
+    )
+    node["computed"].attrs["description"] = "the study scored the law under the criterion (a row of scores.csv)"
+    return node
+
+
+def _pointwise(outcome: StudyOutcome) -> xr.Dataset:
+    n = int(outcome.data.sizes["obs"])
+    laws = [w.name for w in outcome.laws]
+    crit = ["elpd_loo"] + [criterion_name("elpd_cv", s) for s in outcome.schemes]
+    elpd = np.full((len(crit), len(laws), n), np.nan)
+    pareto_k = np.full((len(laws), n), np.nan)
+    for i, w in enumerate(outcome.laws):
+        if w.loo is not None:
+            elpd[0, i] = np.asarray(w.loo.elpd_i, dtype=float)
+            if np.size(w.loo.pareto_k) == n:  # every row scored (a subsampled LOO has k̂ on its subsample only)
+                pareto_k[i] = np.asarray(w.loo.pareto_k, dtype=float)
+        for j, scheme in enumerate(outcome.schemes, start=1):
+            cv = w.cv.get(scheme)
+            if cv is not None:
+                elpd[j, i] = np.asarray(cv.elpd_i, dtype=float)
+    schemes = list(outcome.heldout)
+    heldout = np.array([np.asarray(outcome.heldout[s], dtype=bool) for s in schemes]).reshape(len(schemes), n)
+    return xr.Dataset({"elpd": (("criterion", "law", "obs"), elpd), "heldout": (("scheme", "obs"), heldout),
+                       "pareto_k": (("law", "obs"), pareto_k)},
+                      coords={"criterion": crit, "law": laws, "scheme": schemes, "obs": np.arange(n)})
+
+
+def _weights(outcome: StudyOutcome) -> xr.Dataset:
+    laws = [w.name for w in outcome.laws]
+    names = list(dict.fromkeys(k for w in outcome.laws for k in w.weights))
+    value = np.full((len(laws), len(names)), np.nan)
+    excluded = np.full((len(laws), len(names)), "", dtype=object)
+    for i, w in enumerate(outcome.laws):
+        for j, k in enumerate(names):
+            if k in w.weights:
+                value[i, j], excluded[i, j] = w.weights[k].value, w.weights[k].excluded
+    dims = ("law", "weighting")
+    return xr.Dataset({"weight": (dims, value), "excluded": (dims, excluded.astype(str))},
+                      coords={"law": laws, "weighting": names})
+
+
+def _diagnostics(outcome: StudyOutcome) -> xr.Dataset:
+    laws = [w.name for w in outcome.laws]
+    diag = xr.Dataset({
+        "passed": ("law", [bool(w.verdict.passed) for w in outcome.laws]),
+        "problems": ("law", ["; ".join(w.verdict.problems) for w in outcome.laws]),
+        "evidence_agree": ("law", [bool(w.evidence_agree) for w in outcome.laws]),
+        "skipped": ("law", [", ".join(w.skipped) for w in outcome.laws]),
+        "seconds": ("law", [float(w.seconds) for w in outcome.laws]),
+        "verdict": ("law", [str(w.verdict) for w in outcome.laws]),
+        "flags": ("law", ["\n".join(w.flags) for w in outcome.laws]),
+        "p_loo": ("law", [float(w.loo.p_loo) if w.loo is not None else math.nan for w in outcome.laws]),
+        "n_high_k": ("law", [int(w.loo.n_high_k) if w.loo is not None else -1 for w in outcome.laws]),
+    }, coords={"law": laws})
+    diag["flags"].attrs["description"] = "one line per problem found in the law's results (LawOutcome.flags)"
+    diag["n_high_k"].attrs["description"] = "PSIS-LOO points above the Pareto-k threshold; -1: no LOO"
+    stages = list(dict.fromkeys(k for w in outcome.laws for k in w.timings))
+    diag["timing"] = (("law", "stage"), np.array([[float(w.timings.get(k, math.nan)) for k in stages]
+                                                  for w in outcome.laws]).reshape(len(laws), len(stages)))
+    diag = diag.assign_coords(stage=stages)
+    diag["timing"].attrs.update(units="s", description="wall seconds per stage computed in this run (NaN: reused)")
+    return diag
+
+
+def _checks(outcome: StudyOutcome) -> xr.Dataset:
+    checks = [w.checks for w in outcome.laws]
+    nan = math.nan
+    chk = xr.Dataset({
+        "prior_implausible": ("law", [c.prior_implausible if c else nan for c in checks]),
+        "loo_pit_pvalue": ("law", [c.loo_pit_pvalue if c else nan for c in checks]),
+        "loo_pit_ok": ("law", [bool(c.loo_pit_ok) if c else True for c in checks]),
+        "loo_pit_direction": ("law", [c.pit_shape.label if c and c.pit_shape is not None else "" for c in checks]),
+        "psense": ("law", [", ".join(c.psense) if c else "" for c in checks]),
+        "ci_prob": ("law", [c.ci_prob if c else nan for c in checks]),
+    }, coords={"law": [w.name for w in outcome.laws]})
+    pits = [np.asarray(c.pit, dtype=float).ravel() if c is not None and c.pit is not None else np.zeros(0)
+            for c in checks]
+    width = max((len(p) for p in pits), default=0)
+    chk["pit"] = (("law", "pit_row"), np.array([np.pad(p, (0, width - len(p)), constant_values=nan) for p in pits])
+                  .reshape(len(checks), width))
+    chk["pit"].attrs["description"] = "LOO-PIT values of the rows the check read (NaN-padded)"
+    return chk
+
+
+def law_nodes(outcome: StudyOutcome) -> dict[str, xr.Dataset]:
+    """The per-law nodes ``/weights``, ``/diagnostics``, ``/checks`` and ``/sizing_basis``
+    (:func:`bayesfric.sizing.store.basis_node`) of a study's outcome after its weights."""
+    return {"weights": _weights(outcome), "diagnostics": _diagnostics(outcome), "checks": _checks(outcome),
+            "sizing_basis": basis_node(outcome)}
+
+
+def _fits(outcome: StudyOutcome) -> dict[str, xr.Dataset]:
+    nodes = {}
+    for w in outcome.laws:
+        attrs = {k: v for k, v in w.fit.attrs.items() if _attr_ok(v)} | {"fit_file": f"fits/{w.fit_file.name}"}
+        nodes[f"fits/{w.name}"] = xr.Dataset(attrs=attrs)
+        for group in FIT_GROUPS:
+            if group in w.fit.children:
+                nodes[f"fits/{w.name}/{group}"] = w.fit[group].to_dataset()
+    return nodes
+
+
+def _attr_ok(value) -> bool:
+    return isinstance(value, str | int | float | np.number) and not isinstance(value, bool)
+
+
+def _root_attrs(outcome: StudyOutcome) -> dict:
+    return {"study": outcome.study.name, "dataset": str(outcome.data.attrs.get("name", "")),
+            "data_hash": str(outcome.data.attrs.get("data_hash", "")), "bayesfric_version": __version__,
+            "schemes": "; ".join(outcome.schemes), "blocked_schemes": "; ".join(outcome.blocked),
+            "quick": int(outcome.quick is not None), "ranking_sensitivity": str(outcome.ranking_sensitivity),
+            "ranking_changed": int(outcome.ranking_changed)}
+
+
+def study_tree(outcome: StudyOutcome) -> xr.DataTree:
+    """The study's results as one DataTree (layout in the module docstring), from its outcome
+    after the weights and the score table (``outcome.table``).
+
+    Parameters
+    ----------
+    outcome : StudyOutcome
+        Every law's results, weights and the law × metric table.
+
+    Returns
+    -------
+    xarray.DataTree
+        ``/``, ``/scores``, ``/pointwise``, :data:`LAW_NODES` and ``/fits/<law>``.
+    """
+    nodes = {"/": xr.Dataset(attrs=_root_attrs(outcome)), "scores": _scores(outcome),
+             "pointwise": _pointwise(outcome)} | law_nodes(outcome) | _fits(outcome)
+    return xr.DataTree.from_dict(nodes)
