@@ -202,7 +202,7 @@ def build(outcome: StudyOutcome, figures: list[FigureRef], sizing_figures: dict[
         claims=_claims(outcome), ranking=ranking,
         ranking_note="Weights exclude fits that failed the diagnostics gate"
                      + (" (the study asked to include them)." if outcome.study.include_failed else "."),
-        sensitivity=outcome.ranking_sensitivity, extrapolation=extrapolation_table(outcome, order),
+        sensitivity=fd.sensitivity_sentence(outcome.sensitivity), extrapolation=extrapolation_table(outcome, order),
         laws=_law_sections(outcome, pair), data_lines=_data_lines(outcome), checks=_checks(outcome),
         sizing_intro="Friction opposes motion, so sizing works on magnitudes |T|. Mean function: the law's curve "
                      "with parameter uncertainty only; with noise: plus the fit's observation noise (what a drive "

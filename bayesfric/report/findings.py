@@ -14,13 +14,16 @@ from typing import TYPE_CHECKING
 import pandas as pd
 
 from bayesfric.compare.asymmetry import asymmetry
+from bayesfric.compare.checks import PARETO_K_RELIABLE
 from bayesfric.report.typeset import fmt, unit
 from bayesfric.study import scores as sc
 
 if TYPE_CHECKING:
+    from bayesfric.compare.checks import RankingSensitivity
     from bayesfric.study.outcome import StudyOutcome
 
 __all__ = ["Finding", "Summary", "findings", "summary_block", "plain", "counted_winners", "RECOMMEND_WEIGHT",
+           "sensitivity_sentence",
            "NO_CRITERION"]
 
 #: A law is recommended alone when its stacking weight on the deciding criterion is at least
@@ -168,7 +171,7 @@ def _warnings(outcome: StudyOutcome) -> list[Finding]:
                           for w in pit)
         out.append(plain(f"LOO-PIT miscalibrated (see the LOO-PIT figures under Data and checks): {named}.",
                          warning=True))
-    if outcome.ranking_changed:
+    if outcome.sensitivity is not None and outcome.sensitivity.changed:
         out.append(plain("The LOO ranking CHANGES when the priors are scaled (α = 0.5 or 2): the ranking is "
                          "prior-sensitive.", warning=True))
     unreliable_cv = sorted({w.name for w in outcome.laws if w.reliable and not w.cv_reliable})
@@ -272,3 +275,24 @@ def summary_block(outcome: StudyOutcome, table: pd.DataFrame, extra_warnings: li
         warnings.append(plain("QUICK MODE: short chains and few folds — not a basis for decisions.", warning=True))
     rec = sizing_basis(outcome, table, recommendation(outcome, table))
     return Summary(outcome.study.question, answers, rec, warnings)
+
+
+def sensitivity_sentence(sens: RankingSensitivity | None) -> str:
+    """The report's sentence on the LOO ranking under power-scaled priors (``""`` when it was not
+    computed: fewer than two fits to rank)."""
+    if sens is None:
+        return ""
+    powers = " and ".join(f"{a:g}" for a in sens.ranking if a != 1.0)
+    changes = "; ".join(f"α={a}: {' > '.join(r)}" for a, r in sens.ranking.items() if a != 1.0)
+    return (f"LOO ranking {' > '.join(sens.ranking[1.0])}; under prior powers α = {powers} it "
+            + (f"CHANGES: {changes}" if sens.changed else "is unchanged") + " (PSIS reweighting, no refits)"
+            + _high_k_note(sens) + ".")
+
+
+def _high_k_note(sens: RankingSensitivity) -> str:
+    """Which laws' reweighting had Pareto k̂ above the reliability threshold, at which α."""
+    unreliable = sens.unreliable()
+    if not unreliable:
+        return ""
+    laws = ", ".join(f"{name} (α = {', '.join(f'{a:g}' for a in alphas)})" for name, alphas in unreliable.items())
+    return f"; approximate for {laws}: Pareto k̂ above {PARETO_K_RELIABLE}"

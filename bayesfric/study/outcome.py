@@ -19,7 +19,7 @@ from bayesfric.study.spec import Study
 if TYPE_CHECKING:  # annotations only (compare is below study: no cycle at any level)
     import pandas as pd
 
-    from bayesfric.compare import CVResult, EstimatorAgreement, Evidence, LooResult, PitShape
+    from bayesfric.compare import CVResult, EstimatorAgreement, Evidence, LooResult, PitShape, RankingSensitivity
     from bayesfric.sizing import SizingResult
     from bayesfric.study.claimspec import ClaimResult
 
@@ -165,8 +165,7 @@ class StudyOutcome:
     schemes: list[str]  # CV scheme labels in display order
     blocked: list[str]  # the blocked-extrapolation labels among them
     heldout: dict[str, np.ndarray] = field(default_factory=dict)
-    ranking_sensitivity: str = ""
-    ranking_changed: bool = False  # the LOO ranking changes under power-scaled priors
+    sensitivity: RankingSensitivity | None = None  # the LOO ranking under power-scaled priors (two or more fits)
     seconds: float = 0.0
     weight_errors: list[tuple[str, str]] = field(default_factory=list)  # (weighting, why it was not computed)
     quick: QuickRun | None = None  # the capped settings of a --quick run

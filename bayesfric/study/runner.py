@@ -164,23 +164,7 @@ def _assign_weights(out: StudyOutcome) -> None:
         reliable = {w.name: w.fit for w in out.laws if w.reliable or out.study.include_failed}
         if len(reliable) > 1:
             psis = {w.name: w.loo.psis for w in out.laws if w.name in reliable and w.loo is not None}
-            sens = compare.ranking_sensitivity(reliable, baseline=psis)
-            order = " > ".join(sens.ranking[1.0])
-            out.ranking_changed = bool(sens.changed)
-            out.ranking_sensitivity = (
-                f"LOO ranking {order}; under prior powers α = 0.5 and 2 it "
-                + ("CHANGES: " + "; ".join(f"α={a}: {' > '.join(r)}" for a, r in sens.ranking.items() if a != 1.0)
-                   if sens.changed else "is unchanged") + " (PSIS reweighting, no refits)"
-                + _high_k_note(sens) + ".")
-
-
-def _high_k_note(sens) -> str:
-    """Which laws' reweighting had Pareto k̂ above the reliability threshold, at which α."""
-    unreliable = sens.unreliable()
-    if not unreliable:
-        return ""
-    laws = ", ".join(f"{name} (α = {', '.join(f'{a:g}' for a in alphas)})" for name, alphas in unreliable.items())
-    return f"; approximate for {laws}: Pareto k̂ above {compare.checks.PARETO_K_RELIABLE}"
+            out.sensitivity = compare.ranking_sensitivity(reliable, baseline=psis)
 
 
 def run_study(path: str | Path | Study, out_root: str | Path = "reports", quick: bool = False, *, fresh: bool = False,

@@ -6,8 +6,8 @@ Sizing, the claims and the report read this tree (the report adds its own nodes 
 
 ``/``
     attrs: study, data set, data hash, bayesfric version, CV schemes, blocked schemes, ``quick``,
-    the prior-power ranking sensitivity (``ranking_sensitivity``, ``ranking_changed``); the report
-    adds the run's ``seconds``.
+    ``ranking_changed`` (the LOO ranking changes under power-scaled priors); the report adds the
+    run's ``seconds``.
 ``/scores``
     over ``(law, criterion)``: ``estimate``, ``se``, ``reliable``, ``reason``; a criterion is a
     metric and its scheme (``elpd_loo``, ``elpd_cv[<scheme>]``, ``penalty[<scheme>]``,
@@ -27,6 +27,9 @@ Sizing, the claims and the report read this tree (the report adds its own nodes 
     band coverage ``ci_prob``, direction) and prior checks.
 ``/sizing_basis``
     what sizing reads besides ``/weights`` and ``/diagnostics`` (:mod:`bayesfric.sizing.store`).
+``/ranking_sensitivity``
+    with two or more ranked fits: ``elpd``, ``max_pareto_k`` and ``place`` over ``(alpha, law)``,
+    the LOO ranking under every prior power-scaled by α (attribute ``changed``).
 ``/fits/<law>``
     each law's posterior, sample statistics, observed and constant data, with the fit's
     provenance attrs (its program is rebuilt from them, :func:`bayesfric.model.program_of_fit`)
@@ -47,6 +50,7 @@ import numpy as np
 import xarray as xr
 
 from bayesfric._version import __version__
+from bayesfric.compare.checks import PARETO_K_RELIABLE
 from bayesfric.sizing.store import basis_node
 
 if TYPE_CHECKING:
@@ -196,8 +200,29 @@ def _root_attrs(outcome: StudyOutcome) -> dict:
     return {"study": outcome.study.name, "dataset": str(outcome.data.attrs.get("name", "")),
             "data_hash": str(outcome.data.attrs.get("data_hash", "")), "bayesfric_version": __version__,
             "schemes": "; ".join(outcome.schemes), "blocked_schemes": "; ".join(outcome.blocked),
-            "quick": int(outcome.quick is not None), "ranking_sensitivity": str(outcome.ranking_sensitivity),
-            "ranking_changed": int(outcome.ranking_changed)}
+            "quick": int(outcome.quick is not None),
+            "ranking_changed": int(outcome.sensitivity is not None and outcome.sensitivity.changed)}
+
+
+def _sensitivity(outcome: StudyOutcome) -> dict[str, xr.Dataset]:
+    """``/ranking_sensitivity``: elpd_LOO, largest Pareto k̂ and place of each ranked law at each
+    prior power α (:func:`bayesfric.compare.ranking_sensitivity`); none with fewer than two fits."""
+    sens = outcome.sensitivity
+    if sens is None:
+        return {}
+    alphas, laws = list(sens.ranking), list(sens.ranking[1.0])
+    dims = ("alpha", "law")
+
+    def grid(by_alpha) -> np.ndarray:
+        return np.array([[float(by_alpha.get(a, {}).get(n, math.nan)) for n in laws] for a in alphas])
+
+    place = np.array([[sens.ranking[a].index(n) + 1 if n in sens.ranking[a] else -1 for n in laws] for a in alphas])
+    node = xr.Dataset({"elpd": (dims, grid(sens.elpd)), "max_pareto_k": (dims, grid(sens.max_pareto_k)),
+                       "place": (dims, place)}, coords={"alpha": alphas, "law": laws},
+                      attrs={"changed": int(sens.changed), "pareto_k_reliable": PARETO_K_RELIABLE,
+                             "description": "PSIS-LOO under every prior power-scaled by alpha (no refits)"})
+    node["place"].attrs["description"] = "1: best elpd_loo at this alpha"
+    return {"ranking_sensitivity": node}
 
 
 def study_tree(outcome: StudyOutcome) -> xr.DataTree:
@@ -215,5 +240,5 @@ def study_tree(outcome: StudyOutcome) -> xr.DataTree:
         ``/``, ``/scores``, ``/pointwise``, :data:`LAW_NODES` and ``/fits/<law>``.
     """
     nodes = {"/": xr.Dataset(attrs=_root_attrs(outcome)), "scores": _scores(outcome),
-             "pointwise": _pointwise(outcome)} | law_nodes(outcome) | _fits(outcome)
+             "pointwise": _pointwise(outcome)} | law_nodes(outcome) | _sensitivity(outcome) | _fits(outcome)
     return xr.DataTree.from_dict(nodes)

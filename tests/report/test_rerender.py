@@ -11,6 +11,7 @@ import pytest
 import xarray as xr
 
 from bayesfric.cli import main
+from bayesfric.compare import RankingSensitivity
 from bayesfric.report.summary import write_reports
 from bayesfric.study import load_study
 from bayesfric.study.claims import evaluate_claims
@@ -50,6 +51,13 @@ def fake_report(tmp_path_factory):
         f'[[claims]]\ntext = "{HOSTILE}"\nsource = "@seed"\nkind = "best"\nlaw = "coulomb"\nmetric = "elpd_loo"\n')
     out = outcome(load_study(tmp / "tiny.toml"), tmp)
     out.claims = evaluate_claims(out.study.claims, study_tree(out))
+    out.sensitivity = RankingSensitivity(  # coulomb's reweighting at α = 2 is unreliable (k̂ 0.9)
+        elpd={1.0: {"coulomb_viscous": 9.0, "coulomb": -90.0}, 0.5: {"coulomb_viscous": 8.0, "coulomb": -80.0},
+              2.0: {"coulomb_viscous": -95.0, "coulomb": -85.0}},
+        ranking={1.0: ["coulomb_viscous", "coulomb"], 0.5: ["coulomb_viscous", "coulomb"],
+                 2.0: ["coulomb", "coulomb_viscous"]},
+        max_pareto_k={1.0: {"coulomb_viscous": 0.2, "coulomb": 0.3}, 0.5: {"coulomb_viscous": 0.2, "coulomb": 0.4},
+                      2.0: {"coulomb_viscous": 0.5, "coulomb": 0.9}}, changed=True)
     pit = np.linspace(0.01, 0.99, out.data.sizes["obs"])
     out.laws[0] = replace(out.laws[0], timings={"fit": 1.5, "loo": 0.25}, checks=replace(out.laws[0].checks, pit=pit))
     folder = tmp / "report"
@@ -81,7 +89,16 @@ def test_the_tree_holds_verdicts_flags_timings_and_pit(fake_report):
         assert np.isnan(checks.pit.sel(law=out.laws[1].name).values).all()  # no PIT values: all NaN
         assert float(diag.timing.sel(law=out.laws[0].name, stage="loo")) == 0.25
         assert np.isnan(float(diag.timing.sel(law=out.laws[1].name, stage="fit")))
-        assert tree.attrs["ranking_sensitivity"] == out.ranking_sensitivity
+        sens = tree["ranking_sensitivity"].to_dataset()
+        assert tree.attrs["ranking_changed"] == 1 and sens.attrs["changed"] == 1
+        assert sens["place"].sel(alpha=2.0).values.tolist() == [2, 1]  # laws in the α = 1 order
+        assert float(sens["elpd"].sel(alpha=0.5, law="coulomb")) == -80.0
+        assert float(sens["max_pareto_k"].sel(alpha=2.0, law="coulomb")) == 0.9
+    summary = (folder / "summary.md").read_text().replace("\\", "")  # markdown escapes removed
+    assert ("LOO ranking coulomb_viscous > coulomb; under prior powers α = 0.5 and 2 it CHANGES: α=0.5: "
+            "coulomb_viscous > coulomb; α=2.0: coulomb > coulomb_viscous (PSIS reweighting, no refits); approximate "
+            "for coulomb (α = 2): Pareto k̂ above 0.7.") in summary
+    assert "The LOO ranking CHANGES when the priors are scaled" in summary
 
 
 def test_bad_targets_are_one_line_errors_and_write_nothing(fake_report, tmp_path, capsys):
