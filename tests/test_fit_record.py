@@ -108,6 +108,14 @@ def test_a_fit_of_a_law_in_a_law_file_rebuilds_in_a_fresh_process(tmp_path, clea
                           capture_output=True, text=True, timeout=300)
     assert size.returncode == 0, size.stderr[-2000:]
     assert "tanh_friction" in size.stdout
+    # a variant of the unregistered law, built as an object, rebuilds there too (its recipe names the law)
+    variant = bayesfric.fit(mine.fix(c_v=0.5), ds, **SHORT)
+    assert json.loads(variant.attrs["law_files"]) == [str(law_file.resolve())]
+    path = save_fit(variant, tmp_path / "variant.nc")
+    run = subprocess.run([sys.executable, "-c", code.replace("'v_eps'", "'c_v'"), str(path)], capture_output=True,
+                         text=True, timeout=300)
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert run.stdout.split("\n")[-2] == "tanh_friction ['T_C'] 0.5"
     law_file.unlink()  # the recorded file gone: one line naming it, exit 2
     gone = subprocess.run([sys.executable, "-m", "bayesfric", "size", str(path), "--at", "velocity=2 rad/s"],
                           capture_output=True, text=True, timeout=300)

@@ -54,11 +54,11 @@ def _law_entry(where: str, i: int, entry: Any, files: list[str]) -> dict[str, An
 
 
 def _law_object(where: str, law: Law, files: list[str]) -> dict[str, Any]:
-    """A Law given as an object: registered (its name), a variant of one (its recipe as the
-    entry's keys, labelled by its name), or declared without registering (its name, and the file
+    """A Law given as an object: registered (its name), a variant (its recipe as the entry's keys,
+    labelled by its name, with the files of its base and added laws), or declared without registering (its name, and the file
     that declares it, which the study's processes load: :func:`bayesfric.laws.plugins.law_file`)."""
     from bayesfric.laws.base import REGISTRY
-    from bayesfric.laws.plugins import law_file, unregistered_law
+    from bayesfric.laws.plugins import law_file, law_files, unregistered_law
 
     if REGISTRY.get(law.name) is law:
         return {"name": law.name}
@@ -66,6 +66,7 @@ def _law_object(where: str, law: Law, files: list[str]) -> dict[str, Any]:
         if unknown := set(law.recipe) - {"base", "add", "fixed", "asymmetric"}:
             raise config.StudyError(f"{where}: variant {law.name!r} ({', '.join(sorted(unknown))}) is made for "
                                     "one data set; give the law it was made from")
+        files.extend(f for f in law_files(law) if f not in files)  # of its base and added laws
         label = re.sub(r"[^A-Za-z0-9_.-]", "_", law.name)  # a plain name: "a+offset" -> "a_offset"
         return {"name": law.recipe["base"], "label": label} | {k: _plain(v) for k, v in law.recipe.items()
                                                                if k != "base"}

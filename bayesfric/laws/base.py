@@ -183,7 +183,7 @@ class Law:
     def default_priors(self) -> dict[str, Prior]:
         return {k: p.prior for k, p in self.params.items()}
 
-    # composition: variants (bayesfric.laws.variants) of registered laws, as objects
+    # composition: variants (bayesfric.laws.variants) of laws found by name, as objects
     def fix(self, **values: float) -> Law:
         """This law with parameters held at ``values`` (SI) instead of sampled, e.g. ``.fix(delta=1)``."""
         return self._vary(fixed=values)
@@ -193,18 +193,30 @@ class Law:
         return self._vary(asymmetric=names)
 
     def __add__(self, other: Law | str) -> Law:
-        """This law plus a registered law or a term (``"offset"``, ``"viscous"``), named ``a+b``."""
+        """This law plus another law or a term (``"offset"``, ``"viscous"``), named ``a+b``."""
         part = other if isinstance(other, str) else other.name
-        if isinstance(other, Law) and REGISTRY.get(part) is not other:
-            raise VariantError(f"law {part!r} is not registered: declare it with law() or simple_law() "
-                               "to add it", "add")
+        if isinstance(other, Law):
+            _check_found(other, "add")
         return self._vary(add=[part], name=f"{self.name}+{part}")
 
     def _vary(self, **options: Any) -> Law:
-        if not self.recipe and REGISTRY.get(self.name) is not self:
-            raise VariantError(f"law {self.name!r} is not registered: declare it with law() or simple_law() "
-                               "to build variants of it", next(iter(options)))
+        if not self.recipe:
+            _check_found(self, next(iter(options)))
         return _VARIANT_BUILDER[0](self, **options)
+
+
+def _check_found(law: Law, key: str) -> None:
+    """A variant is a recipe over names: ``law`` must be the law its name finds in this process
+    (registered, or declared without registering: :func:`bayesfric.laws.plugins.unregistered_law`),
+    else the variant would be built, here or in a worker, from another law of that name."""
+    try:
+        found = get_law(law.name)
+    except KeyError:
+        found = None
+    if found is not law:
+        raise VariantError(f"law {law.name!r} is not the law its name finds in this process (another law of "
+                           "that name was declared later, or it was not declared with law(), simple_law() or "
+                           "bayesfric.law()): declare it again to build variants of it", key)
 
 
 REGISTRY: dict[str, Law] = {}

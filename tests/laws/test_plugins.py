@@ -92,11 +92,21 @@ def test_composition_on_objects():
     assert both.name == "coulomb+coulomb_viscous" and set(both.params) == {"T_C", "T_C_coulomb_viscous", "c_v"}
     assert list((get_law("coulomb") + "offset").params) == ["T_C", "offset"]
     assert set(stribeck.asymmetric("T_C").params) >= {"T_C_pos", "T_C_neg"}
+    # a law declared without registering composes too: it is found by its name in this process
     loose = simple_law(lambda velocity, c: c * velocity, units={"c": "N*m*s/rad"}, name="loose", register=False)
-    with pytest.raises(VariantError, match="'loose' is not registered"):
-        get_law("coulomb") + loose
-    with pytest.raises(VariantError, match="'loose' is not registered"):
+    assert "loose" not in REGISTRY and get_law("loose") is loose
+    assert set((get_law("coulomb") + loose).params) == {"T_C", "c"}
+    assert (loose + "offset").recipe == {"base": "loose", "add": ["offset"]}
+    assert set(loose.asymmetric("c").params) == {"c_pos", "c_neg"}
+    assert not loose.fix(c=1.0).params and loose.fix(c=1.0).constants["c"].value == 1.0
+    # ... unless another law of that name was declared since: the variant would be built from that one
+    later = simple_law(lambda velocity, k: k * velocity, units={"k": "N*m*s/rad"}, name="loose", register=False)
+    assert get_law("loose") is later
+    with pytest.raises(VariantError, match="'loose' is not the law its name finds"):
         loose.fix(c=1.0)
+    with pytest.raises(VariantError, match="'loose' is not the law its name finds"):
+        get_law("coulomb") + loose
+    assert set((later + "offset").params) == {"k", "offset"}
 
 
 def test_check_law_names_a_broken_law():
@@ -222,8 +232,12 @@ def test_a_study_takes_law_objects_that_are_not_registered(tmp_path, data_csv): 
     assert own.modules == (str((tmp_path / "unreg.py").resolve()),) and own.build() is mine
     assert var.name == "coulomb_viscous_offset" and var.law == "coulomb_viscous"  # a plain label
     assert list(var.build().params) == ["T_C", "offset"] and var.build().recipe == dict(variant.recipe)
+    # a variant of the unregistered law, as an object: its recipe names the law, its file travels
+    fixed = bayesfric.Study("fixed", str(tmp_path / "bench.csv"), laws=[mine.fix(c_v=0.5) + "offset"]).laws[0]
+    assert fixed.modules == own.modules and list(fixed.build().params) == ["T_C", "offset"]
     with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
         assert pool.submit(_params_in_a_fresh_process, own).result(timeout=300) == ["T_C", "c_v"]
+        assert pool.submit(_params_in_a_fresh_process, fixed).result(timeout=300) == ["T_C", "offset"]
 
     def inline(velocity, T_C):
         """Declared in a notebook: no file."""
