@@ -55,8 +55,9 @@ def _law_entry(where: str, i: int, entry: Any, files: list[str]) -> dict[str, An
 
 def _law_object(where: str, law: Law, files: list[str]) -> dict[str, Any]:
     """A Law given as an object: registered (its name), a variant (its recipe as the entry's keys,
-    labelled by its name, with the files of its base and added laws), or declared without registering (its name, and the file
-    that declares it, which the study's processes load: :func:`bayesfric.laws.plugins.law_file`)."""
+    labelled by its name, with the files of its base and added laws), or declared without
+    registering (its name, and the file that declares it, which the study's processes load:
+    :func:`bayesfric.laws.plugins.law_file`)."""
     from bayesfric.laws.base import REGISTRY
     from bayesfric.laws.plugins import law_file, law_files, unregistered_law
 
