@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 
 import bayesfric
@@ -246,8 +247,14 @@ def test_run_a_python_study_then_size_its_result(tmp_path):
         bayesfric.size(result, at={"temperature": (20, "degC"), "velocity": (5, "rad/s")})
     with pytest.raises(UserError, match="no report of study 'api_run' in .*bayesfric.run"):
         bayesfric.size(study, at={"velocity": (5, "rad/s")}, reports=tmp_path / "elsewhere")
-    again = bayesfric.run(study, tmp_path)  # unchanged: the report is returned as it is
-    assert again.scores.equals(result.scores)
+    again = bayesfric.run(study, tmp_path)  # unchanged: the report is returned as it is, read from its folder
+    assert again.tree is not result.tree  # the first result was the run's own, in memory; this one is read back
+    for table in ("scores", "ranking", "sizing"):  # the same tables either way, typed as pandas reads the CSV
+        assert getattr(again, table).equals(getattr(result, table)), table
+    assert again.scores.equals(pd.read_csv(result.folder / "scores.csv", keep_default_na=False, na_values=[""]))
+    assert again.ranking.equals(pd.read_csv(result.folder / "ranking.csv"))
+    for name, fit in result.fits.items():
+        np.testing.assert_array_equal(again.fits[name]["posterior"]["T_C"].values, fit["posterior"]["T_C"].values)
 
 
 @pytest.mark.slow  # every docstring example of the API, fits and a study run included (~2 min)

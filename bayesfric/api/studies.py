@@ -4,10 +4,12 @@
 adds constructors): ``Study(...)`` assembles the TOML file's tables from its arguments and
 validates them with the same schema and checks (:func:`~bayesfric.study.config.study_from_raw`),
 so every error names the key as a study file would, prefixed ``Study('<name>')``.
-:func:`run` is :func:`bayesfric.study.runner.run_study`; it returns a :class:`StudyResult` that
-holds the report folder and the tables and fits read back from it. The report itself
-(``summary.md``, ``report.html``, CSV tables, figures) is written by :func:`run`; there is no
-separate ``write_report`` until a study's result is one tree (issue 31, item 1).
+:func:`run` is :func:`bayesfric.study.runner.execute_study`; it returns a :class:`StudyResult`
+that holds the report folder, the result tree the run saved as ``results.nc`` and every law's fit,
+as the run held them in memory (an unchanged rerun reads them from the earlier run's folder). The
+report itself (``summary.md``, ``report.html``, CSV tables, figures) is written by :func:`run`;
+there is no separate ``write_report`` until the report is derived from the tree alone (issue 31,
+item 1).
 """
 
 from __future__ import annotations
@@ -257,7 +259,8 @@ class StudyResult:
     tree : xarray.DataTree or None
         ``results.nc``: the same results as one DataTree (``/scores`` over law × criterion,
         ``/pointwise``, ``/weights``, ``/diagnostics``, ``/checks``, the tables, ``/fits/<law>``
-        posteriors, ``/sizing_basis``; :mod:`bayesfric.report.results`), which names the fit files.
+        posteriors, ``/sizing_basis``; :mod:`bayesfric.study.tree`, :mod:`bayesfric.report.results`),
+        which names the fit files. The tables above are its table nodes.
     """
 
     study: config.Study
@@ -270,7 +273,8 @@ class StudyResult:
 
     @classmethod
     def read(cls, study: config.Study, folder: str | Path) -> StudyResult:
-        """Read the report folder of ``study`` (written by :func:`run` or ``bayesfric study``)."""
+        """Read the report folder of ``study`` (written by :func:`run` or ``bayesfric study``):
+        its ``results.nc`` and the fit files it names."""
         from bayesfric.inference import load_fit
         from bayesfric.sizing import SizingError
 
@@ -281,9 +285,19 @@ class StudyResult:
             tree = opened.load()
         files = tree["sizing_basis"]["fit"]
         fits = {spec.name: load_fit(folder / str(files.sel(law=spec.name).values)) for spec in study.laws}
-        sizing = pd.read_csv(folder / "sizing.csv") if (folder / "sizing.csv").is_file() else None
-        return cls(study, folder, pd.read_csv(folder / "scores.csv", keep_default_na=False, na_values=[""]),
-                   pd.read_csv(folder / "ranking.csv"), fits, sizing, tree)
+        return cls.from_tree(study, folder, tree, fits)
+
+    @classmethod
+    def from_tree(cls, study: config.Study, folder: Path, tree: xr.DataTree,
+                  fits: Mapping[str, xr.DataTree]) -> StudyResult:
+        """The result of ``study`` from its result tree and fits, in memory (:func:`run` after it
+        wrote the report) or read back (:meth:`read`): the tables are the tree's table nodes, typed
+        as pandas reads the CSV files (:func:`bayesfric.report.stored.table_frame`)."""
+        from bayesfric.report.stored import table_frame
+
+        sizing = table_frame(tree["sizing"].to_dataset()) if "sizing" in tree.children else None
+        return cls(study, folder, table_frame(tree["score_rows"].to_dataset()),
+                   table_frame(tree["ranking"].to_dataset()), dict(fits), sizing, tree)
 
 
 def run(study: Study | str | Path, out: str | Path = "reports", *, quick: bool = False, fresh: bool = False,
@@ -330,7 +344,7 @@ def run(study: Study | str | Path, out: str | Path = "reports", *, quick: bool =
     """
     from bayesfric.fsutil import PathError, check_output_folder
     from bayesfric.limits import process_problem
-    from bayesfric.study.runner import run_study
+    from bayesfric.study.runner import execute_study
 
     chosen = as_study(study)
     try:
@@ -345,5 +359,7 @@ def run(study: Study | str | Path, out: str | Path = "reports", *, quick: bool =
         raise UserError(f"workers: law {', '.join(map(repr, local))} is declared in this process only (a notebook "
                         "or script), which worker processes cannot load: run with workers=0, or move it into a "
                         "law file (Study(..., modules=[...]))")
-    folder = run_study(chosen, out_root=out, quick=quick, fresh=fresh, workers=workers)
-    return StudyResult.read(chosen, folder)
+    done = execute_study(chosen, out_root=out, quick=quick, fresh=fresh, workers=workers)
+    if done.tree is None:  # an unchanged rerun: the report of an earlier run, read from its folder
+        return StudyResult.read(chosen, done.folder)
+    return StudyResult.from_tree(chosen, done.folder, done.tree, done.fits)

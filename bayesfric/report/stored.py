@@ -35,7 +35,7 @@ from bayesfric.report.blocks import FigureRef, Table
 from bayesfric.report.findings import Finding, Summary
 from bayesfric.report.sizing import Section
 
-__all__ = ["CSV_FILES", "table_dataset", "table_records", "content_node", "figures_node", "read_content",
+__all__ = ["CSV_FILES", "table_dataset", "table_records", "table_frame", "content_node", "figures_node", "read_content",
            "read_figures", "open_results"]
 
 #: Table node -> the CSV file it renders (scores.csv is written from a data frame, the others from records).
@@ -124,6 +124,24 @@ def table_records(ds: xr.Dataset) -> list[dict] | pd.DataFrame:
     if int(ds.attrs.get("csv_frame", 0)):
         return pd.DataFrame({c: columns[c] for c in header}, columns=header)
     return [{c: columns[c][i] for c in header} for i in range(n)]
+
+
+def table_frame(ds: xr.Dataset) -> pd.DataFrame:
+    """A table node as a typed data frame, as pandas reads its CSV file: numbers and booleans as
+    such, an empty cell NaN (a number column with one becomes float, a boolean one object)."""
+    header = json.loads(ds.attrs["columns"])
+    columns = {}
+    for c in header:
+        var = ds[str(c).replace("/", "\u2215")]
+        if var.attrs.get("csv_kind", "text") == "text":  # the dtype pandas infers, as read_csv does
+            column = pd.Series([np.nan if str(v) == "" else str(v) for v in var.values])
+        else:
+            column = pd.Series(var.values)
+            if empty := json.loads(var.attrs.get("csv_empty", "[]")):
+                column = column.astype(object if var.dtype == bool else float)
+                column.iloc[empty] = np.nan
+        columns[c] = column
+    return pd.DataFrame(columns, columns=header)
 
 
 def _finding(d: Mapping) -> Finding:

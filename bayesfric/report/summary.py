@@ -142,7 +142,7 @@ def _claim_records(out: StudyOutcome) -> list[dict]:
              "high": r.hi, "winner": r.winner, "verdict": r.verdict, "why": r.why} for r in out.claims]
 
 
-def write_reports(out: StudyOutcome, folder: Path, tree: xr.DataTree | None = None) -> None:
+def write_reports(out: StudyOutcome, folder: Path, tree: xr.DataTree | None = None) -> xr.DataTree:
     """Write ``folder/results.nc`` (the study's results as one DataTree,
     :mod:`bayesfric.report.results`, with the report's content, figures and tables) and render
     the report from that file alone (:func:`render_report`): figures, summary.md, report.html,
@@ -153,7 +153,7 @@ def write_reports(out: StudyOutcome, folder: Path, tree: xr.DataTree | None = No
     rendered from the tree by :func:`render_report`, the function ``bayesfric report results.nc``
     calls on the saved tree, so a re-rendering gives the same bytes (tested file by file).
     ``tree`` is the study's result tree (:func:`bayesfric.study.tree.study_tree`), built from
-    ``out`` when not given.
+    ``out`` when not given. Returns the tree saved as ``results.nc`` (with the report's nodes).
     """
     figures, fans = draw(out, folder)
     content = build(out, figures, {i: f"figures/{p.name}" for i, p in fans.items()})
@@ -167,6 +167,7 @@ def write_reports(out: StudyOutcome, folder: Path, tree: xr.DataTree | None = No
     tree = result_tree(tree if tree is not None else study_tree(out), tables, extra, out.seconds)
     write_results(tree, folder)
     render_report(tree, folder)  # from the tree in memory; the file renders the same (tests/report/test_rerender.py)
+    return tree
 
 
 def render_report(tree: xr.DataTree, folder: Path) -> list[Path]:

@@ -29,7 +29,11 @@ import json
 import math
 import shutil
 import time
+from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
+
+import xarray as xr
 
 from bayesfric import compare, fsutil, sizing
 from bayesfric.fingerprint import package_fingerprint
@@ -51,7 +55,8 @@ from bayesfric.study.scores import score_table
 from bayesfric.study.store import RunStore, store_folder
 from bayesfric.study.tree import study_tree
 
-__all__ = ["run_study", "current_report", "validate_against_data", "sizing_questions", "load_study_data", "INPUTS_FILE",
+__all__ = ["run_study", "execute_study", "StudyRun",
+           "current_report", "validate_against_data", "sizing_questions", "load_study_data", "INPUTS_FILE",
            "QUICK", "QUICK_KFOLD"]
 
 #: Written into a report folder: the key of everything the report was rendered from. A rerun
@@ -167,6 +172,17 @@ def _assign_weights(out: StudyOutcome) -> None:
             out.sensitivity = compare.ranking_sensitivity(reliable, baseline=psis)
 
 
+@dataclass(frozen=True)
+class StudyRun:
+    """What one run of a study leaves in memory (:func:`execute_study`): its report folder and,
+    when the run wrote the report (not an unchanged rerun), the result tree it saved as
+    ``results.nc`` and every law's full fit, so a caller never reads back what this process wrote."""
+
+    folder: Path
+    tree: xr.DataTree | None = None
+    fits: Mapping[str, xr.DataTree] | None = None
+
+
 def run_study(path: str | Path | Study, out_root: str | Path = "reports", quick: bool = False, *, fresh: bool = False,
               workers: int = 0, scheduler: str | None = None, client=None, timings: list | None = None,
               live_progress: bool | None = None) -> Path:
@@ -203,6 +219,15 @@ def run_study(path: str | Path | Study, out_root: str | Path = "reports", quick:
     StudyError, DataError
         One line, on bad input, before anything is written.
     """
+    return execute_study(path, out_root, quick, fresh=fresh, workers=workers, scheduler=scheduler, client=client,
+                         timings=timings, live_progress=live_progress).folder
+
+
+def execute_study(path: str | Path | Study, out_root: str | Path = "reports", quick: bool = False, *,
+                  fresh: bool = False, workers: int = 0, scheduler: str | None = None, client=None,
+                  timings: list | None = None, live_progress: bool | None = None) -> StudyRun:
+    """:func:`run_study`, returning the :class:`StudyRun` (folder, result tree and fits) instead of
+    the folder alone; same parameters and errors."""
     start = time.perf_counter()
     prepared = _prepare(path, out_root, quick)
     with contextlib.ExitStack() as stack:
@@ -212,7 +237,7 @@ def run_study(path: str | Path | Study, out_root: str | Path = "reports", quick:
 
 
 def _write_study(prepared, out_root: Path, quick: bool, fresh: bool, client, timings: list | None,
-                 start: float, live_progress: bool | None = None) -> Path:
+                 start: float, live_progress: bool | None = None) -> StudyRun:
     """Run the prepared study's units and write its report folder atomically (see :func:`run_study`)."""
     study, final, ds, settings, kfold, schemes, questions = prepared
     seed = study.sampler["seed"]
@@ -221,7 +246,7 @@ def _write_study(prepared, out_root: Path, quick: bool, fresh: bool, client, tim
     inputs_key = _inputs_key(study, plans, quick)
     if not fresh and _report_is_current(final, study.name, inputs_key):
         print(_unchanged_note(study.name, final), flush=True)
-        return final
+        return StudyRun(final)
     for stale in fsutil.clean_stale_work(root, study.name):
         print(f"[{study.name}] removed the work folder of an interrupted run: {stale}", flush=True)
     work = fsutil.create_work_folder(root, study.name)
@@ -250,7 +275,7 @@ def _write_study(prepared, out_root: Path, quick: bool, fresh: bool, client, tim
         outcome.unit_seconds = _unit_seconds(rows)
         from bayesfric.report.summary import write_reports  # here: bayesfric.report reads bayesfric.study
 
-        write_reports(outcome, work, tree)
+        tree = write_reports(outcome, work, tree)
         (work / INPUTS_FILE).write_text(inputs_key + "\n")  # an unchanged rerun reuses the whole report
         try:
             fsutil.install_folder(work, final, study.name)
@@ -261,4 +286,4 @@ def _write_study(prepared, out_root: Path, quick: bool, fresh: bool, client, tim
         raise
     print(timing_table(rows, f"[{study.name}] time per stage"), flush=True)
     print(f"[{study.name}] report written to {final} ({time.perf_counter() - start:.0f} s)")
-    return final
+    return StudyRun(final, tree, {w.name: w.fit for w in outcome.laws})
