@@ -21,6 +21,8 @@ from bayesfric.report.typeset import fmt, unit
 from bayesfric.study.outcome import Checks
 
 if TYPE_CHECKING:
+    import xarray as xr
+
     from bayesfric.study.outcome import StudyOutcome
 
 __all__ = ["Table", "FigureRef", "LawSection", "Report", "build", "SECTIONS", "ranking_records"]
@@ -122,10 +124,11 @@ def _law_sections(outcome: StudyOutcome, figures: dict[str, FigureRef]) -> list[
     return out
 
 
-def _checks(outcome: StudyOutcome) -> Table:
+def _checks(outcome: StudyOutcome, tree: xr.DataTree) -> Table:
     rows, warn = [], []
+    diag = tree["diagnostics"].to_dataset()
     for i, w in enumerate(outcome.laws):
-        loo, checks = loo_numbers(w), w.checks or Checks()
+        loo, checks = loo_numbers(diag.sel(law=w.name)), w.checks or Checks()
         shape = checks.pit_shape.label if checks.pit_shape is not None else "miscalibrated"
         rows.append([w.name, "passed" if w.reliable else "FAILED", _num(loo["p_loo"], 2),
                      f"{loo['n_high_k']} (max {_num(loo['pareto_k_max'])})",
@@ -175,11 +178,13 @@ def _claim_warnings(outcome: StudyOutcome) -> list[fd.Finding]:
     return out
 
 
-def build(outcome: StudyOutcome, figures: list[FigureRef], sizing_figures: dict[int, str]) -> Report:
-    """The report's content model (``sizing_figures``: question index -> the fan's reference as
-    the rendering wants it, a file name or an encoded image)."""
+def build(outcome: StudyOutcome, tree: xr.DataTree, figures: list[FigureRef],
+          sizing_figures: dict[int, str]) -> Report:
+    """The report's content model (``tree``: the study's result tree, :mod:`bayesfric.study.tree`,
+    which the ranking tables read alone; ``sizing_figures``: question index -> the fan's reference
+    as the rendering wants it, a file name or an encoded image)."""
     table = outcome.table
-    ranking, order = ranking_table(outcome)
+    ranking, order = ranking_table(tree)
     by_section: dict[str, list[FigureRef]] = {}
     pair = {}
     for f in figures:
@@ -202,8 +207,8 @@ def build(outcome: StudyOutcome, figures: list[FigureRef], sizing_figures: dict[
         claims=_claims(outcome), ranking=ranking,
         ranking_note="Weights exclude fits that failed the diagnostics gate"
                      + (" (the study asked to include them)." if outcome.study.include_failed else "."),
-        sensitivity=fd.sensitivity_sentence(outcome.sensitivity), extrapolation=extrapolation_table(outcome, order),
-        laws=_law_sections(outcome, pair), data_lines=_data_lines(outcome), checks=_checks(outcome),
+        sensitivity=fd.sensitivity_sentence(outcome.sensitivity), extrapolation=extrapolation_table(tree, order),
+        laws=_law_sections(outcome, pair), data_lines=_data_lines(outcome), checks=_checks(outcome, tree),
         sizing_intro="Friction opposes motion, so sizing works on magnitudes |T|. Mean function: the law's curve "
                      "with parameter uncertainty only; with noise: plus the fit's observation noise (what a drive "
                      "meets). Every law and point: sizing.csv.",

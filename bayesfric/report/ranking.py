@@ -1,6 +1,7 @@
 """The ranking of a study report: the ranking table of both documents, ``ranking.csv`` and the
-"Inside vs outside the tested envelope" table, all read from the law × metric table
-(:mod:`bayesfric.study.scores`).
+"Inside vs outside the tested envelope" table, all read from the study's result tree alone
+(:mod:`bayesfric.study.tree`: the law × metric table ``/scores``, ``/criteria``,
+``/diagnostics``, ``/checks``, ``/pointwise``).
 
 Every law keeps the place its score gives it (issue 29): a law whose result may not be ranked
 (a fold failed the diagnostics gate, the evidence estimators disagree, the fit failed) is listed
@@ -19,12 +20,13 @@ import numpy as np
 from bayesfric.report.blocks import Table
 from bayesfric.report.typeset import fmt
 from bayesfric.study import scores as sc
-from bayesfric.study.outcome import Checks
 
 if TYPE_CHECKING:
-    from bayesfric.study.outcome import LawOutcome, StudyOutcome
+    import pandas as pd
+    import xarray as xr
 
-__all__ = ["rank_cells", "ranking_table", "ranking_records", "extrapolation_table", "score_text", "weight_text"]
+__all__ = ["rank_cells", "ranking_table", "ranking_records", "extrapolation_table", "score_text", "weight_text",
+           "loo_numbers", "law_flags"]
 
 
 def score_text(row) -> str:
@@ -47,32 +49,57 @@ def _ordinal(n: int) -> str:
     return f"{n}{suffix}"
 
 
-def _unscored(w: LawOutcome, criterion: sc.Criterion) -> str:
-    if w.skipped and criterion.metric in ("elpd_cv", "log_evidence"):
+class _Tree:
+    """What the ranking reads from a result tree, taken out once: the law × metric table, the
+    criteria, the blocked schemes and the per-law nodes."""
+
+    def __init__(self, tree: xr.DataTree) -> None:
+        self.table: pd.DataFrame = sc.table_of(tree["scores"].to_dataset())
+        self.crits = sc.criteria_of(tree)
+        self.laws = [str(n) for n in tree["scores"]["law"].values]
+        self.diag = tree["diagnostics"].to_dataset()
+        self.checks = tree["checks"].to_dataset()
+        self.pointwise = tree["pointwise"].to_dataset()
+        schemes = self.pointwise["scheme"]
+        self.blocked = [str(s) for s, b in zip(schemes.values, schemes["blocked"].values, strict=True) if b]
+
+    def law(self, name: str) -> xr.Dataset:
+        return self.diag.sel(law=name)
+
+    def passed(self, name: str) -> bool:
+        return bool(self.law(name)["passed"])
+
+
+def law_flags(diag: xr.Dataset) -> list[str]:
+    """A law's flags (``/diagnostics`` ``flags`` of one law), one line each."""
+    text = str(diag["flags"].values)
+    return text.split("\n") if text else []
+
+
+def _unscored(t: _Tree, name: str, criterion: sc.Criterion) -> str:
+    if str(t.law(name)["skipped"].values) and criterion.metric in ("elpd_cv", "log_evidence"):
         return "⚠ not scored: the full fit failed the diagnostics gate, so this score was not computed"
-    if not w.reliable:
+    if not t.passed(name):
         return "⚠ not scored: the fit failed the diagnostics gate"
     return "⚠ not scored"
 
 
-def rank_cells(outcome: StudyOutcome) -> tuple[list[str], dict[str, str]]:
+def rank_cells(t: _Tree) -> tuple[list[str], dict[str, str]]:
     """(laws in ranking order, law -> its rank cell) on the study's first criterion.
 
     A ranked law's cell is its number among the ranked laws; a law that scored but may not be
     ranked reads ``⚠ not ranked (scored 1st): <reason>``, where it stands in the list; a law
     without the score, ``⚠ not scored: <why>``.
     """
-    table, crits = outcome.table, sc.criteria(outcome)
-    crit = crits[0] if crits else None
-    order = sc.ranking_order(table, [w.name for w in outcome.laws], crit)
+    crit = t.crits[0] if t.crits else None
+    order = sc.ranking_order(t.table, t.laws, crit)
     if crit is None:  # no criterion ranks the laws: none is numbered (bayesfric.report.findings.NO_CRITERION)
         return order, {name: "–" for name in order}
-    laws = {w.name: w for w in outcome.laws}
     cells, ranked = {}, 0
     for place, name in enumerate(order, start=1):
-        row = sc.value(table, name, crit.metric, crit.scheme)
+        row = sc.value(t.table, name, crit.metric, crit.scheme)
         if row is None:
-            cells[name] = _unscored(laws[name], crit)
+            cells[name] = _unscored(t, name, crit)
         elif row["reliable"]:
             ranked += 1
             cells[name] = str(ranked)
@@ -81,23 +108,23 @@ def rank_cells(outcome: StudyOutcome) -> tuple[list[str], dict[str, str]]:
     return order, cells
 
 
-def ranking_table(outcome: StudyOutcome) -> tuple[Table, list[str]]:
+def ranking_table(tree: xr.DataTree) -> tuple[Table, list[str]]:
     """The ranking table of both documents, and the ranking order."""
-    table, crits = outcome.table, sc.criteria(outcome)
-    order, cells = rank_cells(outcome)
-    weight_key = f"stacking {outcome.blocked[0]}" if outcome.blocked else "stacking LOO"
-    header = ["rank", "law", "diagnostics"] + [c.label for c in crits] + [f"penalty/pt {s}" for s in outcome.blocked]
+    t = _Tree(tree)
+    table, crits = t.table, t.crits
+    order, cells = rank_cells(t)
+    weight_key = f"stacking {t.blocked[0]}" if t.blocked else "stacking LOO"
+    header = ["rank", "law", "diagnostics"] + [c.label for c in crits] + [f"penalty/pt {s}" for s in t.blocked]
     header.append(f"weight ({weight_key})")
-    laws = {w.name: w for w in outcome.laws}
     rows, warn = [], []
     for i, name in enumerate(order):
-        row = [cells[name], name, "passed" if laws[name].reliable else "FAILED"]
+        row = [cells[name], name, "passed" if t.passed(name) else "FAILED"]
         row += [score_text(sc.value(table, name, c.metric, c.scheme)) for c in crits]
-        row += [score_text(sc.value(table, name, "penalty", s)) for s in outcome.blocked]
+        row += [score_text(sc.value(table, name, "penalty", s)) for s in t.blocked]
         w = sc.value(table, name, "weight", weight_key)
         row.append(weight_text(w["estimate"] if w is not None else None))
         rows.append(row)
-        if cells[name].startswith("⚠") or not laws[name].reliable:
+        if cells[name].startswith("⚠") or not t.passed(name):
             warn.append(i)
     if not crits:
         return Table("Laws in the study file's order: the study has no ranking criterion (no LOO, cross-validation "
@@ -108,13 +135,13 @@ def ranking_table(outcome: StudyOutcome) -> tuple[Table, list[str]]:
                "column = not ranked, with the reason (a fold or the fit failed the diagnostics gate, or the evidence "
                "estimators disagree), and only ranked laws are numbered. Every number, with p_loo, Pareto k and all "
                "weights: ranking.csv and scores.csv.")
-    return Table(caption + subsample_note(outcome), header, rows, warn), order
+    return Table(caption + subsample_note(t), header, rows, warn), order
 
 
-def subsample_note(outcome: StudyOutcome) -> str:
+def subsample_note(t: _Tree) -> str:
     """Where PSIS-LOO was subsampled (data above ``limits.LOO_SUBSAMPLE_ROWS`` rows), one sentence
     per study naming each law's ``subsampled: n of N rows, subsampling se X`` ("" otherwise)."""
-    parts = [f"{w.name} {w.loo.subsampled}" for w in outcome.laws if w.loo is not None and w.loo.subsample is not None]
+    parts = [f"{name} {text}" for name in t.laws if (text := str(t.law(name)["loo_subsampled"].values))]
     if not parts:
         return ""
     return (" PSIS-LOO is subsampled on data this large (arviz-stats loo_subsample: the rows not scored enter by "
@@ -122,70 +149,70 @@ def subsample_note(outcome: StudyOutcome) -> str:
             "approximated rows): " + "; ".join(parts) + ".")
 
 
-def ranking_records(outcome: StudyOutcome) -> list[dict]:
+def ranking_records(tree: xr.DataTree) -> list[dict]:
     """``ranking.csv``: one row per law in ranking order — its rank cell as the documents show it
     (``rank``), its place by score (``place``), every score of the table in columns, with the
     law's diagnostics and checks."""
-    table = outcome.table
-    order, cells = rank_cells(outcome)
-    laws = {w.name: w for w in outcome.laws}
+    t = _Tree(tree)
+    order, cells = rank_cells(t)
     records = []
     for place, name in enumerate(order, start=1):
-        w = laws[name]
-        rec: dict = {"rank": cells[name], "place": place, "law": name,
-                     "n_params": sum(max(1, math.prod(p.shape)) for p in w.law.params.values()),
-                     "diagnostics_passed": w.reliable, "rhat_max": w.verdict.rhat_max,
-                     "ess_bulk_min": w.verdict.ess_bulk_min}
-        for r in table[table["law"] == name].itertuples():
+        d = t.law(name)
+        rec: dict = {"rank": cells[name], "place": place, "law": name, "n_params": int(d["n_params"]),
+                     "diagnostics_passed": bool(d["passed"]), "rhat_max": float(d["rhat_max"]),
+                     "ess_bulk_min": float(d["ess_bulk_min"])}
+        for r in t.table[t.table["law"] == name].itertuples():
             key = {"elpd_loo": "elpd_loo", "elpd_cv": f"elpd[{r.scheme}]", "log_evidence": f"log_z_{r.scheme}",
                    "penalty": f"penalty_per_point[{r.scheme}]", "weight": f"weight[{r.scheme}]"}[r.metric]
-            rec[key] = r.estimate
+            rec[key] = float(r.estimate)
             if r.metric in ("elpd_loo", "elpd_cv", "log_evidence", "penalty"):
                 err = {"elpd_loo": "elpd_loo_se", "elpd_cv": f"se[{r.scheme}]",
                        "penalty": f"penalty_se[{r.scheme}]"}.get(r.metric, f"{key}_error")
-                rec[err] = r.se
-            rec[f"reliable[{r.metric} {r.scheme}]".replace(" ]", "]")] = r.reliable
+                rec[err] = float(r.se)
+            rec[f"reliable[{r.metric} {r.scheme}]".replace(" ]", "]")] = bool(r.reliable)
             if not r.reliable and r.reason:
-                rec[f"reason[{r.metric} {r.scheme}]".replace(" ]", "]")] = r.reason
-        if w.agreement is not None:
-            rec["evidence_disagreement"] = abs(w.agreement.difference)
-        checks = w.checks or Checks()
-        shape = checks.pit_shape
-        rec.update(loo_numbers(w), loo_pit_pvalue=checks.loo_pit_pvalue, loo_pit_ok=checks.loo_pit_ok,
-                   loo_pit_shape=shape.label if shape is not None and not checks.loo_pit_ok else "",
-                   flags="; ".join(w.flags))
+                rec[f"reason[{r.metric} {r.scheme}]".replace(" ]", "]")] = str(r.reason)
+        if bool(d["evidence_compared"]):
+            rec["evidence_disagreement"] = float(d["evidence_disagreement"])
+        c = t.checks.sel(law=name)
+        ok = bool(c["loo_pit_ok"])
+        rec.update(loo_numbers(d), loo_pit_pvalue=float(c["loo_pit_pvalue"]), loo_pit_ok=ok,
+                   loo_pit_shape=str(c["loo_pit_direction"].values) if not ok else "",
+                   flags="; ".join(law_flags(d)))
         records.append(rec)
     return records
 
 
-def loo_numbers(w: LawOutcome) -> dict:
-    """p_loo, the number of high-k points and the largest Pareto k of a law's PSIS-LOO (NaN: not run)."""
-    if w.loo is None:
+def loo_numbers(diag: xr.Dataset) -> dict:
+    """p_loo, the number of high-k points and the largest Pareto k of a law's PSIS-LOO (NaN: not
+    run), from its ``/diagnostics`` (one law)."""
+    if int(diag["n_high_k"]) < 0:  # no LOO
         return dict(p_loo=math.nan, n_high_k=0, pareto_k_max=math.nan)
-    numbers = dict(p_loo=w.loo.p_loo, n_high_k=w.loo.n_high_k, pareto_k_max=float(np.nanmax(w.loo.pareto_k)))
-    if w.loo.subsample is not None:  # only then: a study on smaller data keeps its columns
-        numbers.update(loo_rows_scored=w.loo.subsample.size, loo_rows=w.loo.subsample.n_rows,
-                       elpd_loo_subsampling_se=w.loo.subsampling_se)
+    numbers = dict(p_loo=float(diag["p_loo"]), n_high_k=int(diag["n_high_k"]),
+                   pareto_k_max=float(diag["pareto_k_max"]))
+    if int(diag["loo_rows_scored"]) >= 0:  # only then: a study on smaller data keeps its columns
+        numbers.update(loo_rows_scored=int(diag["loo_rows_scored"]), loo_rows=int(diag["loo_rows"]),
+                       elpd_loo_subsampling_se=float(diag["loo_subsampling_se"]))
     return numbers
 
 
-def _loo_on(w: LawOutcome, held: np.ndarray | None) -> tuple[float, float]:
+def _loo_on(t: _Tree, name: str, held: np.ndarray | None) -> tuple[float, float]:
     """PSIS-LOO elpd summed over the held-out points of a blocked scheme, and its standard error
     ``sqrt(n var(elpd_i))`` (what the law scores there having trained on them)."""
-    if w.loo is None or held is None or not held.any():
+    if int(t.law(name)["n_high_k"]) < 0 or held is None or not held.any():
         return math.nan, math.nan
-    if w.loo.subsample is not None:
-        return _subsampled_loo_on(w, held)
-    values = np.asarray(w.loo.elpd_i, dtype=float)[held]
+    values = np.asarray(t.pointwise["elpd"].sel(criterion="elpd_loo", law=name).values, dtype=float)
+    if int(t.law(name)["loo_rows_scored"]) >= 0:
+        return _subsampled_loo_on(values, np.asarray(t.pointwise["loo_scored"].sel(law=name).values), held)
+    values = values[held]
     return float(values.sum()), float(math.sqrt(values.size * values.var(ddof=1))) if values.size > 1 else math.nan
 
 
-def _subsampled_loo_on(w: LawOutcome, held: np.ndarray) -> tuple[float, float]:
-    """:func:`_loo_on` of a subsampled PSIS-LOO: the held-out rows it scored exactly stand for all
-    ``n`` held-out rows (sum ``n · mean``), the se adding the subsampling part ``n · sd / sqrt(m)``."""
-    exact = np.zeros(held.size, dtype=bool)
-    exact[w.loo.subsample.rows] = True
-    values = np.asarray(w.loo.elpd_i, dtype=float)[held & exact]
+def _subsampled_loo_on(elpd_i: np.ndarray, exact: np.ndarray, held: np.ndarray) -> tuple[float, float]:
+    """:func:`_loo_on` of a subsampled PSIS-LOO: the held-out rows it scored exactly (``exact``)
+    stand for all ``n`` held-out rows (sum ``n · mean``), the se adding the subsampling part
+    ``n · sd / sqrt(m)``."""
+    values = elpd_i[held & exact]
     n, m = int(held.sum()), values.size
     if m < 2:
         return math.nan, math.nan
@@ -193,28 +220,33 @@ def _subsampled_loo_on(w: LawOutcome, held: np.ndarray) -> tuple[float, float]:
     return float(n * values.mean()), float(math.sqrt(n * var + n * n * var / m * (1 - m / n)))
 
 
-def extrapolation_table(outcome: StudyOutcome, order: list[str]) -> Table | None:
+def extrapolation_table(tree: xr.DataTree, order: list[str]) -> Table | None:
     """"Inside vs outside the tested envelope": per blocked scheme, the elpd on its held-out points
     when the law trained on them (PSIS-LOO) and when it did not (the blocked fold), and the
     penalty per point between the two, each ± its standard error."""
-    if not outcome.blocked:
+    t = _Tree(tree)
+    if not t.blocked:
         return None
-    table = outcome.table
-    laws = {w.name: w for w in outcome.laws}
     header = ["law"]
-    for s in outcome.blocked:
+    for s in t.blocked:
         header += [f"elpd on held-out, trained on them (LOO) {s}", f"elpd on held-out, not trained on them "
                    f"(blocked) {s}", f"penalty/pt {s}"]
     rows = []
     for name in order:
         row = [name]
-        for s in outcome.blocked:
-            cv = laws[name].cv.get(s)
-            loo, loo_se = _loo_on(laws[name], cv.heldout if cv is not None else None)
-            row += [fmt(loo, loo_se), score_text(sc.value(table, name, "elpd_cv", s)),
-                    score_text(sc.value(table, name, "penalty", s))]
+        for s in t.blocked:
+            held = (np.asarray(t.pointwise["heldout"].sel(scheme=s).values, dtype=bool)
+                    if _computed(t.table, name, "elpd_cv", s) else None)  # no blocked fold: no points to compare
+            loo, loo_se = _loo_on(t, name, held)
+            row += [fmt(loo, loo_se), score_text(sc.value(t.table, name, "elpd_cv", s)),
+                    score_text(sc.value(t.table, name, "penalty", s))]
         rows.append(row)
     return Table("Each blocked scheme holds out the points beyond a threshold. LOO: the law's elpd on those points "
                  "when they were in its training data; blocked: when they were not. penalty/pt = (LOO − blocked) / "
                  "points: how many nats per point worse the law predicts outside the tested envelope than inside "
                  "it (± the standard error of the paired differences).", header, rows)
+
+
+def _computed(table: pd.DataFrame, name: str, metric: str, scheme: str) -> bool:
+    """The law has a row under ``metric`` and ``scheme`` (its estimate may be NaN)."""
+    return bool(((table["law"] == name) & (table["metric"] == metric) & (table["scheme"] == scheme)).any())

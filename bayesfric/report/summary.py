@@ -155,16 +155,17 @@ def write_reports(out: StudyOutcome, folder: Path, tree: xr.DataTree | None = No
     ``tree`` is the study's result tree (:func:`bayesfric.study.tree.study_tree`), built from
     ``out`` when not given. Returns the tree saved as ``results.nc`` (with the report's nodes).
     """
+    tree = tree if tree is not None else study_tree(out)
     figures, fans = draw(out, folder)
-    content = build(out, figures, {i: f"figures/{p.name}" for i, p in fans.items()})
-    tables: dict = {"ranking": ranking_records(out), "parameters": _parameter_records(out)}
+    content = build(out, tree, figures, {i: f"figures/{p.name}" for i, p in fans.items()})
+    tables: dict = {"ranking": ranking_records(tree), "parameters": _parameter_records(out)}
     if out.claims:
         tables["claims"] = _claim_records(out)
     if out.sizing is not None:
         tables["sizing"] = sizing_report.records(out.sizing)
     tables["score_rows"] = out.table
     extra = {"report": content_node(content), "report/figures": figures_node(folder)}
-    tree = result_tree(tree if tree is not None else study_tree(out), tables, extra, out.seconds)
+    tree = result_tree(tree, tables, extra, out.seconds)
     write_results(tree, folder)
     render_report(tree, folder)  # from the tree in memory; the file renders the same (tests/report/test_rerender.py)
     return tree

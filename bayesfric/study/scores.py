@@ -36,7 +36,7 @@ if TYPE_CHECKING:
     from bayesfric.study.outcome import StudyOutcome
 
 __all__ = ["METRICS", "COLUMNS", "Criterion", "score_table", "best", "passed_over", "ranking_order", "criteria",
-           "value", "fold_failure", "table_of"]
+           "value", "fold_failure", "table_of", "criteria_of"]
 
 COLUMNS = ["law", "metric", "scheme", "estimate", "se", "reliable", "reason"]
 
@@ -199,3 +199,10 @@ def criteria(outcome: StudyOutcome) -> list[Criterion]:
     estimators = list(dict.fromkeys(k for w in outcome.laws for k in w.evidence))
     out += [Criterion("log_evidence", e, "evidence") for e in estimators]
     return out
+
+
+def criteria_of(tree: xr.DataTree) -> list[Criterion]:
+    """The ranking criteria a result tree holds (``/criteria``, :func:`criteria` of its study)."""
+    node = tree["criteria"]
+    return [Criterion(str(m), str(s), str(k)) for m, s, k in
+            zip(node["metric"].values, node["scheme"].values, node["kind"].values, strict=True)]

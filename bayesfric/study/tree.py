@@ -14,6 +14,9 @@ Sizing, the claims and the report read this tree (the report adds its own nodes 
     ``log_evidence[<estimator>]``, ``weight[<weighting>]``), with ``metric`` and ``scheme``
     coordinates; ``computed`` is False where the study did not score the law under the criterion
     (:func:`bayesfric.study.scores.table_of` gives back the tidy table).
+``/criteria``
+    the ranking criteria in display order over ``rank`` (``metric``, ``scheme``, ``kind``); the
+    first ranks the laws.
 ``/pointwise``
     ``elpd`` over ``(criterion, law, obs)``: PSIS-LOO and each CV scheme's pointwise elpd (NaN
     where a point is not held out or the stage did not run); ``heldout`` over ``(scheme, obs)``;
@@ -52,6 +55,7 @@ import xarray as xr
 from bayesfric._version import __version__
 from bayesfric.compare.checks import PARETO_K_RELIABLE
 from bayesfric.sizing.store import basis_node
+from bayesfric.study.scores import criteria
 
 if TYPE_CHECKING:
     from bayesfric.study.outcome import StudyOutcome
@@ -69,11 +73,34 @@ def criterion_name(metric: str, scheme: str) -> str:
     return metric if not scheme else f"{metric}[{scheme}]"
 
 
+def _merged(sequences: list[list[str]]) -> list[str]:
+    """One order of the criteria that keeps each law's own order of its rows (a new criterion goes
+    right after the one before it in that law's rows), so :func:`bayesfric.study.scores.table_of`
+    gives each law's rows back in the order its scorers wrote them."""
+    out: list[str] = []
+    for names in sequences:
+        before = -1
+        for name in names:
+            if name not in out:
+                out.insert(before + 1, name)
+            before = out.index(name)
+    return out
+
+
+def _criteria(outcome: StudyOutcome) -> xr.Dataset:
+    """``/criteria``: the study's ranking criteria in display order (:func:`bayesfric.study.scores.criteria`)."""
+    crits = criteria(outcome)
+    return xr.Dataset({"metric": ("rank", [c.metric for c in crits]), "scheme": ("rank", [c.scheme for c in crits]),
+                       "kind": ("rank", [c.kind for c in crits])}, coords={"rank": np.arange(len(crits))},
+                      attrs={"description": "ranking criteria in display order: the first ranks the laws"})
+
+
 def _scores(outcome: StudyOutcome) -> xr.Dataset:
     table = outcome.table
     laws = [w.name for w in outcome.laws]
     pairs = list(zip(table["metric"], table["scheme"], strict=True))
-    crit = list(dict.fromkeys(criterion_name(m, s) for m, s in pairs))
+    crit = _merged([[criterion_name(m, s) for m, s in zip(rows["metric"], rows["scheme"], strict=True)]
+                    for _, rows in table.groupby("law", sort=False)])
     meta = {criterion_name(m, s): (m, s) for m, s in pairs}
     shape = (len(laws), len(crit))
     est, se = np.full(shape, np.nan), np.full(shape, np.nan)
@@ -110,11 +137,18 @@ def _pointwise(outcome: StudyOutcome) -> xr.Dataset:
             cv = w.cv.get(scheme)
             if cv is not None:
                 elpd[j, i] = np.asarray(cv.elpd_i, dtype=float)
+    scored = np.zeros((len(laws), n), dtype=bool)  # rows PSIS-LOO scored exactly (a subsample's rows)
+    for i, w in enumerate(outcome.laws):
+        if w.loo is not None:
+            scored[i] = True if w.loo.subsample is None else np.isin(np.arange(n), w.loo.subsample.rows)
     schemes = list(outcome.heldout)
     heldout = np.array([np.asarray(outcome.heldout[s], dtype=bool) for s in schemes]).reshape(len(schemes), n)
-    return xr.Dataset({"elpd": (("criterion", "law", "obs"), elpd), "heldout": (("scheme", "obs"), heldout),
-                       "pareto_k": (("law", "obs"), pareto_k)},
-                      coords={"criterion": crit, "law": laws, "scheme": schemes, "obs": np.arange(n)})
+    node = xr.Dataset({"elpd": (("criterion", "law", "obs"), elpd), "heldout": (("scheme", "obs"), heldout),
+                       "pareto_k": (("law", "obs"), pareto_k), "loo_scored": (("law", "obs"), scored)},
+                      coords={"criterion": crit, "law": laws, "scheme": schemes, "obs": np.arange(n),
+                              "blocked": ("scheme", [s in outcome.blocked for s in schemes])})
+    node["loo_scored"].attrs["description"] = "rows PSIS-LOO scored exactly (all but a subsample's others)"
+    return node
 
 
 def _weights(outcome: StudyOutcome) -> xr.Dataset:
@@ -143,7 +177,13 @@ def _diagnostics(outcome: StudyOutcome) -> xr.Dataset:
         "flags": ("law", ["\n".join(w.flags) for w in outcome.laws]),
         "p_loo": ("law", [float(w.loo.p_loo) if w.loo is not None else math.nan for w in outcome.laws]),
         "n_high_k": ("law", [int(w.loo.n_high_k) if w.loo is not None else -1 for w in outcome.laws]),
-    }, coords={"law": laws})
+        "rhat_max": ("law", [float(w.verdict.rhat_max) for w in outcome.laws]),
+        "ess_bulk_min": ("law", [float(w.verdict.ess_bulk_min) for w in outcome.laws]),
+        "n_params": ("law", [sum(max(1, math.prod(p.shape)) for p in w.law.params.values()) for w in outcome.laws]),
+        "evidence_compared": ("law", [w.agreement is not None for w in outcome.laws]),
+        "evidence_disagreement": ("law", [abs(w.agreement.difference) if w.agreement is not None else math.nan
+                                          for w in outcome.laws]),
+    } | _loo_fields(outcome.laws), coords={"law": laws})
     diag["flags"].attrs["description"] = "one line per problem found in the law's results (LawOutcome.flags)"
     diag["n_high_k"].attrs["description"] = "PSIS-LOO points above the Pareto-k threshold; -1: no LOO"
     stages = list(dict.fromkeys(k for w in outcome.laws for k in w.timings))
@@ -152,6 +192,23 @@ def _diagnostics(outcome: StudyOutcome) -> xr.Dataset:
     diag = diag.assign_coords(stage=stages)
     diag["timing"].attrs.update(units="s", description="wall seconds per stage computed in this run (NaN: reused)")
     return diag
+
+
+def _loo_fields(laws: list) -> dict[str, tuple]:
+    """Per law: the largest Pareto k̂ of its PSIS-LOO, and where LOO was subsampled, how."""
+    def k_max(loo) -> float:
+        k = np.asarray(loo.pareto_k, dtype=float) if loo is not None else np.zeros(0)
+        return float(np.nanmax(k)) if np.isfinite(k).any() else math.nan
+
+    subs = [w.loo.subsample if w.loo is not None else None for w in laws]
+    return {
+        "pareto_k_max": ("law", [k_max(w.loo) for w in laws]),
+        "loo_rows_scored": ("law", [int(s.size) if s is not None else -1 for s in subs]),
+        "loo_rows": ("law", [int(s.n_rows) if s is not None else -1 for s in subs]),
+        "loo_subsampling_se": ("law", [float(w.loo.subsampling_se) if s is not None else math.nan
+                                       for w, s in zip(laws, subs, strict=True)]),
+        "loo_subsampled": ("law", [w.loo.subsampled if s is not None else "" for w, s in zip(laws, subs, strict=True)]),
+    }
 
 
 def _checks(outcome: StudyOutcome) -> xr.Dataset:
@@ -240,5 +297,6 @@ def study_tree(outcome: StudyOutcome) -> xr.DataTree:
         ``/``, ``/scores``, ``/pointwise``, :data:`LAW_NODES` and ``/fits/<law>``.
     """
     nodes = {"/": xr.Dataset(attrs=_root_attrs(outcome)), "scores": _scores(outcome),
-             "pointwise": _pointwise(outcome)} | law_nodes(outcome) | _sensitivity(outcome) | _fits(outcome)
+             "criteria": _criteria(outcome), "pointwise": _pointwise(outcome)}
+    nodes |= law_nodes(outcome) | _sensitivity(outcome) | _fits(outcome)
     return xr.DataTree.from_dict(nodes)
