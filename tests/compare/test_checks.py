@@ -131,7 +131,7 @@ def test_ranking_sensitivity_names_the_laws_whose_reweighting_has_high_pareto_k(
     """k̂ above 0.7 (or NaN) at some α makes that law's reweighted elpd approximate, and the
     study's sensitivity sentence says for which law and α."""
     from bayesfric.compare.checks import RankingSensitivity
-    from bayesfric.study.runner import _high_k_note
+    from bayesfric.report.findings import _high_k_note
 
     ks = {1.0: {"a": 0.3, "b": 0.4}, 0.5: {"a": 0.71, "b": 0.2}, 2.0: {"a": 0.9, "b": float("nan")}}
     sens = RankingSensitivity(elpd={}, ranking={}, max_pareto_k=ks, changed=False)
