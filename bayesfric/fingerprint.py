@@ -27,8 +27,10 @@ __all__ = ["code_fingerprint", "package_fingerprint", "law_fingerprint", "data_f
            "unit_key", "program_parts"]
 
 _PACKAGE = Path(__file__).resolve().parent
-#: Parts of the package that only render or parse options: their edits do not change any number.
-_NOT_COMPUTING = ("report", "cli.py", "__main__.py", "study/executor.py", "study/store.py", "study/mainjob.py")
+#: Parts of the package that only render, parse options or assemble the units' results into the
+#: result tree (``study/tree.py``): their edits do not change any unit's number or compiled program.
+_NOT_COMPUTING = ("report", "cli.py", "__main__.py", "study/executor.py", "study/store.py", "study/mainjob.py",
+                  "study/tree.py")
 
 
 @lru_cache(maxsize=1)

@@ -1,8 +1,9 @@
 """The content model of a study report: every section of ``summary.md`` and ``report.html`` as
-plain data, built once from a :class:`~bayesfric.study.outcome.StudyOutcome` and its law × metric
-table; the two templates (``templates/summary.md.j2``, ``templates/report.html.j2``) only lay it
-out. Nothing here computes a statistic: numbers come from the table, the outcome's fields or the
-fits' posterior summaries (:func:`bayesfric.report.tables.parameter_rows`).
+plain data, built once from the study's result tree (:mod:`bayesfric.study.tree`, read through
+:class:`~bayesfric.report.view.TreeView`), the claims' results and the sizing result; the two
+templates (``templates/summary.md.j2``, ``templates/report.html.j2``) only lay it out. Nothing here
+computes a statistic: numbers come from the tree's nodes or the fits' posterior summaries
+(:func:`bayesfric.report.tables.parameter_rows` of ``/fits/<law>``).
 """
 
 from __future__ import annotations
@@ -11,21 +12,24 @@ import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from bayesfric.report import findings as fd
 from bayesfric.report import sizing as sizing_report
 from bayesfric.report.blocks import FigureRef, Table
-from bayesfric.report.figures import provenance_label
-from bayesfric.report.ranking import extrapolation_table, loo_numbers, ranking_records, ranking_table
+from bayesfric.report.figures import provenance_text
+from bayesfric.report.ranking import extrapolation_table, law_flags, loo_numbers, ranking_records, ranking_table
 from bayesfric.report.tables import parameter_rows, retry_note
 from bayesfric.report.typeset import fmt, unit
-from bayesfric.study.outcome import Checks
+from bayesfric.report.view import TreeView
+from bayesfric.study.tree import sensitivity_of
 
 if TYPE_CHECKING:
-    import xarray as xr
+    from bayesfric.sizing import SizingResult
+    from bayesfric.study.claimspec import ClaimResult
 
-    from bayesfric.study.outcome import StudyOutcome
-
-__all__ = ["Table", "FigureRef", "LawSection", "Report", "build", "SECTIONS", "ranking_records"]
+__all__ = ["Table", "FigureRef", "LawSection", "Report", "build", "SECTIONS", "ranking_records", "parameter_records",
+           "TreeView"]
 
 #: (id, heading) of every section in page order; optional ones appear only when they have content.
 SECTIONS = [
@@ -79,11 +83,11 @@ def _num(x: Any, digits: int = 2) -> str:
     return fmt(x, digits=digits) if isinstance(x, float | int) and math.isfinite(x) else "–"
 
 
-def _claims(outcome: StudyOutcome) -> Table | None:
-    if not outcome.claims:
+def _claims(claims: list[ClaimResult]) -> Table | None:
+    if not claims:
         return None
     rows, warn = [], []
-    for i, r in enumerate(outcome.claims):
+    for i, r in enumerate(claims):
         c = r.claim
         pct = c.kind == "ratio"
 
@@ -111,44 +115,60 @@ def _claims(outcome: StudyOutcome) -> Table | None:
     return Table(caption, ["claim", "source", "basis", "claimed", "posterior says", "verdict"], rows, warn)
 
 
-def _law_sections(outcome: StudyOutcome, figures: dict[str, FigureRef]) -> list[LawSection]:
+def parameter_records(t: TreeView) -> list[dict]:
+    """The rows of ``parameters.csv``: every law's posterior summary per scalar parameter
+    (:func:`bayesfric.report.tables.parameter_rows` of ``/fits/<law>``), computed once; the law
+    sections lay out the same rows."""
+    records = []
+    for name in t.laws:
+        for r in parameter_rows(t.fit(name), t.law_object(name)):
+            records.append({"law": name, "parameter": r.name, "unit": r.unit, "mean": r.mean, "sd": r.sd,
+                            "q05": r.q05, "q95": r.q95, "r_hat": r.r_hat, "ess_bulk": r.ess_bulk,
+                            "diagnostics_passed": t.passed(name), "meaning": r.meaning})
+    return records
+
+
+def _law_sections(t: TreeView, parameters: list[dict], figures: dict[str, FigureRef]) -> list[LawSection]:
     out = []
-    for w in outcome.laws:
-        rows = [[r.name, unit(r.unit), fmt(r.mean, r.sd, pm=False), fmt(r.sd, r.sd, pm=False),
-                 f"{fmt(r.q05, r.sd, pm=False)} … {fmt(r.q95, r.sd, pm=False)}", f"{r.r_hat:.3f}",
-                 f"{r.ess_bulk:.0f}", r.meaning] for r in parameter_rows(w.fit, w.law)]
+    for name in t.laws:
+        rows = [[r["parameter"], unit(r["unit"]), fmt(r["mean"], r["sd"], pm=False), fmt(r["sd"], r["sd"], pm=False),
+                 f"{fmt(r['q05'], r['sd'], pm=False)} … {fmt(r['q95'], r['sd'], pm=False)}", f"{r['r_hat']:.3f}",
+                 f"{r['ess_bulk']:.0f}", r["meaning"]] for r in parameters if r["law"] == name]
         table = Table("", ["parameter", "unit", "mean", "sd", "90 % interval", "R-hat", "ESS", "meaning"], rows)
-        out.append(LawSection(w.name, w.law.summary, w.law.source, str(w.verdict) + retry_note(w.fit),
-                              w.law.notes or "", table,
-                              figures.get(w.name)))
+        law = t.law_object(name)
+        out.append(LawSection(name, law.summary, law.source, t.flag(name, "verdict") + retry_note(t.fit(name)),
+                              law.notes or "", table, figures.get(name)))
     return out
 
 
-def _checks(outcome: StudyOutcome, tree: xr.DataTree) -> Table:
+def _checks(t: TreeView) -> Table:
     rows, warn = [], []
-    diag = tree["diagnostics"].to_dataset()
-    for i, w in enumerate(outcome.laws):
-        loo, checks = loo_numbers(diag.sel(law=w.name)), w.checks or Checks()
-        shape = checks.pit_shape.label if checks.pit_shape is not None else "miscalibrated"
-        rows.append([w.name, "passed" if w.reliable else "FAILED", _num(loo["p_loo"], 2),
+    for i, name in enumerate(t.laws):
+        loo, c = loo_numbers(t.law(name)), t.checks.sel(law=name)
+        checked, pit_ok, flags = bool(c["checked"]), bool(c["loo_pit_ok"]), law_flags(t.law(name))
+        shape = str(c["loo_pit_direction"].values) or "miscalibrated"
+        psense = str(c["psense"].values)
+        sensitivity = ("psense flags " + psense if psense else "no parameter flagged by power-scaling (psense)")
+        implausible = float(c["prior_implausible"])
+        rows.append([name, "passed" if t.passed(name) else "FAILED", _num(loo["p_loo"], 2),
                      f"{loo['n_high_k']} (max {_num(loo['pareto_k_max'])})",
-                     _num(checks.loo_pit_pvalue, 2) + ("" if checks.loo_pit_ok else f" ⚠ {shape}"),
-                     f"{checks.prior_implausible:.1%}" if math.isfinite(checks.prior_implausible) else "–",
-                     checks.prior_sensitivity if w.checks else "–", "; ".join(w.flags) or "–",
-                     f"fits/{w.fit_file.name}"])
-        if not w.reliable or not w.loo_pit_ok or w.flags:
+                     _num(float(c["loo_pit_pvalue"]), 2) + ("" if pit_ok else f" ⚠ {shape}"),
+                     f"{implausible:.1%}" if math.isfinite(implausible) else "–",
+                     sensitivity if checked else "–", "; ".join(flags) or "–", str(t.fit(name).attrs["fit_file"])])
+        if not t.passed(name) or not pit_ok or flags:
             warn.append(i)
     header = ["law", "diagnostics", "p_loo", "Pareto k > thr", "LOO-PIT p", "unphysical prior draws",
               "prior sensitivity", "flags", "fit file"]
     return Table("Checks per law. ⚠ = LOO-PIT outside its simultaneous band (miscalibrated), with the direction read "
                  "from the PIT values (bayesfric.compare.pit: too narrow, too wide, biased); each flagged law's "
-                 "LOO-PIT figure follows." + checks_note(outcome), header, rows, warn)
+                 "LOO-PIT figure follows." + checks_note(t), header, rows, warn)
 
 
-def checks_note(outcome: StudyOutcome) -> str:
+def checks_note(t: TreeView) -> str:
     """The sample the checks read when it was a subsample of the rows ("" when every row)."""
-    n = int(outcome.data.sizes.get("obs", 0))
-    read = {len(w.checks.pit) for w in outcome.laws if w.checks is not None and w.checks.pit is not None}
+    n = int(t.attrs.get("n_obs", 0))
+    pit = np.asarray(t.checks["pit"].values, dtype=float).reshape(len(t.laws), -1)
+    read = {int(k) for k in np.isfinite(pit).sum(axis=1) if k > 0}
     if not read or max(read) >= n:
         return ""
     return (f" On data this large (N = {n} rows) LOO-PIT and the prior-power ranking sensitivity read a random "
@@ -156,35 +176,36 @@ def checks_note(outcome: StudyOutcome) -> str:
             "prior predictive check reads every row.")
 
 
-def _data_lines(outcome: StudyOutcome) -> list[str]:
-    st, ds = outcome.study, outcome.data
-    noise = st.noise.kind + (f", partial-pooled offsets per {st.noise.group}" if st.noise.group else "")
-    return [f"data set: {ds.attrs.get('name')} — {ds.attrs.get('title', '')}",
-            f"provenance: {ds.attrs.get('provenance')}; source: {ds.attrs.get('source')}",
-            f"{ds.sizes['obs']} observations; selection: {ds.attrs.get('selection', 'all rows')}; "
-            f"content hash {ds.attrs.get('data_hash')}",
-            f"noise model: {noise}", f"sampler: {st.sampler}"]
+def _data_lines(t: TreeView) -> list[str]:
+    d, a = t.data, t.attrs
+    return [f"data set: {d.get('name')} — {d.get('title', '')}",
+            f"provenance: {d.get('provenance')}; source: {d.get('source')}",
+            f"{a['n_obs']} observations; selection: {d.get('selection', 'all rows')}; "
+            f"content hash {d.get('data_hash')}",
+            f"noise model: {a['noise']}", f"sampler: {a['sampler']}"]
 
 
-def _claim_warnings(outcome: StudyOutcome) -> list[fd.Finding]:
+def _claim_warnings(claims: list[ClaimResult]) -> list[fd.Finding]:
     """The claims' verdicts in the summary: evidence and pipeline checks counted apart."""
     out = []
     for pipeline, what in ((False, "claim(s) of the source paper"),
                            (True, "pipeline check(s) (statements the reconstructed data were built to satisfy)")):
-        bad = [r for r in outcome.claims if r.verdict == "not reproduced" and r.claim.pipeline_check == pipeline]
+        bad = [r for r in claims if r.verdict == "not reproduced" and r.claim.pipeline_check == pipeline]
         if bad:
             out.append(fd.plain(f"{len(bad)} {what} NOT reproduced by the posterior (see the claims section).",
                                 warning=True))
     return out
 
 
-def build(outcome: StudyOutcome, tree: xr.DataTree, figures: list[FigureRef],
-          sizing_figures: dict[int, str]) -> Report:
-    """The report's content model (``tree``: the study's result tree, :mod:`bayesfric.study.tree`,
-    which the ranking tables read alone; ``sizing_figures``: question index -> the fan's reference
-    as the rendering wants it, a file name or an encoded image)."""
-    table = outcome.table
-    ranking, order = ranking_table(tree)
+def build(t: TreeView, parameters: list[dict], figures: list[FigureRef], sizing_figures: dict[int, str],
+          claims: list[ClaimResult] | None = None, sizing: SizingResult | None = None) -> Report:
+    """The report's content model, from the study's result tree (``t``: ranking, findings, checks,
+    law sections, data lines and footer read it alone, :mod:`bayesfric.study.tree`), the
+    parameter rows (:func:`parameter_records`), the figures drawn, the claims' results and the
+    sizing result (``sizing_figures``: question index -> the fan's reference as the rendering
+    wants it, a file name or an encoded image)."""
+    claims = claims or []
+    ranking, order = ranking_table(t)
     by_section: dict[str, list[FigureRef]] = {}
     pair = {}
     for f in figures:
@@ -192,23 +213,23 @@ def build(outcome: StudyOutcome, tree: xr.DataTree, figures: list[FigureRef],
             pair[f.section.split(":", 1)[1]] = f
         else:
             by_section.setdefault(f.section, []).append(f)
-    findings = fd.findings(outcome, table)
-    sizing = []
-    summary = fd.summary_block(outcome, table, _claim_warnings(outcome))
-    if outcome.sizing is not None:
-        headlines = sizing_report.headlines(outcome.sizing)
+    findings = fd.findings(t)
+    sections = []
+    summary = fd.summary_block(t, sizing, _claim_warnings(claims))
+    if sizing is not None:
+        headlines = sizing_report.headlines(sizing)
         findings += headlines
         summary.answers += headlines  # the sizing answer belongs to the decision block too
-        sizing = sizing_report.sections(outcome.sizing, sizing_figures)
+        sections = sizing_report.sections(sizing, sizing_figures)
     rep = Report(
-        title=outcome.study.title, banner=provenance_label(outcome.data),
-        reconstructed=outcome.data.attrs.get("provenance") == "reconstructed",
+        title=str(t.attrs["title"]), banner=provenance_text(t.data),
+        reconstructed=t.data.get("provenance") == "reconstructed",
         summary=summary, findings=findings,
-        claims=_claims(outcome), ranking=ranking,
+        claims=_claims(claims), ranking=ranking,
         ranking_note="Weights exclude fits that failed the diagnostics gate"
-                     + (" (the study asked to include them)." if outcome.study.include_failed else "."),
-        sensitivity=fd.sensitivity_sentence(outcome.sensitivity), extrapolation=extrapolation_table(tree, order),
-        laws=_law_sections(outcome, pair), data_lines=_data_lines(outcome), checks=_checks(outcome, tree),
+                     + (" (the study asked to include them)." if t.attrs["include_failed"] else "."),
+        sensitivity=fd.sensitivity_sentence(sensitivity_of(t.tree)), extrapolation=extrapolation_table(t, order),
+        laws=_law_sections(t, parameters, pair), data_lines=_data_lines(t), checks=_checks(t),
         sizing_intro="Friction opposes motion, so sizing works on magnitudes |T|. Mean function: the law's curve "
                      "with parameter uncertainty only; with noise: plus the fit's observation noise (what a drive "
                      "meets). Every law and point: sizing.csv.",
@@ -216,26 +237,26 @@ def build(outcome: StudyOutcome, tree: xr.DataTree, figures: list[FigureRef],
                        "5–95 % band with noise (excluded laws dotted), the model average and its required capacity "
                        "(dashed), the asked range or point. Read: how fast the laws' bands spread apart beyond the "
                        "tested range — that spread is the sizing risk.",
-        sizing=sizing, figures=by_section,
-        footer=f"Generated by bayesfric in {outcome.seconds:.0f} s{_unit_seconds(outcome)}. Rerun: " + (
-            f"bayesfric study {outcome.study.path}" if outcome.study.path.is_file()
-            else f"bayesfric.run({outcome.study.path}) from Python"),
+        sizing=sections, figures=by_section, footer=_footer(t.attrs),
     )
     present = {"claims": rep.claims is not None, "trajectories": bool(by_section.get("trajectories")),
-               "sizing": bool(sizing)}
+               "sizing": bool(sections)}
     rep.sections = [(k, h) for k, h in SECTIONS if present.get(k, True)]
     return rep
 
 
-def _unit_seconds(outcome) -> str:
-    """``" (units computed in this run: 3 s; reused: 12 units, 812 s of computing saved)"``, from
-    the runner's ``unit_seconds``; empty without it."""
-    seconds = outcome.unit_seconds
-    if seconds is None:
-        return ""
-    text = f" (units computed in this run: {seconds.computed:.0f} s"
-    if seconds.reused:
-        text += f"; reused from earlier runs: {seconds.reused} units, {seconds.saved:.0f} s of computing saved"
-        if seconds.unknown:
-            text += f" ({seconds.unknown} of them stored without their seconds)"
-    return text + ")"
+def _footer(attrs: dict) -> str:
+    """``Generated by bayesfric in 12 s (units computed in this run: 3 s; reused: 12 units, 812 s
+    of computing saved). Rerun: ...`` from the tree's root attrs (:func:`bayesfric.study.tree.run_attrs`)."""
+    text = f"Generated by bayesfric in {attrs.get('seconds', math.nan):.0f} s"
+    if "units_computed_s" in attrs:
+        text += f" (units computed in this run: {attrs['units_computed_s']:.0f} s"
+        if attrs["units_reused"]:
+            text += (f"; reused from earlier runs: {attrs['units_reused']} units, {attrs['units_saved_s']:.0f} s of "
+                     "computing saved")
+            if attrs["units_unknown"]:
+                text += f" ({attrs['units_unknown']} of them stored without their seconds)"
+        text += ")"
+    path = attrs["study_file"]
+    return text + ". Rerun: " + (f"bayesfric study {path}" if attrs["study_file_exists"]
+                                 else f"bayesfric.run({path}) from Python")

@@ -7,7 +7,9 @@ from __future__ import annotations
 import os
 import tempfile
 import textwrap
+from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 import matplotlib as mpl
 import numpy as np
@@ -17,13 +19,18 @@ from matplotlib.text import Text
 
 from bayesfric.report.typeset import unit as unit_text
 
-__all__ = ["plot_sizing_fan", "provenance_label", "banner", "save"]
+__all__ = ["plot_sizing_fan", "provenance_label", "provenance_text", "banner", "save"]
 
 
 def provenance_label(ds: xr.Dataset) -> str:
     """The label every figure and table of a dataset carries (reconstructed / measured / simulated)."""
-    prov = ds.attrs.get("provenance", "?")
-    source = ds.attrs.get("source", "")
+    return provenance_text(ds.attrs)
+
+
+def provenance_text(attrs: Mapping[str, Any]) -> str:
+    """:func:`provenance_label` from a data set's attributes (``provenance``, ``source``)."""
+    prov = attrs.get("provenance", "?")
+    source = attrs.get("source", "")
     if prov == "reconstructed":
         return f"RECONSTRUCTED data (not measured) — reconstructed from {source}"
     if prov == "simulated":

@@ -3,7 +3,9 @@
 A :class:`Finding` is a sentence made of parts, each plain or emphasised (a law's name, a
 headline number); the Markdown and HTML renderings decide how emphasis looks, so no Markdown is
 written here and parsed back. Every verdict comes from the law × metric table
-(:mod:`bayesfric.study.scores`) or a boolean field of the outcome, never from text.
+(:mod:`bayesfric.study.scores`) or a flag of the study's result tree (:mod:`bayesfric.study.tree`,
+read through :class:`bayesfric.report.view.TreeView`), never from text. The sizing answer's basis
+comes from the sizing result itself (:class:`bayesfric.sizing.SizingResult`).
 """
 
 from __future__ import annotations
@@ -20,7 +22,8 @@ from bayesfric.study import scores as sc
 
 if TYPE_CHECKING:
     from bayesfric.compare.checks import RankingSensitivity
-    from bayesfric.study.outcome import StudyOutcome
+    from bayesfric.report.view import TreeView
+    from bayesfric.sizing import SizingResult
 
 __all__ = ["Finding", "Summary", "findings", "summary_block", "plain", "counted_winners", "RECOMMEND_WEIGHT",
            "sensitivity_sentence",
@@ -84,11 +87,11 @@ def _score(table: pd.DataFrame, name: str, c: sc.Criterion) -> str:
     return f"{fmt(row['estimate'], row['se'])} nats"
 
 
-def counted_winners(outcome: StudyOutcome, table: pd.DataFrame) -> list[Finding]:
+def counted_winners(crits: list[sc.Criterion], table: pd.DataFrame) -> list[Finding]:
     """Per criterion whose winner would differ if the laws that may not be ranked were counted
     (a fold failed the gate, ...): who would win, by how much, and why it is not ranked."""
     out = []
-    for c in sc.criteria(outcome):
+    for c in crits:
         winner, counted = sc.best(table, c.metric, c.scheme), sc.best(table, c.metric, c.scheme, counted=True)
         if counted is None or counted == winner:
             continue
@@ -127,54 +130,54 @@ def _asymmetry(a) -> str:
             f"P(> 0) = {a.p_positive:.2f}")
 
 
-def findings(outcome: StudyOutcome, table: pd.DataFrame) -> list[Finding]:
+def findings(t: TreeView) -> list[Finding]:
     """The study's findings: the best law per criterion and the problems that limit them."""
-    crits = sc.criteria(outcome)
-    loo_winner = sc.best(table, "elpd_loo") if outcome.study.loo else None
+    table, crits = t.table, t.crits
+    loo_winner = sc.best(table, "elpd_loo") if t.has_loo else None
     lines = [a for c in crits if (a := _answer(table, c, loo_winner)) is not None]
     if not crits:
         lines.append(plain(NO_CRITERION, warning=True))
-    for w in outcome.laws:  # direction-dependent coefficients (laws.variants): is the asymmetry supported?
-        if w.law.recipe.get("asymmetric"):
-            lines += [_f("Direction asymmetry of ", _law(w.name), f": {_asymmetry(a)}.") for a in asymmetry(w.fit)]
-    lines += counted_winners(outcome, table) + _warnings(outcome)
-    for label, reason in outcome.weight_errors:
+    for name in t.laws:  # direction-dependent coefficients (laws.variants): is the asymmetry supported?
+        if t.law_object(name).recipe.get("asymmetric"):
+            lines += [_f("Direction asymmetry of ", _law(name), f": {_asymmetry(a)}.") for a in asymmetry(t.fit(name))]
+    lines += counted_winners(crits, table) + _warnings(t)
+    for label, reason in t.weight_errors:
         lines.append(plain(f"{label} weights not computed: {reason}", warning=True))
-    if outcome.quick is not None:
-        quick = outcome.quick
-        used = ", ".join(f"{k}={v}" for k, v in quick.settings.items() if k in ("draws", "tune", "chains", "thin"))
-        asked, folds = quick.kfold
+    if t.quick is not None:
+        quick = dict(t.quick)
+        asked, folds = quick.pop("kfold_asked"), quick.pop("kfold_used")
+        used = ", ".join(f"{k}={v}" for k, v in quick.items())
         kfold = f"; random K-fold with {folds} folds (the study asks {asked})" if asked else ""
         lines.append(plain(f"QUICK MODE: sampler {used}{kfold} — a pipeline smoke test, not a basis for decisions.",
                            warning=True))
     return lines
 
 
-def _warnings(outcome: StudyOutcome) -> list[Finding]:
+def _warnings(t: TreeView) -> list[Finding]:
     out = []
-    failed = [w.name for w in outcome.laws if not w.reliable]
+    failed = [name for name in t.laws if not t.passed(name)]
     if failed:
         out.append(plain("Fits that FAILED the diagnostics gate (excluded from weights, marked in tables): "
                          f"{', '.join(failed)}.", warning=True))
-    disagree = [w.name for w in outcome.laws if not w.evidence_agree]
+    disagree = [name for name in t.laws if not t.flag(name, "evidence_agree")]
     if disagree:
         out.append(plain("Evidence estimators disagree beyond their combined error for: "
                          f"{', '.join(disagree)} (left out of the evidence ranking, never averaged).", warning=True))
-    for w in outcome.laws:  # stages a failed fit skipped ([compare] failed_fits, study.units)
-        if w.skipped:
-            out.append(_f(_law(w.name), ": the full fit failed the diagnostics gate, so "
-                          f"{', '.join(w.skipped)} were not computed (compare.failed_fits = "
-                          f"\"{outcome.study.failed_fits}\"; set \"run\" to compute them anyway).", warning=True))
-    pit = [w for w in outcome.laws if not w.loo_pit_ok]
+    for name in t.laws:  # stages a failed fit skipped ([compare] failed_fits, study.units)
+        if skipped := t.flag(name, "skipped"):
+            out.append(_f(_law(name), ": the full fit failed the diagnostics gate, so "
+                          f"{skipped} were not computed (compare.failed_fits = "
+                          f"\"{t.attrs['failed_fits']}\"; set \"run\" to compute them anyway).", warning=True))
+    pit = [name for name in t.laws if not t.flag(name, "loo_pit_ok")]
     if pit:
-        named = ", ".join(w.name + (f" ({w.checks.pit_shape.label})" if w.checks.pit_shape is not None else "")
-                          for w in pit)
+        named = ", ".join(name + (f" ({shape})" if (shape := t.flag(name, "loo_pit_direction")) else "")
+                          for name in pit)
         out.append(plain(f"LOO-PIT miscalibrated (see the LOO-PIT figures under Data and checks): {named}.",
                          warning=True))
-    if outcome.sensitivity is not None and outcome.sensitivity.changed:
+    if t.attrs.get("ranking_changed"):
         out.append(plain("The LOO ranking CHANGES when the priors are scaled (α = 0.5 or 2): the ranking is "
                          "prior-sensitive.", warning=True))
-    unreliable_cv = sorted({w.name for w in outcome.laws if w.reliable and not w.cv_reliable})
+    unreliable_cv = sorted({name for name in t.laws if t.passed(name) and not t.flag(name, "cv_reliable")})
     if unreliable_cv:
         out.append(plain(f"Some cross-validation folds failed the gate for: {', '.join(unreliable_cv)} "
                          "(those scores are not ranked; each keeps its place in the ranking, marked ⚠ with the "
@@ -182,8 +185,7 @@ def _warnings(outcome: StudyOutcome) -> list[Finding]:
     return out
 
 
-def _deciding(outcome: StudyOutcome) -> sc.Criterion | None:
-    crits = sc.criteria(outcome)
+def _deciding(crits: list[sc.Criterion]) -> sc.Criterion | None:
     return next((c for c in crits if c.kind in ("extrapolation", "interpolation")), crits[0] if crits else None)
 
 
@@ -191,10 +193,10 @@ def _weight_key(c: sc.Criterion) -> str:
     return f"stacking {c.scheme}" if c.kind == "extrapolation" else "stacking LOO"
 
 
-def recommendation(outcome: StudyOutcome, table: pd.DataFrame) -> Finding:
+def recommendation(crits: list[sc.Criterion], table: pd.DataFrame) -> Finding:
     """The law to use (or the stacking average), with the reason, from the deciding criterion:
     the first blocked-extrapolation scheme (the study's question), else PSIS-LOO."""
-    c = _deciding(outcome)
+    c = _deciding(crits)
     if c is None:
         return plain("No recommendation: the study has no ranking criterion.", warning=True)
     winner = sc.best(table, c.metric, c.scheme)
@@ -213,12 +215,11 @@ def recommendation(outcome: StudyOutcome, table: pd.DataFrame) -> Finding:
               f"law carries ≥ {RECOMMEND_WEIGHT:.0%} of the weight; ", _law(winner), f" alone has the {why}.")
 
 
-def sizing_basis(outcome: StudyOutcome, table: pd.DataFrame, rec: Finding) -> Finding:
+def sizing_basis(crits: list[sc.Criterion], result: SizingResult | None, rec: Finding) -> Finding:
     """The recommendation with the basis each sizing question uses, read from the sizing result
     (the basis is chosen once there, per question, by the direction it extrapolates in): the
     same weights as the recommendation, or which others and why."""
-    result = getattr(outcome, "sizing", None)
-    c = _deciding(outcome)
+    c = _deciding(crits)
     if result is None or c is None:
         return rec
     key = _weight_key(c).removeprefix("stacking ")
@@ -238,13 +239,13 @@ def sizing_basis(outcome: StudyOutcome, table: pd.DataFrame, rec: Finding) -> Fi
     return Finding(rec.parts + ((" Sizing uses, per question: " + "; ".join(parts) + ".", False),), rec.warning)
 
 
-def no_law_extrapolates(outcome: StudyOutcome, table: pd.DataFrame) -> Finding | None:
+def no_law_extrapolates(blocked: list[str], table: pd.DataFrame) -> Finding | None:
     """The verdict "no law extrapolates" for the first blocked scheme on which every law's
     extrapolation penalty exceeds :data:`bayesfric.sizing.basis.NO_EXTRAPOLATION` nats per
     held-out point (None when some law stays under it on every scheme)."""
     from bayesfric.sizing.basis import NO_EXTRAPOLATION
 
-    for scheme in outcome.blocked:
+    for scheme in blocked:
         rows = table[(table["metric"] == "penalty") & (table["scheme"] == scheme)].dropna(subset=["estimate"])
         # every law with a penalty there (a law whose fit failed the gate has none: it predicts nothing)
         if len(rows) and rows["estimate"].min() > NO_EXTRAPOLATION:
@@ -256,25 +257,27 @@ def no_law_extrapolates(outcome: StudyOutcome, table: pd.DataFrame) -> Finding |
     return None
 
 
-def summary_block(outcome: StudyOutcome, table: pd.DataFrame, extra_warnings: list[Finding] | None = None) -> Summary:
+def summary_block(t: TreeView, sizing: SizingResult | None = None,
+                  extra_warnings: list[Finding] | None = None) -> Summary:
     """The top summary: question, one answer per criterion (after the verdict that no law
-    extrapolates, when that holds), recommendation, decision warnings."""
-    loo_winner = sc.best(table, "elpd_loo") if outcome.study.loo else None
-    crits = sc.criteria(outcome)
+    extrapolates, when that holds), recommendation (with the basis of each sizing question, when
+    ``sizing`` answers some), decision warnings."""
+    table, crits = t.table, t.crits
+    loo_winner = sc.best(table, "elpd_loo") if t.has_loo else None
     answers = [a for c in crits if (a := _answer(table, c, loo_winner)) is not None]
     if not crits:
         answers.append(plain(NO_CRITERION, warning=True))
-    if (verdict := no_law_extrapolates(outcome, table)) is not None:
+    if (verdict := no_law_extrapolates(t.blocked, table)) is not None:
         answers.insert(0, verdict)
-    warnings = counted_winners(outcome, table) + _warnings(outcome) + list(extra_warnings or [])
-    blocked_winners = {sc.best(table, "elpd_cv", s) for s in outcome.blocked}
+    warnings = counted_winners(crits, table) + _warnings(t) + list(extra_warnings or [])
+    blocked_winners = {sc.best(table, "elpd_cv", s) for s in t.blocked}
     if loo_winner and blocked_winners and loo_winner not in blocked_winners:
         warnings.insert(0, _f("The best law inside the tested envelope (", _law(loo_winner), ") is not the best "
                               "outside it: choose by the extrapolation criterion for sizing.", warning=True))
-    if outcome.quick is not None:
+    if t.quick is not None:
         warnings.append(plain("QUICK MODE: short chains and few folds — not a basis for decisions.", warning=True))
-    rec = sizing_basis(outcome, table, recommendation(outcome, table))
-    return Summary(outcome.study.question, answers, rec, warnings)
+    rec = sizing_basis(crits, sizing, recommendation(crits, table))
+    return Summary(str(t.attrs["question"]), answers, rec, warnings)
 
 
 def sensitivity_sentence(sens: RankingSensitivity | None) -> str:

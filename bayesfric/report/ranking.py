@@ -19,6 +19,7 @@ import numpy as np
 
 from bayesfric.report.blocks import Table
 from bayesfric.report.typeset import fmt
+from bayesfric.report.view import TreeView
 from bayesfric.study import scores as sc
 
 if TYPE_CHECKING:
@@ -49,34 +50,13 @@ def _ordinal(n: int) -> str:
     return f"{n}{suffix}"
 
 
-class _Tree:
-    """What the ranking reads from a result tree, taken out once: the law × metric table, the
-    criteria, the blocked schemes and the per-law nodes."""
-
-    def __init__(self, tree: xr.DataTree) -> None:
-        self.table: pd.DataFrame = sc.table_of(tree["scores"].to_dataset())
-        self.crits = sc.criteria_of(tree)
-        self.laws = [str(n) for n in tree["scores"]["law"].values]
-        self.diag = tree["diagnostics"].to_dataset()
-        self.checks = tree["checks"].to_dataset()
-        self.pointwise = tree["pointwise"].to_dataset()
-        schemes = self.pointwise["scheme"]
-        self.blocked = [str(s) for s, b in zip(schemes.values, schemes["blocked"].values, strict=True) if b]
-
-    def law(self, name: str) -> xr.Dataset:
-        return self.diag.sel(law=name)
-
-    def passed(self, name: str) -> bool:
-        return bool(self.law(name)["passed"])
-
-
 def law_flags(diag: xr.Dataset) -> list[str]:
     """A law's flags (``/diagnostics`` ``flags`` of one law), one line each."""
     text = str(diag["flags"].values)
     return text.split("\n") if text else []
 
 
-def _unscored(t: _Tree, name: str, criterion: sc.Criterion) -> str:
+def _unscored(t: TreeView, name: str, criterion: sc.Criterion) -> str:
     if str(t.law(name)["skipped"].values) and criterion.metric in ("elpd_cv", "log_evidence"):
         return "⚠ not scored: the full fit failed the diagnostics gate, so this score was not computed"
     if not t.passed(name):
@@ -84,7 +64,7 @@ def _unscored(t: _Tree, name: str, criterion: sc.Criterion) -> str:
     return "⚠ not scored"
 
 
-def rank_cells(t: _Tree) -> tuple[list[str], dict[str, str]]:
+def rank_cells(t: TreeView) -> tuple[list[str], dict[str, str]]:
     """(laws in ranking order, law -> its rank cell) on the study's first criterion.
 
     A ranked law's cell is its number among the ranked laws; a law that scored but may not be
@@ -108,9 +88,9 @@ def rank_cells(t: _Tree) -> tuple[list[str], dict[str, str]]:
     return order, cells
 
 
-def ranking_table(tree: xr.DataTree) -> tuple[Table, list[str]]:
+def ranking_table(tree: xr.DataTree | TreeView) -> tuple[Table, list[str]]:
     """The ranking table of both documents, and the ranking order."""
-    t = _Tree(tree)
+    t = TreeView.of(tree)
     table, crits = t.table, t.crits
     order, cells = rank_cells(t)
     weight_key = f"stacking {t.blocked[0]}" if t.blocked else "stacking LOO"
@@ -138,7 +118,7 @@ def ranking_table(tree: xr.DataTree) -> tuple[Table, list[str]]:
     return Table(caption + subsample_note(t), header, rows, warn), order
 
 
-def subsample_note(t: _Tree) -> str:
+def subsample_note(t: TreeView) -> str:
     """Where PSIS-LOO was subsampled (data above ``limits.LOO_SUBSAMPLE_ROWS`` rows), one sentence
     per study naming each law's ``subsampled: n of N rows, subsampling se X`` ("" otherwise)."""
     parts = [f"{name} {text}" for name in t.laws if (text := str(t.law(name)["loo_subsampled"].values))]
@@ -149,11 +129,11 @@ def subsample_note(t: _Tree) -> str:
             "approximated rows): " + "; ".join(parts) + ".")
 
 
-def ranking_records(tree: xr.DataTree) -> list[dict]:
+def ranking_records(tree: xr.DataTree | TreeView) -> list[dict]:
     """``ranking.csv``: one row per law in ranking order — its rank cell as the documents show it
     (``rank``), its place by score (``place``), every score of the table in columns, with the
     law's diagnostics and checks."""
-    t = _Tree(tree)
+    t = TreeView.of(tree)
     order, cells = rank_cells(t)
     records = []
     for place, name in enumerate(order, start=1):
@@ -196,7 +176,7 @@ def loo_numbers(diag: xr.Dataset) -> dict:
     return numbers
 
 
-def _loo_on(t: _Tree, name: str, held: np.ndarray | None) -> tuple[float, float]:
+def _loo_on(t: TreeView, name: str, held: np.ndarray | None) -> tuple[float, float]:
     """PSIS-LOO elpd summed over the held-out points of a blocked scheme, and its standard error
     ``sqrt(n var(elpd_i))`` (what the law scores there having trained on them)."""
     if int(t.law(name)["n_high_k"]) < 0 or held is None or not held.any():
@@ -220,11 +200,11 @@ def _subsampled_loo_on(elpd_i: np.ndarray, exact: np.ndarray, held: np.ndarray) 
     return float(n * values.mean()), float(math.sqrt(n * var + n * n * var / m * (1 - m / n)))
 
 
-def extrapolation_table(tree: xr.DataTree, order: list[str]) -> Table | None:
+def extrapolation_table(tree: xr.DataTree | TreeView, order: list[str]) -> Table | None:
     """"Inside vs outside the tested envelope": per blocked scheme, the elpd on its held-out points
     when the law trained on them (PSIS-LOO) and when it did not (the blocked fold), and the
     penalty per point between the two, each ± its standard error."""
-    t = _Tree(tree)
+    t = TreeView.of(tree)
     if not t.blocked:
         return None
     header = ["law"]

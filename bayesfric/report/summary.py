@@ -32,13 +32,13 @@ from bayesfric.csvout import write_csv
 from bayesfric.errors import UserError
 from bayesfric.fsutil import PathError, apply_umask, check_output_folder
 from bayesfric.report import sizing as sizing_report
-from bayesfric.report.content import Table, build, ranking_records
+from bayesfric.report.content import Table, TreeView, build, parameter_records, ranking_records
 from bayesfric.report.findings import Finding
 from bayesfric.report.results import RESULTS, result_tree, write_results
 from bayesfric.report.stored import content_node, figures_node, open_results, read_content, read_figures, table_records
 from bayesfric.report.study_figures import draw
-from bayesfric.report.tables import format_table, parameter_rows
-from bayesfric.study.tree import study_tree
+from bayesfric.report.tables import format_table
+from bayesfric.study.tree import run_attrs, study_tree
 
 if TYPE_CHECKING:
     from bayesfric.study.outcome import StudyOutcome
@@ -124,16 +124,6 @@ def render(content, folder: Path, markdown: bool) -> str:
     return re.sub(r"\n{3,}", "\n\n", text) if markdown else text
 
 
-def _parameter_records(out: StudyOutcome) -> list[dict]:
-    records = []
-    for w in out.laws:
-        for r in parameter_rows(w.fit, w.law):
-            records.append({"law": w.name, "parameter": r.name, "unit": r.unit, "mean": r.mean, "sd": r.sd,
-                            "q05": r.q05, "q95": r.q95, "r_hat": r.r_hat, "ess_bulk": r.ess_bulk,
-                            "diagnostics_passed": w.reliable, "meaning": r.meaning})
-    return records
-
-
 def _claim_records(out: StudyOutcome) -> list[dict]:
     return [{"claim": r.claim.text, "source": r.claim.source, "basis": r.claim.basis or "evidence",
              "evidence": not r.claim.pipeline_check, "kind": r.claim.kind, "law": r.claim.law,
@@ -149,16 +139,22 @@ def write_reports(out: StudyOutcome, folder: Path, tree: xr.DataTree | None = No
     ranking.csv, scores.csv, parameters.csv, claims.csv (with ``[[claims]]``) and sizing.csv (with
     sizing questions). ``folder`` is the runner's work folder, installed atomically afterwards.
 
-    The figures are drawn into ``folder`` first (their bytes go into the tree); every file is then
-    rendered from the tree by :func:`render_report`, the function ``bayesfric report results.nc``
-    calls on the saved tree, so a re-rendering gives the same bytes (tested file by file).
-    ``tree`` is the study's result tree (:func:`bayesfric.study.tree.study_tree`), built from
-    ``out`` when not given. Returns the tree saved as ``results.nc`` (with the report's nodes).
+    The content model (texts, tables, findings) is built from ``tree`` (the study's result tree,
+    :func:`bayesfric.study.tree.study_tree`, built from ``out`` when not given), the claims'
+    results and the sizing result; the figures are still drawn from ``out`` (issue 31 item 1) into
+    ``folder`` first (their bytes go into the tree). Every file is then rendered from the tree by
+    :func:`render_report`, the function ``bayesfric report results.nc`` calls on the saved tree,
+    so a re-rendering gives the same bytes (tested file by file). Returns the tree saved as
+    ``results.nc`` (with the report's nodes).
     """
-    tree = tree if tree is not None else study_tree(out)
+    tree = (tree if tree is not None else study_tree(out)).copy(deep=False)
+    tree.attrs.update(run_attrs(out.seconds, out.unit_seconds))
+    view = TreeView(tree)
     figures, fans = draw(out, folder)
-    content = build(out, tree, figures, {i: f"figures/{p.name}" for i, p in fans.items()})
-    tables: dict = {"ranking": ranking_records(tree), "parameters": _parameter_records(out)}
+    parameters = parameter_records(view)
+    content = build(view, parameters, figures, {i: f"figures/{p.name}" for i, p in fans.items()},
+                    out.claims, out.sizing)
+    tables: dict = {"ranking": ranking_records(view), "parameters": parameters}
     if out.claims:
         tables["claims"] = _claim_records(out)
     if out.sizing is not None:

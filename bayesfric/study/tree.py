@@ -53,17 +53,23 @@ import numpy as np
 import xarray as xr
 
 from bayesfric._version import __version__
-from bayesfric.compare.checks import PARETO_K_RELIABLE
+from bayesfric.compare.checks import PARETO_K_RELIABLE, RankingSensitivity
 from bayesfric.sizing.store import basis_node
 from bayesfric.study.scores import criteria
 
 if TYPE_CHECKING:
-    from bayesfric.study.outcome import StudyOutcome
+    from bayesfric.study.outcome import StudyOutcome, UnitSeconds
 
-__all__ = ["study_tree", "law_nodes", "criterion_name", "FIT_GROUPS", "LAW_NODES"]
+__all__ = ["study_tree", "law_nodes", "criterion_name", "FIT_GROUPS", "LAW_NODES", "DATA_ATTRS", "data_attrs",
+           "run_attrs", "weight_errors", "QUICK_SETTINGS",
+           "sensitivity_of"]
 
 #: Groups of a fit copied into ``/fits/<law>`` (the per-row groups stay in the fit file).
 FIT_GROUPS = ("posterior", "sample_stats", "observed_data", "constant_data")
+#: The data set's attributes the report shows, copied into the root attrs as ``data_<name>``.
+DATA_ATTRS = ("name", "title", "provenance", "source", "selection")
+#: The sampler settings a ``--quick`` run reports in ``/quick``.
+QUICK_SETTINGS = ("draws", "tune", "chains", "thin")
 #: The per-law nodes besides the scores and the fits.
 LAW_NODES = ("weights", "diagnostics", "checks", "sizing_basis")
 
@@ -161,8 +167,22 @@ def _weights(outcome: StudyOutcome) -> xr.Dataset:
             if k in w.weights:
                 value[i, j], excluded[i, j] = w.weights[k].value, w.weights[k].excluded
     dims = ("law", "weighting")
-    return xr.Dataset({"weight": (dims, value), "excluded": (dims, excluded.astype(str))},
-                      coords={"law": laws, "weighting": names})
+    failed = [label for label, _ in outcome.weight_errors]
+    node = xr.Dataset({"weight": (dims, value), "excluded": (dims, excluded.astype(str)),
+                       "not_computed": ("failed_weighting", np.array([why for _, why in outcome.weight_errors],
+                                                                     dtype=object).astype(str))},
+                      coords={"law": laws, "weighting": names, "failed_weighting": np.array(failed, dtype=str)})
+    node["not_computed"].attrs["description"] = "why a weighting was not computed at all (none when all were)"
+    return node
+
+
+def weight_errors(tree: xr.DataTree) -> list[tuple[str, str]]:
+    """The weightings a study could not compute, and why (``/weights`` ``not_computed``)."""
+    node = tree["weights"]
+    if "not_computed" not in node:
+        return []
+    return [(str(k), str(v)) for k, v in zip(node["failed_weighting"].values, node["not_computed"].values,
+                                             strict=True)]
 
 
 def _diagnostics(outcome: StudyOutcome) -> xr.Dataset:
@@ -171,6 +191,7 @@ def _diagnostics(outcome: StudyOutcome) -> xr.Dataset:
         "passed": ("law", [bool(w.verdict.passed) for w in outcome.laws]),
         "problems": ("law", ["; ".join(w.verdict.problems) for w in outcome.laws]),
         "evidence_agree": ("law", [bool(w.evidence_agree) for w in outcome.laws]),
+        "cv_reliable": ("law", [bool(w.cv_reliable) for w in outcome.laws]),
         "skipped": ("law", [", ".join(w.skipped) for w in outcome.laws]),
         "seconds": ("law", [float(w.seconds) for w in outcome.laws]),
         "verdict": ("law", [str(w.verdict) for w in outcome.laws]),
@@ -221,6 +242,7 @@ def _checks(outcome: StudyOutcome) -> xr.Dataset:
         "loo_pit_direction": ("law", [c.pit_shape.label if c and c.pit_shape is not None else "" for c in checks]),
         "psense": ("law", [", ".join(c.psense) if c else "" for c in checks]),
         "ci_prob": ("law", [c.ci_prob if c else nan for c in checks]),
+        "checked": ("law", [c is not None for c in checks]),
     }, coords={"law": [w.name for w in outcome.laws]})
     pits = [np.asarray(c.pit, dtype=float).ravel() if c is not None and c.pit is not None else np.zeros(0)
             for c in checks]
@@ -254,11 +276,17 @@ def _attr_ok(value) -> bool:
 
 
 def _root_attrs(outcome: StudyOutcome) -> dict:
-    return {"study": outcome.study.name, "dataset": str(outcome.data.attrs.get("name", "")),
-            "data_hash": str(outcome.data.attrs.get("data_hash", "")), "bayesfric_version": __version__,
+    st, data = outcome.study, outcome.data
+    noise = st.noise.kind + (f", partial-pooled offsets per {st.noise.group}" if st.noise.group else "")
+    return {"study": st.name, "dataset": str(data.attrs.get("name", "")),
+            "data_hash": str(data.attrs.get("data_hash", "")), "bayesfric_version": __version__,
             "schemes": "; ".join(outcome.schemes), "blocked_schemes": "; ".join(outcome.blocked),
             "quick": int(outcome.quick is not None),
-            "ranking_changed": int(outcome.sensitivity is not None and outcome.sensitivity.changed)}
+            "ranking_changed": int(outcome.sensitivity is not None and outcome.sensitivity.changed),
+            "title": st.title, "question": st.question, "study_file": str(st.path),
+            "study_file_exists": int(st.path.is_file()), "include_failed": int(st.include_failed),
+            "failed_fits": st.failed_fits, "noise": noise, "sampler": str(st.sampler), "n_obs": int(data.sizes["obs"])
+            } | {f"data_{k}": str(v) for k in DATA_ATTRS if (v := data.attrs.get(k)) is not None}
 
 
 def _sensitivity(outcome: StudyOutcome) -> dict[str, xr.Dataset]:
@@ -282,6 +310,48 @@ def _sensitivity(outcome: StudyOutcome) -> dict[str, xr.Dataset]:
     return {"ranking_sensitivity": node}
 
 
+def sensitivity_of(tree: xr.DataTree) -> RankingSensitivity | None:
+    """The ranking's prior sensitivity back from ``/ranking_sensitivity`` (None when the study
+    did not compute it: fewer than two fits)."""
+    if "ranking_sensitivity" not in tree.children:
+        return None
+    node = tree["ranking_sensitivity"]
+    laws = [str(n) for n in node["law"].values]
+    elpd, max_k, ranking = {}, {}, {}
+    for a in node["alpha"].values:
+        at = node.sel(alpha=a)
+        elpd[float(a)] = dict(zip(laws, map(float, at["elpd"].values), strict=True))
+        max_k[float(a)] = dict(zip(laws, map(float, at["max_pareto_k"].values), strict=True))
+        place = {n: int(p) for n, p in zip(laws, at["place"].values, strict=True) if p > 0}
+        ranking[float(a)] = sorted(place, key=place.__getitem__)
+    return RankingSensitivity(elpd, ranking, max_k, bool(node.attrs["changed"]))
+
+
+def _quick(outcome: StudyOutcome) -> dict[str, xr.Dataset]:
+    """``/quick``: the settings a ``--quick`` run capped (none otherwise)."""
+    if outcome.quick is None:
+        return {}
+    asked, used = outcome.quick.kfold
+    attrs = {k: v for k, v in outcome.quick.settings.items() if k in QUICK_SETTINGS}
+    return {"quick": xr.Dataset(attrs=attrs | {"kfold_asked": int(asked), "kfold_used": int(used)})}
+
+
+def data_attrs(tree: xr.DataTree) -> dict[str, str]:
+    """The data set's attributes the tree keeps (:data:`DATA_ATTRS`, ``data_hash``) under their own names."""
+    out = {k: str(tree.attrs[f"data_{k}"]) for k in DATA_ATTRS if f"data_{k}" in tree.attrs}
+    return out | {"data_hash": str(tree.attrs.get("data_hash", ""))}
+
+
+def run_attrs(seconds: float, unit_seconds: UnitSeconds | None) -> dict[str, float | int]:
+    """Root attrs of a finished run: its wall ``seconds`` and, when known, what its units cost
+    (``units_computed_s``, ``units_reused``, ``units_saved_s``, ``units_unknown``)."""
+    attrs: dict[str, float | int] = {"seconds": float(seconds)}
+    if unit_seconds is not None:
+        attrs |= {"units_computed_s": float(unit_seconds.computed), "units_reused": int(unit_seconds.reused),
+                  "units_saved_s": float(unit_seconds.saved), "units_unknown": int(unit_seconds.unknown)}
+    return attrs
+
+
 def study_tree(outcome: StudyOutcome) -> xr.DataTree:
     """The study's results as one DataTree (layout in the module docstring), from its outcome
     after the weights and the score table (``outcome.table``).
@@ -298,5 +368,5 @@ def study_tree(outcome: StudyOutcome) -> xr.DataTree:
     """
     nodes = {"/": xr.Dataset(attrs=_root_attrs(outcome)), "scores": _scores(outcome),
              "criteria": _criteria(outcome), "pointwise": _pointwise(outcome)}
-    nodes |= law_nodes(outcome) | _sensitivity(outcome) | _fits(outcome)
+    nodes |= law_nodes(outcome) | _sensitivity(outcome) | _quick(outcome) | _fits(outcome)
     return xr.DataTree.from_dict(nodes)

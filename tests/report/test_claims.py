@@ -150,14 +150,14 @@ def test_basis_is_rendered_in_the_table_csv_and_summary(study, tmp_path):
         claim(kind="best", law="coulomb_viscous", metric="elpd_loo", basis="evidence"),
         claim(kind="best", law="coulomb_viscous", metric="elpd_loo"),  # measured/simulated data: evidence
     ], study_tree(out))
-    table = _claims(out)
+    table = _claims(out.claims)
     basis = table.header.index("basis")
     assert [row[basis] for row in table.rows] == ["pipeline check, not evidence", "evidence", "evidence"]
     assert "pipeline check, not evidence" in table.caption
     records = _claim_records(out)
     assert [(r["basis"], r["evidence"]) for r in records] == [
         ("pipeline check", False), ("evidence", True), ("evidence", True)]
-    lines = [" ".join(p for p, _ in f.parts) for f in _claim_warnings(out)]
+    lines = [" ".join(p for p, _ in f.parts) for f in _claim_warnings(out.claims)]
     assert any("1 pipeline check(s)" in line and "NOT reproduced" in line for line in lines)
     assert not any("claim(s) of the source paper NOT" in line for line in lines)  # no evidence claim failed
 

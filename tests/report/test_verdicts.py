@@ -3,8 +3,6 @@ with a penalty on a blocked fold loses more than NO_EXTRAPOLATION nats per held-
 
 from __future__ import annotations
 
-from types import SimpleNamespace
-
 import pandas as pd
 
 from bayesfric.report.findings import no_law_extrapolates
@@ -17,19 +15,17 @@ def _table(penalties: dict[str, float], scheme: str = "train low, score high") -
     return pd.DataFrame(rows, columns=["law", "metric", "scheme", "estimate", "se", "reliable", "reason"])
 
 
-def _outcome(names):
-    return SimpleNamespace(blocked=["train low, score high"], laws=[SimpleNamespace(name=n) for n in names])
+BLOCKED = ["train low, score high"]
 
 
 def test_every_law_losing_more_than_the_threshold_is_a_verdict():
-    outcome = _outcome(["a", "b", "skipped_law"])  # the skipped law has no penalty: it predicts nothing
-    verdict = no_law_extrapolates(outcome, _table({"a": NO_EXTRAPOLATION + 8.2, "b": NO_EXTRAPOLATION + 0.1}))
+    # the skipped law has no penalty: it predicts nothing
+    verdict = no_law_extrapolates(BLOCKED, _table({"a": NO_EXTRAPOLATION + 8.2, "b": NO_EXTRAPOLATION + 0.1}))
     assert verdict is not None and verdict.warning
     assert verdict.text.startswith("NO LAW EXTRAPOLATES along 'train low, score high'")
     assert "the least, b," in verdict.text
 
 
 def test_one_law_under_the_threshold_is_no_verdict():
-    outcome = _outcome(["a", "b"])
-    assert no_law_extrapolates(outcome, _table({"a": NO_EXTRAPOLATION + 8.0, "b": NO_EXTRAPOLATION - 0.5})) is None
-    assert no_law_extrapolates(_outcome(["a"]), _table({})) is None  # no penalty at all: nothing to say
+    assert no_law_extrapolates(BLOCKED, _table({"a": NO_EXTRAPOLATION + 8.0, "b": NO_EXTRAPOLATION - 0.5})) is None
+    assert no_law_extrapolates(BLOCKED, _table({})) is None  # no penalty at all: nothing to say
