@@ -24,17 +24,18 @@ def main(study: str) -> None:
     seen: dict = {}
     real_draw, real_write = summary.draw, summary.write_reports
 
-    def draw(outcome, folder):
+    def draw(*args, **kwargs):
         t = time.perf_counter()
-        result = real_draw(outcome, folder)
+        result = real_draw(*args, **kwargs)
         seen["figures"] = time.perf_counter() - t
         return result
 
-    def write(outcome, folder):
+    def write(tree, *args, **kwargs):
         t = time.perf_counter()
-        real_write(outcome, folder)
+        written = real_write(tree, *args, **kwargs)
         seen["report"] = time.perf_counter() - t
-        seen["fits"] = [w.timings["fit"] for w in outcome.laws]
+        seen["fits"] = [float(s) for s in tree["diagnostics"]["timing"].sel(stage="fit").values]
+        return written
 
     summary.draw, summary.write_reports = draw, write
     with tempfile.TemporaryDirectory() as tmp:

@@ -20,7 +20,9 @@ from matplotlib.figure import Figure
 from bayesfric.report.figures import banner, save
 
 if TYPE_CHECKING:
-    from bayesfric.study.outcome import LawOutcome, StudyOutcome
+    import xarray as xr
+
+    from bayesfric.report.view import TreeView
 
 __all__ = ["plot_loo_pit", "pit_caption", "BINS"]
 
@@ -28,12 +30,13 @@ __all__ = ["plot_loo_pit", "pit_caption", "BINS"]
 BINS = 20
 
 
-def plot_loo_pit(outcome: StudyOutcome, w: LawOutcome, path: Path) -> Path | None:
-    """The LOO-PIT figure of law ``w`` (None when its checks stored no PIT values)."""
-    checks = w.checks
-    if checks is None or checks.pit is None or len(checks.pit) < 2:
+def plot_loo_pit(t: TreeView, name: str, ds: xr.Dataset, path: Path) -> Path | None:
+    """The LOO-PIT figure of law ``name`` from the tree's ``/checks`` (None when its checks stored
+    fewer than two PIT values); ``ds`` gives the provenance banner."""
+    pit, band, shape = t.pit(name)
+    if pit.size < 2:
         return None
-    pit = np.clip(np.asarray(checks.pit, dtype=float), 0.0, 1.0)
+    pit = np.clip(pit, 0.0, 1.0)
     fig = Figure(figsize=(9.0, 3.6), layout="constrained")
     left, right = fig.subplots(1, 2)
     n = pit.size
@@ -47,10 +50,10 @@ def plot_loo_pit(outcome: StudyOutcome, w: LawOutcome, path: Path) -> Path | Non
     left.legend(fontsize=8, loc="upper center")
     grid = np.linspace(0.0, 1.0, 1001)  # the difference falls between jumps: evaluated, not stepped
     ecdf = np.searchsorted(np.sort(pit), grid, side="right") / n
-    if checks.pit_band is not None:
-        points, lower, upper = np.asarray(checks.pit_band, dtype=float)
+    if band is not None:
+        points, lower, upper = band
         right.fill_between(points, lower - points, upper - points, color="0.88", lw=0,
-                           label=f"{checks.ci_prob:.0%} simultaneous band")
+                           label=f"{t.flag(name, 'ci_prob'):.0%} simultaneous band")
     right.plot(grid, ecdf - grid, color="tab:blue", lw=1.4, label="ECDF − uniform")
     right.axhline(0.0, color="k", lw=1)
     right.set_xlabel("LOO-PIT value", fontsize=10)
@@ -59,21 +62,20 @@ def plot_loo_pit(outcome: StudyOutcome, w: LawOutcome, path: Path) -> Path | Non
     for ax in (left, right):
         ax.set_xlim(0, 1)
         ax.tick_params(labelsize=9)
-    shape = checks.pit_shape
     label = shape.label if shape is not None else "miscalibrated"
-    left.set_title(f"{w.name}: {label}", fontsize=11, loc="left")
-    banner(fig, outcome.data)
+    left.set_title(f"{name}: {label}", fontsize=11, loc="left")
+    banner(fig, ds)
     return save(fig, path)
 
 
-def pit_caption(w: LawOutcome, outcome: StudyOutcome | None = None) -> str:
-    """What the LOO-PIT figure of ``w`` shows and how to read it, with the direction in words."""
-    shape = w.checks.pit_shape if w.checks is not None else None
+def pit_caption(t: TreeView, name: str) -> str:
+    """What the LOO-PIT figure of law ``name`` shows and how to read it, with the direction in words."""
+    shape = t.pit(name)[2]
     said = shape.text() if shape is not None else "the PIT values were not stored"
-    n = int(outcome.data.sizes.get("obs", 0)) if outcome is not None else 0
+    n = int(t.attrs.get("n_obs", 0))
     sample = (f"{shape.n} observations, a random subsample of the {n} rows" if shape is not None and 0 < shape.n < n
               else f"{shape.n if shape is not None else '?'} observations")
-    return (f"LOO-PIT of {w.name} ({sample}): {said}. Left: histogram "
+    return (f"LOO-PIT of {name} ({sample}): {said}. Left: histogram "
             "against the flat density of a calibrated law (grey: ± 2 sd of a bin); right: the ECDF minus the uniform "
             "CDF against the simultaneous band the check tested. Read: a U-shaped histogram (ECDF difference above "
             "zero on the left, below on the right) means intervals too narrow, a hump (below, then above) too wide, "

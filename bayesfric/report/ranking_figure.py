@@ -24,7 +24,10 @@ from bayesfric.report.figures import banner, save
 from bayesfric.study import scores as sc
 
 if TYPE_CHECKING:
-    from bayesfric.study.outcome import StudyOutcome
+    import pandas as pd
+    import xarray as xr
+
+    from bayesfric.report.view import TreeView
 
 __all__ = ["plot_ranking", "wrap_name", "WIDTH", "FONT"]
 
@@ -60,8 +63,7 @@ def _title(group: list[sc.Criterion]) -> str:
     return "\n".join(textwrap.wrap(group[0].label, 44))
 
 
-def _panel(ax, outcome: StudyOutcome, order: list[str], group: list[sc.Criterion], y: np.ndarray) -> None:
-    table = outcome.table
+def _panel(ax, table: pd.DataFrame, order: list[str], group: list[sc.Criterion], y: np.ndarray) -> None:
     step = 0.22 if len(group) > 1 else 0.0
     for k, c in enumerate(group):
         offset = step * (k - (len(group) - 1) / 2)
@@ -83,13 +85,13 @@ def _panel(ax, outcome: StudyOutcome, order: list[str], group: list[sc.Criterion
     ax.set_ylim(-0.6, len(order) - 0.4)
 
 
-def plot_ranking(outcome: StudyOutcome, path: Path) -> Path:
+def plot_ranking(t: TreeView, ds: xr.Dataset, path: Path) -> Path:
     """One panel per criterion (blocked elpd, LOO elpd, other CV, log evidence), stacked: each
     law's estimate ± 1 se in ranking order, the ranked winner's value as a dashed line, results
     that may not be ranked as red crosses (the layout of arviz compare plots, one panel per
     scale, in one column so that it reads on a phone)."""
-    crits = sc.criteria(outcome)
-    order = sc.ranking_order(outcome.table, [w.name for w in outcome.laws], crits[0] if crits else None)
+    crits = t.crits
+    order = sc.ranking_order(t.table, t.laws, crits[0] if crits else None)
     panels = _panels(crits) or [[]]
     labels = [wrap_name(n) for n in order]
     lines = sum(label.count("\n") + 1 for label in labels)
@@ -99,7 +101,7 @@ def plot_ranking(outcome: StudyOutcome, path: Path) -> Path:
     y = np.arange(len(order))[::-1]
     for ax, group in zip(axes, panels, strict=True):
         if group:
-            _panel(ax, outcome, order, group, y)
+            _panel(ax, t.table, order, group, y)
         ax.set_yticks(y, labels, fontsize=FONT - 1)
-    banner(fig, outcome.data)
+    banner(fig, ds)
     return save(fig, path)

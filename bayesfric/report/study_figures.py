@@ -1,4 +1,6 @@
-"""The figures of a study report, drawn from the outcome and its law × metric table.
+"""The figures of a study report, drawn from the study's result tree (its law × metric table,
+held-out rows and checks, through :class:`~bayesfric.report.view.TreeView`), the data set and
+the full fits (their predictive draws).
 
 Every figure is a bare matplotlib :class:`~matplotlib.figure.Figure` (Agg canvas, no pyplot
 state, the user's backend untouched), carries the data's provenance banner
@@ -42,7 +44,13 @@ from bayesfric.report.typeset import unit
 from bayesfric.study import scores as sc
 
 if TYPE_CHECKING:
-    from bayesfric.study.outcome import LawOutcome, StudyOutcome
+    from collections.abc import Mapping
+
+    import xarray as xr
+
+    from bayesfric.laws.base import Law
+    from bayesfric.report.view import TreeView
+    from bayesfric.sizing import SizingResult
 
 __all__ = ["draw", "plot_ranking", "plot_penalty", "plot_bands", "plot_pairs", "plot_trajectories", "MAX_DRAWS"]
 
@@ -76,24 +84,23 @@ def _shown(ds, name: str, values) -> np.ndarray:
     return (np.asarray(values, dtype=float) - offset) / scale
 
 
-def _order(outcome: StudyOutcome) -> list[str]:
+def _order(t: TreeView) -> list[str]:
     """The laws in ranking order on the study's first criterion; in the study's order when it has
     none (``loo = false``, ``evidence = false``, no folds: the report says so)."""
-    crits = sc.criteria(outcome)
-    return sc.ranking_order(outcome.table, [w.name for w in outcome.laws], crits[0] if crits else None)
+    return sc.ranking_order(t.table, t.laws, t.crits[0] if t.crits else None)
 
 
-def plot_penalty(outcome: StudyOutcome, path: Path) -> Path:
+def plot_penalty(t: TreeView, ds: xr.Dataset, path: Path) -> Path:
     """Extrapolation penalty per law and blocked scheme, ± 1 standard error: nats per held-out
     point lost outside the tested envelope relative to inside it (0 = extrapolates as well as it
     interpolates)."""
-    table = outcome.table
-    order = _order(outcome)
+    table = t.table
+    order = _order(t)
     fig = Figure(figsize=(8.5, 0.42 * len(order) + 1.6), layout="constrained")
     ax = fig.subplots()
     y = np.arange(len(order))[::-1]
-    step = 0.8 / max(1, len(outcome.blocked))
-    for k, (scheme, colour) in enumerate(zip(outcome.blocked, _colours(), strict=False)):
+    step = 0.8 / max(1, len(t.blocked))
+    for k, (scheme, colour) in enumerate(zip(t.blocked, _colours(), strict=False)):
         label = scheme  # on the scheme's first point (laws without a penalty have none)
         for yi, name in zip(y, order, strict=True):
             row = sc.value(table, name, "penalty", scheme)
@@ -111,7 +118,7 @@ def plot_penalty(outcome: StudyOutcome, path: Path) -> Path:
     ax.set_xlabel("extrapolation penalty [nats per held-out point] (lower is better)")
     if ax.get_legend_handles_labels()[1]:
         ax.legend(fontsize=7, loc="best")
-    banner(fig, outcome.data)
+    banner(fig, ds)
     return save(fig, path)
 
 
@@ -144,15 +151,14 @@ def _band(ds, response: str, fit) -> np.ndarray:
     return out
 
 
-def plot_bands(outcome: StudyOutcome, axis: str, path: Path, heldout: np.ndarray | None) -> Path:
+def plot_bands(t: TreeView, ds: xr.Dataset, fits: Mapping[str, xr.DataTree], axis: str, path: Path,
+               heldout: np.ndarray | None) -> Path:
     """One panel per law (best first, at most :data:`MAX_PANELS`): data against ``axis``, the
     law's posterior-predictive mean and 90 % band, the trained region shaded, held-out points
     marked. With several inputs the band is drawn per observation (vertical bars)."""
-    ds = outcome.data
     response = ds.attrs["response"]
     x, y = _shown(ds, axis, ds[axis].values), _shown(ds, response, ds[response].values)
-    order = _order(outcome)[:MAX_PANELS]
-    fits = {w.name: w.fit for w in outcome.laws}
+    order = _order(t)[:MAX_PANELS]
     one_input = sum(v.attrs.get("role") == "input" for v in ds.coords.values()) == 1
     cols = min(3, len(order))
     rows = math.ceil(len(order) / cols)
@@ -182,14 +188,14 @@ def plot_bands(outcome: StudyOutcome, axis: str, path: Path, heldout: np.ndarray
     return save(fig, path)
 
 
-def plot_pairs(outcome: StudyOutcome, w: LawOutcome, path: Path) -> Path | None:
+def plot_pairs(fit: xr.DataTree, law: Law, ds: xr.Dataset, path: Path) -> Path | None:
     """Pairwise scatter of a law's scalar coefficients (at most 5, :data:`MAX_DRAWS` draws), with
     units; correlated coefficients show as slanted clouds. None for a one-parameter law."""
-    post = w.fit["posterior"]
-    names = [k for k, p in w.law.params.items() if not p.shape and k in post][:5]
+    post = fit["posterior"]
+    names = [k for k, p in law.params.items() if not p.shape and k in post][:5]
     if len(names) < 2:
         return None
-    draws = {k: _draws(w.fit, "posterior", k)[:, 0] for k in names}
+    draws = {k: _draws(fit, "posterior", k)[:, 0] for k in names}
     n = len(names)
     # fixed margins, not the constrained layout: it measured every label of the n × n grid
     # again and again (0.4 of the ~1 s a 5 × 5 grid took); nor trimmed on saving (another 0.3 s)
@@ -213,10 +219,10 @@ def plot_pairs(outcome: StudyOutcome, w: LawOutcome, path: Path) -> Path | None:
                         color="crimson" if abs(r) > 0.7 else "k")
             ax.tick_params(labelsize=6)
             if i == n - 1:
-                ax.set_xlabel(f"{b} [{unit(w.law.params[b].unit)}]", fontsize=7)
+                ax.set_xlabel(f"{b} [{unit(law.params[b].unit)}]", fontsize=7)
             if j == 0 and i > 0:
-                ax.set_ylabel(f"{a} [{unit(w.law.params[a].unit)}]", fontsize=7)
-    banner(fig, outcome.data)
+                ax.set_ylabel(f"{a} [{unit(law.params[a].unit)}]", fontsize=7)
+    banner(fig, ds)
     return save(fig, path, trim=False)
 
 
@@ -226,25 +232,23 @@ def _path_axis(ds, law) -> str:
                 next(k for k in ("angle", "displacement", "time") if k in inputs))
 
 
-def plot_trajectories(outcome: StudyOutcome, path: Path) -> Path | None:
+def plot_trajectories(t: TreeView, ds: xr.Dataset, fits: Mapping[str, xr.DataTree], path: Path) -> Path | None:
     """Measured vs predicted trajectories (hysteresis loops, coast-downs) for the best two laws,
     one panel per trajectory (at most :data:`MAX_TRAJECTORIES`, evenly chosen); held-out
     trajectories say so in their title. None when the data have no trajectories."""
-    ds = outcome.data
     key = ds.attrs.get("trajectory")
     if not key:
         return None
-    order = _order(outcome)[:2]
-    laws = {w.name: w for w in outcome.laws}
-    axis = _path_axis(ds, laws[order[0]].law)
+    order = _order(t)[:2]
+    axis = _path_axis(ds, t.law_object(order[0]))
     ids = list(dict.fromkeys(np.asarray(ds[key].values).tolist()))
     ids = [ids[i] for i in np.unique(np.linspace(0, len(ids) - 1, min(MAX_TRAJECTORIES, len(ids))).astype(int))]
-    held = outcome.heldout.get(outcome.blocked[0]) if outcome.blocked else None
+    held = t.heldout(t.blocked[0]) if t.blocked else None
     response = ds.attrs["response"]
     cols = min(3, len(ids))
     fig = Figure(figsize=(4.0 * cols, 3.0 * math.ceil(len(ids) / cols) + 0.6), layout="constrained")
     axes = np.atleast_1d(fig.subplots(math.ceil(len(ids) / cols), cols, squeeze=False)).ravel()
-    bands = {name: _band(ds, response, laws[name].fit) for name in order}
+    bands = {name: _band(ds, response, fits[name]) for name in order}
     values = np.asarray(ds[key].values)
     for ax, tid in zip(axes, ids, strict=False):
         m = values == tid
@@ -266,62 +270,61 @@ def plot_trajectories(outcome: StudyOutcome, path: Path) -> Path | None:
     return save(fig, path)
 
 
-def _band_axes(outcome: StudyOutcome) -> list[tuple[str, np.ndarray | None]]:
-    ds = outcome.data
+def _band_axes(t: TreeView, ds: xr.Dataset) -> list[tuple[str, np.ndarray | None]]:
     inputs = [k for k, v in ds.coords.items() if v.attrs.get("role") == "input"]
     if ds.attrs.get("trajectory"):  # along a path the trajectory panels say more; bands over condition inputs
         inputs = [k for k in inputs if k not in ("angle", "displacement", "time", "velocity")] or inputs
-    axes = list(dict.fromkeys([b.axis for b in outcome.study.blocked if b.axis in inputs] + inputs))
-    held = {b.axis: outcome.heldout.get(label) for label, b in zip(outcome.blocked, outcome.study.blocked,
-                                                                      strict=False)}
+    blocked = t.blocked_axes
+    axes = list(dict.fromkeys([a for a in blocked.values() if a in inputs] + inputs))
+    held = {a: t.heldout(label) for label, a in blocked.items()}
     return [(a, held.get(a)) for a in axes[:2]]
 
 
-def draw(outcome: StudyOutcome, folder: Path) -> tuple[list[FigureRef], dict[int, Path]]:
+def draw(t: TreeView, ds: xr.Dataset, fits: Mapping[str, xr.DataTree], folder: Path,
+         sizing: SizingResult | None = None) -> tuple[list[FigureRef], dict[int, Path]]:
     """Every figure of the report into ``folder/figures``: (references with captions, sizing fans
-    by question index)."""
+    by question index). The scores, order, held-out rows and checks come from the result tree
+    (``t``); the data set gives the points and the banner; ``fits`` (the full fits, with their
+    predictive draws) the bands; ``sizing`` the fans."""
     fdir = folder / "figures"
     refs = []
-    crit = sc.criteria(outcome)
-    if crit:
-        plot_ranking(outcome, fdir / "ranking.png")
+    if t.crits:
+        plot_ranking(t, ds, fdir / "ranking.png")
         refs.append(FigureRef("ranking", "figures/ranking.png",
                               "Each law's score ± 1 standard error per criterion, best first; the dashed line is the "
                               "best ranked law. Read: is the leader separated from the next by more than the error "
                               "bars? Red crosses: results that may not be ranked, shown where they scored (the reason "
                               "is in the table's rank column).", "ranking plot"))
-    if outcome.blocked and outcome.study.loo:
-        plot_penalty(outcome, fdir / "penalty.png")
+    if t.blocked and t.has_loo:
+        plot_penalty(t, ds, fdir / "penalty.png")
         refs.append(FigureRef("extrapolation", "figures/penalty.png",
                               "Nats per held-out point each law loses outside the tested envelope compared with "
                               "inside it, ± 1 standard error. Read: a long bar means the law fits the tested range but "
                               "should not be trusted beyond it.", "extrapolation penalty"))
-    for axis, held in _band_axes(outcome):
-        plot_bands(outcome, axis, fdir / f"bands_{axis}.png", held)
+    for axis, held in _band_axes(t, ds):
+        plot_bands(t, ds, fits, axis, fdir / f"bands_{axis}.png", held)
         refs.append(FigureRef("extrapolation", f"figures/bands_{axis}.png",
                               f"Posterior-predictive median and 90 % band of each law over {axis}; green: the region "
                               "the blocked fit trained on, red circles: held-out points (bands are from the full "
                               "fit). Read: where the bands leave the data, the law fails.", f"bands over {axis}"))
-    if plot_trajectories(outcome, fdir / "trajectories.png") is not None:
+    if plot_trajectories(t, ds, fits, fdir / "trajectories.png") is not None:
         refs.append(FigureRef("trajectories", "figures/trajectories.png",
                               "Measured trajectories (dots) against the two best-ranked laws' posterior-predictive "
                               "medians (from the full fit), per condition; conditions held out by the first blocked "
                               "scheme are titled in red. Read: does the law follow the loop or coast-down shape, "
                               "and does it keep doing so at the held-out conditions?", "trajectories"))
-    for w in outcome.laws:
-        if plot_pairs(outcome, w, fdir / f"pairs_{w.name}.png") is not None:
-            refs.append(FigureRef(f"parameters:{w.name}", f"figures/pairs_{w.name}.png",
+    for name in t.laws:
+        if plot_pairs(t.fit(name), t.law_object(name), ds, fdir / f"pairs_{name}.png") is not None:
+            refs.append(FigureRef(f"parameters:{name}", f"figures/pairs_{name}.png",
                                   "Posterior draws of each pair of coefficients, r = correlation (red when |r| > 0.7)."
                                   " Read: strongly correlated coefficients are not identified separately — quote "
-                                  "their combination, not each alone.", f"pair plot {w.name}"))
-    for w in outcome.laws:  # the laws whose LOO-PIT left its band: which way they are off
-        if not w.loo_pit_ok and plot_loo_pit(outcome, w, fdir / f"loo_pit_{w.name}.png") is not None:
-            refs.append(FigureRef("data", f"figures/loo_pit_{w.name}.png", pit_caption(w, outcome),
-                                  f"LOO-PIT {w.name}"))
+                                  "their combination, not each alone.", f"pair plot {name}"))
+    for name in t.laws:  # the laws whose LOO-PIT left its band: which way they are off
+        if not t.flag(name, "loo_pit_ok") and plot_loo_pit(t, name, ds, fdir / f"loo_pit_{name}.png") is not None:
+            refs.append(FigureRef("data", f"figures/loo_pit_{name}.png", pit_caption(t, name), f"LOO-PIT {name}"))
     fans = {}
-    if outcome.sizing is not None:
-        for i, answer in enumerate(outcome.sizing.answers):
+    if sizing is not None:
+        for i, answer in enumerate(sizing.answers):
             if answer.fan is not None:
-                fans[i] = plot_sizing_fan(outcome.sizing, answer, fdir / f"sizing_{i + 1}.png",
-                                          title=outcome.study.title)
+                fans[i] = plot_sizing_fan(sizing, answer, fdir / f"sizing_{i + 1}.png", title=str(t.attrs["title"]))
     return refs, fans

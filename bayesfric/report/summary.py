@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import base64
 import contextlib
+import math
 import os
 import re
 import secrets
@@ -38,10 +39,12 @@ from bayesfric.report.results import RESULTS, result_tree, write_results
 from bayesfric.report.stored import content_node, figures_node, open_results, read_content, read_figures, table_records
 from bayesfric.report.study_figures import draw
 from bayesfric.report.tables import format_table
-from bayesfric.study.tree import run_attrs, study_tree
 
 if TYPE_CHECKING:
-    from bayesfric.study.outcome import StudyOutcome
+    from collections.abc import Mapping
+
+    from bayesfric.sizing import SizingResult
+    from bayesfric.study.claimspec import ClaimResult
 
 __all__ = ["write_reports", "render_report", "rerender", "render", "md_text", "md_code"]
 
@@ -124,44 +127,58 @@ def render(content, folder: Path, markdown: bool) -> str:
     return re.sub(r"\n{3,}", "\n\n", text) if markdown else text
 
 
-def _claim_records(out: StudyOutcome) -> list[dict]:
+def _claim_records(claims: list[ClaimResult]) -> list[dict]:
     return [{"claim": r.claim.text, "source": r.claim.source, "basis": r.claim.basis or "evidence",
              "evidence": not r.claim.pipeline_check, "kind": r.claim.kind, "law": r.claim.law,
              "reference": r.claim.reference,
              "expect_low": r.claim.expect[0], "expect_high": r.claim.expect[1], "value": r.value, "low": r.lo,
-             "high": r.hi, "winner": r.winner, "verdict": r.verdict, "why": r.why} for r in out.claims]
+             "high": r.hi, "winner": r.winner, "verdict": r.verdict, "why": r.why} for r in claims]
 
 
-def write_reports(out: StudyOutcome, folder: Path, tree: xr.DataTree | None = None) -> xr.DataTree:
+def write_reports(tree: xr.DataTree, folder: Path, data: xr.Dataset, fits: Mapping[str, xr.DataTree],
+                  claims: list[ClaimResult] | None = None, sizing: SizingResult | None = None) -> xr.DataTree:
     """Write ``folder/results.nc`` (the study's results as one DataTree,
     :mod:`bayesfric.report.results`, with the report's content, figures and tables) and render
     the report from that file alone (:func:`render_report`): figures, summary.md, report.html,
     ranking.csv, scores.csv, parameters.csv, claims.csv (with ``[[claims]]``) and sizing.csv (with
     sizing questions). ``folder`` is the runner's work folder, installed atomically afterwards.
 
-    The content model (texts, tables, findings) is built from ``tree`` (the study's result tree,
-    :func:`bayesfric.study.tree.study_tree`, built from ``out`` when not given), the claims'
-    results and the sizing result; the figures are still drawn from ``out`` (issue 31 item 1) into
-    ``folder`` first (their bytes go into the tree). Every file is then rendered from the tree by
-    :func:`render_report`, the function ``bayesfric report results.nc`` calls on the saved tree,
-    so a re-rendering gives the same bytes (tested file by file). Returns the tree saved as
-    ``results.nc`` (with the report's nodes).
+    Parameters
+    ----------
+    tree : xarray.DataTree
+        The study's result tree (:func:`bayesfric.study.tree.study_tree`, with the run's
+        :func:`~bayesfric.study.tree.run_attrs`): every text, table and finding reads it.
+    folder : Path
+        The report folder (the runner's work folder).
+    data : xarray.Dataset
+        The study's data set: the figures' points and provenance banner.
+    fits : mapping of str to xarray.DataTree
+        Each law's full fit: the figures' predictive bands read its posterior-predictive draws,
+        which the tree does not keep.
+    claims, sizing
+        The claims' results (:func:`bayesfric.study.claims.evaluate_claims`) and the sizing
+        result, when the study has them.
+
+    Returns
+    -------
+    xarray.DataTree
+        The tree saved as ``results.nc``, with the report's nodes. Every file is rendered from it
+        by :func:`render_report`, the function ``bayesfric report results.nc`` calls on the saved
+        tree, so a re-rendering gives the same bytes (tested file by file).
     """
-    tree = (tree if tree is not None else study_tree(out)).copy(deep=False)
-    tree.attrs.update(run_attrs(out.seconds, out.unit_seconds))
+    claims = claims or []
     view = TreeView(tree)
-    figures, fans = draw(out, folder)
+    figures, fans = draw(view, data, fits, folder, sizing)
     parameters = parameter_records(view)
-    content = build(view, parameters, figures, {i: f"figures/{p.name}" for i, p in fans.items()},
-                    out.claims, out.sizing)
+    content = build(view, parameters, figures, {i: f"figures/{p.name}" for i, p in fans.items()}, claims, sizing)
     tables: dict = {"ranking": ranking_records(view), "parameters": parameters}
-    if out.claims:
-        tables["claims"] = _claim_records(out)
-    if out.sizing is not None:
-        tables["sizing"] = sizing_report.records(out.sizing)
-    tables["score_rows"] = out.table
+    if claims:
+        tables["claims"] = _claim_records(claims)
+    if sizing is not None:
+        tables["sizing"] = sizing_report.records(sizing)
+    tables["score_rows"] = view.table  # law by law, each law's rows in its scorers' order (study.tree._merged)
     extra = {"report": content_node(content), "report/figures": figures_node(folder)}
-    tree = result_tree(tree, tables, extra, out.seconds)
+    tree = result_tree(tree, tables, extra, float(tree.attrs.get("seconds", math.nan)))
     write_results(tree, folder)
     render_report(tree, folder)  # from the tree in memory; the file renders the same (tests/report/test_rerender.py)
     return tree

@@ -10,6 +10,9 @@ from __future__ import annotations
 from functools import cached_property
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
+from bayesfric.compare.pit import PitShape, pit_shape
 from bayesfric.laws.variants import law_of_fit
 from bayesfric.study import scores as sc
 from bayesfric.study.tree import data_attrs, weight_errors
@@ -80,6 +83,30 @@ class TreeView:
         if name not in self._laws:
             self._laws[name] = law_of_fit(self.fit(name).attrs)
         return self._laws[name]
+
+    def heldout(self, scheme: str) -> np.ndarray | None:
+        """The rows ``scheme`` holds out (None for a scheme the study did not run)."""
+        if scheme not in self.pointwise["scheme"].values:
+            return None
+        return np.asarray(self.pointwise["heldout"].sel(scheme=scheme).values, dtype=bool)
+
+    @property
+    def blocked_axes(self) -> dict[str, str]:
+        """Blocked scheme -> the input it blocks along."""
+        schemes = self.pointwise["scheme"]
+        return {str(s): str(a) for s, a, b in zip(schemes.values, schemes["axis"].values, schemes["blocked"].values,
+                                                   strict=True) if b}
+
+    def pit(self, name: str) -> tuple[np.ndarray, np.ndarray | None, PitShape | None]:
+        """The law's LOO-PIT values as its checks read them, the ECDF band they were tested
+        against (``(3, points)``: points, lower, upper; None when not stored) and their shape
+        (:func:`bayesfric.compare.pit.pit_shape` of those values; None without values)."""
+        c = self.checks.sel(law=name)
+        pit = np.asarray(c["pit"].values, dtype=float)
+        pit = pit[np.isfinite(pit)]
+        band = np.asarray(c["pit_band"].values, dtype=float) if "pit_band" in c else np.zeros((3, 0))
+        band = band[:, np.isfinite(band[0])]
+        return pit, (band if band.shape[1] else None), (pit_shape(pit) if pit.size else None)
 
     @cached_property
     def data(self) -> dict[str, str]:

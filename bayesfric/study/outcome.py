@@ -166,10 +166,8 @@ class StudyOutcome:
     blocked: list[str]  # the blocked-extrapolation labels among them
     heldout: dict[str, np.ndarray] = field(default_factory=dict)
     sensitivity: RankingSensitivity | None = None  # the LOO ranking under power-scaled priors (two or more fits)
-    seconds: float = 0.0
     weight_errors: list[tuple[str, str]] = field(default_factory=list)  # (weighting, why it was not computed)
     quick: QuickRun | None = None  # the capped settings of a --quick run
-    unit_seconds: UnitSeconds | None = None  # what the run's units cost, computed or reused
     sizing: SizingResult | None = None  # when the study asks sizing questions
     table: pd.DataFrame | None = None  # the law × metric table (bayesfric.study.scores.score_table), computed once
     claims: list[ClaimResult] = field(default_factory=list)  # one per [[claims]] entry

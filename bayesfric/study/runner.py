@@ -53,7 +53,7 @@ from bayesfric.study.plan import (  # checked and planned before anything is wri
 )
 from bayesfric.study.scores import score_table
 from bayesfric.study.store import RunStore, store_folder
-from bayesfric.study.tree import study_tree
+from bayesfric.study.tree import run_attrs, study_tree
 
 __all__ = ["run_study", "execute_study", "StudyRun",
            "current_report", "validate_against_data", "sizing_questions", "load_study_data", "INPUTS_FILE",
@@ -271,11 +271,10 @@ def _write_study(prepared, out_root: Path, quick: bool, fresh: bool, client, tim
             outcome.sizing = sizing.size_study(questions, ds, sizing.sources(tree, work, list(fits), fits=fits),
                                                sizing.basis_schemes(tree), study_name=study.name, seed=seed)
         outcome.claims = evaluate_claims(study.claims, tree)
-        outcome.seconds = time.perf_counter() - start
-        outcome.unit_seconds = _unit_seconds(rows)
+        tree.attrs.update(run_attrs(time.perf_counter() - start, _unit_seconds(rows)))
         from bayesfric.report.summary import write_reports  # here: bayesfric.report reads bayesfric.study
 
-        tree = write_reports(outcome, work, tree)
+        tree = write_reports(tree, work, ds, {w.name: w.fit for w in outcome.laws}, outcome.claims, outcome.sizing)
         (work / INPUTS_FILE).write_text(inputs_key + "\n")  # an unchanged rerun reuses the whole report
         try:
             fsutil.install_folder(work, final, study.name)

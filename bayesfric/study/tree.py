@@ -6,8 +6,10 @@ Sizing, the claims and the report read this tree (the report adds its own nodes 
 
 ``/``
     attrs: study, data set, data hash, bayesfric version, CV schemes, blocked schemes, ``quick``,
-    ``ranking_changed`` (the LOO ranking changes under power-scaled priors); the report adds the
-    run's ``seconds``.
+    ``ranking_changed`` (the LOO ranking changes under power-scaled priors), what the report shows
+    of the study (``title``, ``question``, ``study_file``, ``include_failed``, ``failed_fits``,
+    ``noise``, ``sampler``) and of the data (``n_obs``, ``data_<attr>`` for :data:`DATA_ATTRS`);
+    the finished run adds its ``seconds`` and its units' cost (:func:`run_attrs`).
 ``/scores``
     over ``(law, criterion)``: ``estimate``, ``se``, ``reliable``, ``reason``; a criterion is a
     metric and its scheme (``elpd_loo``, ``elpd_cv[<scheme>]``, ``penalty[<scheme>]``,
@@ -20,14 +22,20 @@ Sizing, the claims and the report read this tree (the report adds its own nodes 
 ``/pointwise``
     ``elpd`` over ``(criterion, law, obs)``: PSIS-LOO and each CV scheme's pointwise elpd (NaN
     where a point is not held out or the stage did not run); ``heldout`` over ``(scheme, obs)``;
-    ``pareto_k`` over ``(law, obs)`` (NaN where LOO did not run or was subsampled).
+    ``pareto_k`` over ``(law, obs)`` (NaN where LOO did not run or was subsampled); a scheme's
+    ``blocked`` flag and, for a blocked one, the input ``axis`` it blocks along.
 ``/weights``
-    over ``(law, weighting)``: ``weight`` and ``excluded`` (why the weighting left the law out).
+    over ``(law, weighting)``: ``weight`` and ``excluded`` (why the weighting left the law out);
+    ``not_computed`` over ``failed_weighting``: why a weighting was not computed at all.
 ``/diagnostics``, ``/checks``
     over ``law``: the gate's verdict (``passed``, ``problems``, ``verdict`` as the report writes
-    it), the law's ``flags`` (one line each), ``p_loo``, ``n_high_k``, ``seconds`` and ``timing``
-    over ``(law, stage)``; the checks unit's LOO-PIT (``pit`` over ``(law, pit_row)``, p-value,
-    band coverage ``ci_prob``, direction) and prior checks.
+    it), the law's ``flags`` (one line each), ``p_loo``, ``n_high_k``, ``cv_reliable`` (every fold
+    passed), ``seconds`` and ``timing`` over ``(law, stage)``; the checks unit's LOO-PIT (``pit``
+    over ``(law, pit_row)``, its ECDF band ``pit_band``, p-value, band coverage ``ci_prob``,
+    direction) and prior checks
+    (``checked``: the unit ran).
+``/quick``
+    only in a ``--quick`` run: the capped sampler settings and K-fold's folds asked and used.
 ``/sizing_basis``
     what sizing reads besides ``/weights`` and ``/diagnostics`` (:mod:`bayesfric.sizing.store`).
 ``/ranking_sensitivity``
@@ -39,9 +47,11 @@ Sizing, the claims and the report read this tree (the report adds its own nodes 
     and ``fit_file``; the pointwise log-likelihood and predictive draws stay in the full fit
     ``fits/<law>.nc``.
 
+The report's content model (ranking, findings, checks, law sections, data lines, footer) reads
+this tree alone, with the claims' results and the sizing result (:mod:`bayesfric.report.content`).
 What is not yet true (issue 31 item 1): the tree is built from the in-memory
 :class:`~bayesfric.study.outcome.StudyOutcome`, not by the scorers themselves, and the report's
-content model and figures are still computed from that outcome.
+figures are still drawn from that outcome.
 """
 
 from __future__ import annotations
@@ -148,11 +158,13 @@ def _pointwise(outcome: StudyOutcome) -> xr.Dataset:
         if w.loo is not None:
             scored[i] = True if w.loo.subsample is None else np.isin(np.arange(n), w.loo.subsample.rows)
     schemes = list(outcome.heldout)
+    axes = {label: b.axis for label, b in zip(outcome.blocked, outcome.study.blocked, strict=False)}
     heldout = np.array([np.asarray(outcome.heldout[s], dtype=bool) for s in schemes]).reshape(len(schemes), n)
     node = xr.Dataset({"elpd": (("criterion", "law", "obs"), elpd), "heldout": (("scheme", "obs"), heldout),
                        "pareto_k": (("law", "obs"), pareto_k), "loo_scored": (("law", "obs"), scored)},
                       coords={"criterion": crit, "law": laws, "scheme": schemes, "obs": np.arange(n),
-                              "blocked": ("scheme", [s in outcome.blocked for s in schemes])})
+                              "blocked": ("scheme", [s in outcome.blocked for s in schemes]),
+                              "axis": ("scheme", [axes.get(s, "") for s in schemes])})
     node["loo_scored"].attrs["description"] = "rows PSIS-LOO scored exactly (all but a subsample's others)"
     return node
 
@@ -250,6 +262,14 @@ def _checks(outcome: StudyOutcome) -> xr.Dataset:
     chk["pit"] = (("law", "pit_row"), np.array([np.pad(p, (0, width - len(p)), constant_values=nan) for p in pits])
                   .reshape(len(checks), width))
     chk["pit"].attrs["description"] = "LOO-PIT values of the rows the check read (NaN-padded)"
+    bands = [np.asarray(c.pit_band, dtype=float).reshape(3, -1) if c is not None and c.pit_band is not None
+             else np.zeros((3, 0)) for c in checks]
+    width = max((b.shape[1] for b in bands), default=0)
+    chk["pit_band"] = (("law", "band_edge", "band_point"),
+                       np.array([np.pad(b, ((0, 0), (0, width - b.shape[1])), constant_values=nan) for b in bands])
+                       .reshape(len(checks), 3, width))
+    chk = chk.assign_coords(band_edge=["point", "lower", "upper"])
+    chk["pit_band"].attrs["description"] = "the LOO-PIT ECDF's simultaneous band the check tested (NaN-padded)"
     return chk
 
 
@@ -316,7 +336,9 @@ def sensitivity_of(tree: xr.DataTree) -> RankingSensitivity | None:
     if "ranking_sensitivity" not in tree.children:
         return None
     node = tree["ranking_sensitivity"]
-    laws = [str(n) for n in node["law"].values]
+    ranked = {str(n) for n in node["law"].values}  # the dicts in the study's order of the laws, as computed
+    laws = [n for n in map(str, tree["scores"]["law"].values) if n in ranked]
+    node = node.sel(law=laws)
     elpd, max_k, ranking = {}, {}, {}
     for a in node["alpha"].values:
         at = node.sel(alpha=a)

@@ -14,8 +14,10 @@ from bayesfric.inference.datatree import provenance
 from bayesfric.inference.diagnostics import Verdict
 from bayesfric.laws import get_law
 from bayesfric.model import build_program
+from bayesfric.report.summary import write_reports
 from bayesfric.study.outcome import Checks, LawOutcome, StudyOutcome, Weight
 from bayesfric.study.scores import score_table
+from bayesfric.study.tree import run_attrs, study_tree
 from tests.bench_data import write_bench
 
 OK = Verdict(True, 1.0, 1000.0, 1000.0, 0, 1.0, 0.9)
@@ -82,6 +84,14 @@ def outcome(study, tmp: Path, *, failed: str | None = None) -> StudyOutcome:
     out = StudyOutcome(study=study, data=ds, laws=laws, schemes=[label], blocked=[label], heldout={label: held})
     out.table = score_table(out)
     return out
+
+
+def write_outcome(out: StudyOutcome, folder: Path, seconds: float = 0.0) -> xr.DataTree:
+    """The report of ``out`` written as the runner writes one: the outcome's result tree with the
+    run's seconds, the data set, each law's fit, the claims and the sizing result."""
+    tree = study_tree(out)
+    tree.attrs.update(run_attrs(seconds, None))
+    return write_reports(tree, folder, out.data, {w.name: w.fit for w in out.laws}, out.claims, out.sizing)
 
 
 def write_bench_study(folder: Path, capacity: str | None = None) -> Path:

@@ -14,13 +14,12 @@ from pathlib import Path
 
 import pytest
 
-from bayesfric.report.summary import write_reports
 from bayesfric.study import load_study
 from bayesfric.study.claims import evaluate_claims
 from bayesfric.study.runner import run_study
 from bayesfric.study.tree import study_tree
 from tests.report.browser import PHONE, WIDTH, find_chromium, inspect_page
-from tests.report.fakes import outcome, write_bench_study
+from tests.report.fakes import outcome, write_bench_study, write_outcome
 
 INSTALL = "apt-get install -y chromium (scripts/bootstrap.sh does it when missing)"
 
@@ -65,7 +64,7 @@ def test_fake_outcome_report_in_chromium(tmp_path):
     out.claims = evaluate_claims(out.study.claims, study_tree(out))
     folder = tmp_path / "report"
     folder.mkdir()
-    write_reports(out, folder)
+    write_outcome(out, folder)
     check(folder, tmp_path / "screenshot.png")
 
 
@@ -80,7 +79,7 @@ def test_ranking_figure_reads_on_a_phone(tmp_path):
     out = outcome(load_study(tmp_path / "tiny.toml"), tmp_path)
     folder = tmp_path / "report"
     folder.mkdir()
-    write_reports(out, folder)
+    write_outcome(out, folder)
     page = inspect_page(folder / "report.html", tmp_path / "phone.png", chromium(), width=PHONE)
     assert page.console_errors == [] and page.broken_images == []
     assert page.scroll_width <= PHONE  # wide tables scroll inside their own box

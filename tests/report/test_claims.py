@@ -154,7 +154,7 @@ def test_basis_is_rendered_in_the_table_csv_and_summary(study, tmp_path):
     basis = table.header.index("basis")
     assert [row[basis] for row in table.rows] == ["pipeline check, not evidence", "evidence", "evidence"]
     assert "pipeline check, not evidence" in table.caption
-    records = _claim_records(out)
+    records = _claim_records(out.claims)
     assert [(r["basis"], r["evidence"]) for r in records] == [
         ("pipeline check", False), ("evidence", True), ("evidence", True)]
     lines = [" ".join(p for p, _ in f.parts) for f in _claim_warnings(out.claims)]

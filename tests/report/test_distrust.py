@@ -12,11 +12,10 @@ import pytest
 from scipy.stats import norm
 
 from bayesfric.compare import pit_shape
-from bayesfric.report.summary import write_reports
 from bayesfric.study import load_study
 from bayesfric.study.outcome import Checks
 from bayesfric.study.scores import score_table
-from tests.report.fakes import cv_result, outcome
+from tests.report.fakes import cv_result, outcome, write_outcome
 
 STUDY = ('[study]\nname = "tiny"\n[data]\ndataset = "robot_joint"\n[[laws]]\nname = "coulomb"\n[[laws]]\n'
          'name = "coulomb_viscous"\n[compare]\nevidence = false\n[[compare.blocked]]\naxis = "velocity"\n'
@@ -47,7 +46,7 @@ def folder(tmp_path_factory):
     out.table = score_table(out)
     path = tmp / "report"
     path.mkdir()
-    write_reports(out, path)
+    write_outcome(out, path)
     return path
 
 

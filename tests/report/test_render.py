@@ -6,11 +6,10 @@ import pytest
 
 from bayesfric.report.content import SECTIONS
 from bayesfric.report.findings import Finding
-from bayesfric.report.summary import write_reports
 from bayesfric.study import load_study
 from bayesfric.study.claims import evaluate_claims
 from bayesfric.study.tree import study_tree
-from tests.report.fakes import outcome
+from tests.report.fakes import outcome, write_outcome
 
 HOSTILE = '<script>alert(1)</script> **bold** & `code`'
 
@@ -27,7 +26,7 @@ def report(tmp_path_factory):
     out.claims = evaluate_claims(out.study.claims, study_tree(out))
     folder = tmp / "report"
     folder.mkdir()
-    write_reports(out, folder)
+    write_outcome(out, folder)
     return folder
 
 
@@ -110,7 +109,7 @@ def test_trajectory_data_get_a_trajectory_figure_and_section(tmp_path):
     out.data.attrs["trajectory"] = "run"
     folder = tmp_path / "report"
     folder.mkdir()
-    write_reports(out, folder)
+    write_outcome(out, folder)
     assert (folder / "figures" / "trajectories.png").stat().st_size > 10_000
     assert "## Trajectories: predicted vs measured" in (folder / "summary.md").read_text()
     assert '<section id="trajectories">' in (folder / "report.html").read_text()

@@ -12,12 +12,11 @@ import xarray as xr
 
 from bayesfric.cli import main
 from bayesfric.compare import RankingSensitivity
-from bayesfric.report.summary import write_reports
 from bayesfric.study import load_study
 from bayesfric.study.claims import evaluate_claims
 from bayesfric.study.runner import run_study
 from bayesfric.study.tree import study_tree
-from tests.report.fakes import outcome, write_bench_study
+from tests.report.fakes import outcome, write_bench_study, write_outcome
 
 #: The files the Done-when names, plus the other CSV tables and the figures.
 NAMED = ("report.html", "summary.md", "ranking.csv", "scores.csv", "parameters.csv")
@@ -62,7 +61,7 @@ def fake_report(tmp_path_factory):
     out.laws[0] = replace(out.laws[0], timings={"fit": 1.5, "loo": 0.25}, checks=replace(out.laws[0].checks, pit=pit))
     folder = tmp / "report"
     folder.mkdir()
-    write_reports(out, folder)
+    write_outcome(out, folder)
     return folder, out
 
 
