@@ -20,10 +20,10 @@ rendered from, so a notebook can use the numbers without parsing a CSV file
 The report is rendered from this tree alone: the study run writes ``results.nc`` and renders
 every report file from the tree it holds (:func:`bayesfric.report.summary.render_report`), the
 function ``bayesfric report results.nc --out FOLDER`` calls on the saved tree; a test checks that
-both give the same bytes. The content model is built from the study's tree (its texts, tables
-and findings read the tree's nodes, :mod:`bayesfric.report.content`), with the claims' results
-and the sizing result; what is not yet true (issue 31 item 1): the figures are drawn from the
-in-memory ``StudyOutcome`` before they are stored.
+both give the same bytes. The content model and the figures are made from the study's tree (its
+texts, tables, findings and figures read the tree's nodes, :mod:`bayesfric.report.content`,
+:mod:`bayesfric.report.study_figures`), with the data set, the full fits (the bands' predictive
+draws, which the tree does not keep), the claims' results and the sizing result passed as objects.
 """
 
 from __future__ import annotations
