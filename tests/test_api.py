@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+import xarray as xr
 
 import bayesfric
 from bayesfric.errors import UserError
@@ -255,6 +256,16 @@ def test_run_a_python_study_then_size_its_result(tmp_path):
     assert again.ranking.equals(pd.read_csv(result.folder / "ranking.csv"))
     for name, fit in result.fits.items():
         np.testing.assert_array_equal(again.fits[name]["posterior"]["T_C"].values, fit["posterior"]["T_C"].values)
+    copy = bayesfric.write_report(result, tmp_path / "copy" / "api_run")  # from the tree in memory alone
+    for name in ("summary.md", "report.html", "scores.csv", "ranking.csv", "parameters.csv", "sizing.csv"):
+        assert (copy / name).read_bytes() == (result.folder / name).read_bytes(), name
+    with xr.open_datatree(copy / "results.nc") as saved:
+        assert saved.attrs["study"] == "api_run" and "fits" in saved.children
+    with pytest.raises(UserError, match="exists and is not empty"):
+        bayesfric.write_report(again, copy)
+    with pytest.raises(UserError, match="no stored report .*not a fit"):
+        bayesfric.write_report(result.fits["stribeck"], tmp_path / "from_a_fit")
+    assert not (tmp_path / "from_a_fit").exists()
 
 
 @pytest.mark.slow  # every docstring example of the API, fits and a study run included (~2 min)

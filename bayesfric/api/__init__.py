@@ -10,6 +10,7 @@
 :func:`size`             friction a drive must deliver at untested points (+ P(|T| > capacity))
 :class:`Study`, `run`    a full comparison study (blocked extrapolation, evidence, sizing,
                          report) -> :class:`StudyResult`
+:func:`write_report`     a study's report rendered again from its result tree (``results.nc``)
 =======================  ===================================================================
 
 Every argument is checked where it is given; a bad one raises a one-line
@@ -19,9 +20,9 @@ Every argument is checked where it is given; a bad one raises a one-line
 from bayesfric.api.fitfile import load_fit
 from bayesfric.api.fitting import compare_laws, fit, law, load_data
 from bayesfric.api.sizing import size
-from bayesfric.api.studies import Study, StudyResult, run
+from bayesfric.api.studies import Study, StudyResult, run, write_report
 from bayesfric.laws.base import Param
 from bayesfric.priors import Prior
 
 __all__ = ["load_data", "law", "Param", "Prior", "fit", "load_fit", "compare_laws", "size", "Study", "StudyResult",
-           "run"]
+           "run", "write_report"]

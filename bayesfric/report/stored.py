@@ -36,7 +36,7 @@ from bayesfric.report.findings import Finding, Summary
 from bayesfric.report.sizing import Section
 
 __all__ = ["CSV_FILES", "table_dataset", "table_records", "table_frame", "content_node", "figures_node", "read_content",
-           "read_figures", "open_results"]
+           "read_figures", "open_results", "stored_layout"]
 
 #: Table node -> the CSV file it renders (scores.csv is written from a data frame, the others from records).
 CSV_FILES = {"ranking": "ranking.csv", "parameters": "parameters.csv", "claims": "claims.csv",
@@ -213,6 +213,11 @@ def read_figures(node: xr.Dataset) -> dict[str, bytes]:
     data = node["data"].values.tobytes()
     return {str(p): data[int(s):int(s) + int(n)]
             for p, s, n in zip(node["path"].values, node["start"].values, node["size"].values, strict=True)}
+
+
+def stored_layout(tree: xr.DataTree) -> str | None:
+    """The layout of the report a result tree stores (``/report``), None without one."""
+    return tree["report"].attrs.get("layout") if "report" in tree.children else None
 
 
 def open_results(path: str | Path) -> xr.DataTree:

@@ -36,7 +36,16 @@ from bayesfric.report import sizing as sizing_report
 from bayesfric.report.content import Table, TreeView, build, parameter_records, ranking_records
 from bayesfric.report.findings import Finding
 from bayesfric.report.results import RESULTS, result_tree, write_results
-from bayesfric.report.stored import content_node, figures_node, open_results, read_content, read_figures, table_records
+from bayesfric.report.stored import (
+    LAYOUT,
+    content_node,
+    figures_node,
+    open_results,
+    read_content,
+    read_figures,
+    stored_layout,
+    table_records,
+)
 from bayesfric.report.study_figures import draw
 from bayesfric.report.tables import format_table
 
@@ -213,10 +222,11 @@ def render_report(tree: xr.DataTree, folder: Path) -> list[Path]:
     return written
 
 
-def rerender(results: str | Path, out: str | Path) -> Path:
+def rerender(results: str | Path | xr.DataTree, out: str | Path) -> Path:
     """``bayesfric report RESULTS.nc --out FOLDER``: render a study's report again from its
-    ``results.nc`` alone into the new folder ``out`` (with a copy of ``results.nc``), atomically:
-    the files go into a hidden folder beside ``out``, renamed to ``out`` when complete.
+    result tree alone (``results``: its ``results.nc``, or the tree in memory) into the new folder
+    ``out`` (with the tree saved as ``results.nc``), atomically: the files go into a hidden folder
+    beside ``out``, renamed to ``out`` when complete.
 
     Raises
     ------
@@ -224,7 +234,10 @@ def rerender(results: str | Path, out: str | Path) -> Path:
         ``results`` is not a result tree with a stored report, or ``out`` exists and is not an
         empty folder, or cannot be created.
     """
-    tree = open_results(results)
+    tree = results if isinstance(results, xr.DataTree) else open_results(results)
+    if isinstance(results, xr.DataTree) and stored_layout(tree) != LAYOUT:
+        raise UserError("the result tree has no stored report (no /report node of layout "
+                        f"{LAYOUT}): pass a study's result (bayesfric.run), not a fit")
     out = Path(out)
     try:
         check_output_folder(out)
@@ -240,7 +253,10 @@ def rerender(results: str | Path, out: str | Path) -> Path:
     work.mkdir()
     try:
         render_report(tree, work)
-        shutil.copyfile(results, work / RESULTS)
+        if isinstance(results, xr.DataTree):
+            write_results(results, work)
+        else:
+            shutil.copyfile(results, work / RESULTS)
         apply_umask(work)
         if out.is_dir():
             out.rmdir()  # empty, checked above
