@@ -29,7 +29,7 @@ if TYPE_CHECKING:
     from bayesfric.study.claimspec import ClaimResult
 
 __all__ = ["Table", "FigureRef", "LawSection", "Report", "build", "SECTIONS", "ranking_records", "parameter_records",
-           "TreeView"]
+           "claim_records", "TreeView"]
 
 #: (id, heading) of every section in page order; optional ones appear only when they have content.
 SECTIONS = [
@@ -83,28 +83,36 @@ def _num(x: Any, digits: int = 2) -> str:
     return fmt(x, digits=digits) if isinstance(x, float | int) and math.isfinite(x) else "–"
 
 
-def _claims(claims: list[ClaimResult]) -> Table | None:
-    if not claims:
+def _text(value: Any) -> str:
+    """A text cell of a claim record: an empty cell read back from the tree (NaN) is ``""``."""
+    return value if isinstance(value, str) else ""
+
+
+def _claims(records: list[dict]) -> Table | None:
+    """The claims table from the claims' records (``claims.csv``, the tree's ``/claims``)."""
+    if not records:
         return None
     rows, warn = [], []
-    for i, r in enumerate(claims):
-        c = r.claim
-        pct = c.kind == "ratio"
+    for i, r in enumerate(records):
+        pct = r["kind"] == "ratio"
 
         def show(x: float, pct: bool = pct) -> str:
             if math.isinf(x):
                 return "+∞" if x > 0 else "−∞"
             return "–" if not math.isfinite(x) else (f"{x:+.0%}" if pct else f"{x:.3g}")
 
-        if c.kind == "best":
-            claimed, says = f"best: {c.law}", (f"best: {r.winner}" if r.winner else "–")
+        if r["kind"] == "best":
+            winner = _text(r["winner"])
+            claimed, says = f"best: {r['law']}", (f"best: {winner}" if winner else "–")
         else:
-            claimed = f"{show(c.expect[0])} … {show(c.expect[1])}"
-            interval = "90 % interval" if c.kind != "score" else "± 1 se"
-            says = f"{show(r.value)} ({interval} {show(r.lo)} … {show(r.hi)})" if math.isfinite(r.lo) else show(r.value)
-        verdict = r.verdict + (f": {r.why}" if r.why else "")
-        rows.append([c.text, c.source, c.basis_label, claimed, says, verdict])
-        if r.verdict != "reproduced":
+            claimed = f"{show(r['expect_low'])} … {show(r['expect_high'])}"
+            interval = "90 % interval" if r["kind"] != "score" else "± 1 se"
+            says = (f"{show(r['value'])} ({interval} {show(r['low'])} … {show(r['high'])})"
+                    if math.isfinite(r["low"]) else show(r["value"]))
+        why = _text(r["why"])
+        basis = "evidence" if r["evidence"] else "pipeline check, not evidence"
+        rows.append([r["claim"], _text(r["source"]), basis, claimed, says, r["verdict"] + (f": {why}" if why else "")])
+        if r["verdict"] != "reproduced":
             warn.append(i)
     caption = ("Each claim is declared in the study file ([[claims]]) and computed from the posterior: ratios are "
                "mean-function predictions of the fitted law (posterior median, 90 % interval); the claimed range is "
@@ -113,6 +121,16 @@ def _claims(claims: list[ClaimResult]) -> Table | None:
                "reconstructed data were built to satisfy — its verdict checks the reconstruction and the pipeline, "
                "not the paper; \"evidence\" was not used to build the data.")
     return Table(caption, ["claim", "source", "basis", "claimed", "posterior says", "verdict"], rows, warn)
+
+
+def claim_records(claims: list[ClaimResult]) -> list[dict]:
+    """The rows of ``claims.csv`` (the tree's ``/claims``), one per claim with its result; the
+    claims table and the summary's claim warnings read the same rows."""
+    return [{"claim": r.claim.text, "source": r.claim.source, "basis": r.claim.basis or "evidence",
+             "evidence": not r.claim.pipeline_check, "kind": r.claim.kind, "law": r.claim.law,
+             "reference": r.claim.reference,
+             "expect_low": r.claim.expect[0], "expect_high": r.claim.expect[1], "value": r.value, "low": r.lo,
+             "high": r.hi, "winner": r.winner, "verdict": r.verdict, "why": r.why} for r in claims]
 
 
 def parameter_records(t: TreeView) -> list[dict]:
@@ -185,12 +203,12 @@ def _data_lines(t: TreeView) -> list[str]:
             f"noise model: {a['noise']}", f"sampler: {a['sampler']}"]
 
 
-def _claim_warnings(claims: list[ClaimResult]) -> list[fd.Finding]:
+def _claim_warnings(records: list[dict]) -> list[fd.Finding]:
     """The claims' verdicts in the summary: evidence and pipeline checks counted apart."""
     out = []
     for pipeline, what in ((False, "claim(s) of the source paper"),
                            (True, "pipeline check(s) (statements the reconstructed data were built to satisfy)")):
-        bad = [r for r in claims if r.verdict == "not reproduced" and r.claim.pipeline_check == pipeline]
+        bad = [r for r in records if r["verdict"] == "not reproduced" and (not r["evidence"]) == pipeline]
         if bad:
             out.append(fd.plain(f"{len(bad)} {what} NOT reproduced by the posterior (see the claims section).",
                                 warning=True))
@@ -198,12 +216,13 @@ def _claim_warnings(claims: list[ClaimResult]) -> list[fd.Finding]:
 
 
 def build(t: TreeView, parameters: list[dict], figures: list[FigureRef], sizing_figures: dict[int, str],
-          claims: list[ClaimResult] | None = None, sizing: SizingResult | None = None) -> Report:
+          claims: list[dict] | None = None, sizing: SizingResult | None = None) -> Report:
     """The report's content model, from the study's result tree (``t``: ranking, findings, checks,
     law sections, data lines and footer read it alone, :mod:`bayesfric.study.tree`), the
-    parameter rows (:func:`parameter_records`), the figures drawn, the claims' results and the
-    sizing result (``sizing_figures``: question index -> the fan's reference as the rendering
-    wants it, a file name or an encoded image)."""
+    parameter and claim rows the tree keeps as ``/parameters`` and ``/claims``
+    (:func:`parameter_records`, :func:`claim_records`), the figures drawn and the sizing result
+    (``sizing_figures``: question index -> the fan's reference as the rendering wants it, a file
+    name or an encoded image)."""
     claims = claims or []
     ranking, order = ranking_table(t)
     by_section: dict[str, list[FigureRef]] = {}

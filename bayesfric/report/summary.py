@@ -33,7 +33,7 @@ from bayesfric.csvout import write_csv
 from bayesfric.errors import UserError
 from bayesfric.fsutil import PathError, apply_umask, check_output_folder
 from bayesfric.report import sizing as sizing_report
-from bayesfric.report.content import Table, TreeView, build, parameter_records, ranking_records
+from bayesfric.report.content import Table, TreeView, build, claim_records, parameter_records, ranking_records
 from bayesfric.report.findings import Finding
 from bayesfric.report.results import RESULTS, result_tree, write_results
 from bayesfric.report.stored import (
@@ -136,14 +136,6 @@ def render(content, folder: Path, markdown: bool) -> str:
     return re.sub(r"\n{3,}", "\n\n", text) if markdown else text
 
 
-def _claim_records(claims: list[ClaimResult]) -> list[dict]:
-    return [{"claim": r.claim.text, "source": r.claim.source, "basis": r.claim.basis or "evidence",
-             "evidence": not r.claim.pipeline_check, "kind": r.claim.kind, "law": r.claim.law,
-             "reference": r.claim.reference,
-             "expect_low": r.claim.expect[0], "expect_high": r.claim.expect[1], "value": r.value, "low": r.lo,
-             "high": r.hi, "winner": r.winner, "verdict": r.verdict, "why": r.why} for r in claims]
-
-
 def write_reports(tree: xr.DataTree, folder: Path, data: xr.Dataset, fits: Mapping[str, xr.DataTree],
                   claims: list[ClaimResult] | None = None, sizing: SizingResult | None = None) -> xr.DataTree:
     """Write ``folder/results.nc`` (the study's results as one DataTree,
@@ -175,14 +167,13 @@ def write_reports(tree: xr.DataTree, folder: Path, data: xr.Dataset, fits: Mappi
         by :func:`render_report`, the function ``bayesfric report results.nc`` calls on the saved
         tree, so a re-rendering gives the same bytes (tested file by file).
     """
-    claims = claims or []
     view = TreeView(tree)
     figures, fans = draw(view, data, fits, folder, sizing)
-    parameters = parameter_records(view)
-    content = build(view, parameters, figures, {i: f"figures/{p.name}" for i, p in fans.items()}, claims, sizing)
+    parameters, claimed = parameter_records(view), claim_records(claims or [])
+    content = build(view, parameters, figures, {i: f"figures/{p.name}" for i, p in fans.items()}, claimed, sizing)
     tables: dict = {"ranking": ranking_records(view), "parameters": parameters}
-    if claims:
-        tables["claims"] = _claim_records(claims)
+    if claimed:
+        tables["claims"] = claimed
     if sizing is not None:
         tables["sizing"] = sizing_report.records(sizing)
     tables["score_rows"] = view.table  # law by law, each law's rows in its scorers' order (study.tree._merged)

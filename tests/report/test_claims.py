@@ -141,8 +141,7 @@ def test_every_claim_on_reconstructed_seed_data_declares_its_basis():
 
 
 def test_basis_is_rendered_in_the_table_csv_and_summary(study, tmp_path):
-    from bayesfric.report.content import _claim_warnings, _claims
-    from bayesfric.report.summary import _claim_records
+    from bayesfric.report.content import _claim_warnings, _claims, claim_records
 
     out = outcome(study, tmp_path)
     out.claims = evaluate_claims([
@@ -150,14 +149,14 @@ def test_basis_is_rendered_in_the_table_csv_and_summary(study, tmp_path):
         claim(kind="best", law="coulomb_viscous", metric="elpd_loo", basis="evidence"),
         claim(kind="best", law="coulomb_viscous", metric="elpd_loo"),  # measured/simulated data: evidence
     ], study_tree(out))
-    table = _claims(out.claims)
+    records = claim_records(out.claims)
+    table = _claims(records)
     basis = table.header.index("basis")
     assert [row[basis] for row in table.rows] == ["pipeline check, not evidence", "evidence", "evidence"]
     assert "pipeline check, not evidence" in table.caption
-    records = _claim_records(out.claims)
     assert [(r["basis"], r["evidence"]) for r in records] == [
         ("pipeline check", False), ("evidence", True), ("evidence", True)]
-    lines = [" ".join(p for p, _ in f.parts) for f in _claim_warnings(out.claims)]
+    lines = [" ".join(p for p, _ in f.parts) for f in _claim_warnings(records)]
     assert any("1 pipeline check(s)" in line and "NOT reproduced" in line for line in lines)
     assert not any("claim(s) of the source paper NOT" in line for line in lines)  # no evidence claim failed
 
