@@ -7,7 +7,8 @@ rendered from, so a notebook can use the numbers without parsing a CSV file
 (``xarray.open_datatree("reports/<study>/results.nc")``):
 
 ``/`` attrs
-    ``seconds``: the run's wall time.
+    ``seconds``: the run's wall time, and what its units cost (put there by the runner,
+    :func:`bayesfric.study.tree.run_attrs`).
 ``/ranking``, ``/parameters``, ``/claims``, ``/sizing``, ``/score_rows``
     the report's CSV tables over ``row`` (the rows of ``ranking.csv``, ``parameters.csv``,
     ``claims.csv``, ``sizing.csv``, ``scores.csv``; attribute ``csv_file``), each column typed so
@@ -28,7 +29,6 @@ draws, which the tree does not keep), the claims' results and the sizing result 
 
 from __future__ import annotations
 
-import math
 import os
 import secrets
 from pathlib import Path
@@ -45,17 +45,17 @@ RESULTS = "results.nc"
 
 
 def result_tree(core: xr.DataTree, tables: dict[str, list[dict] | pd.DataFrame],
-                extra: dict[str, xr.Dataset] | None = None, seconds: float = math.nan) -> xr.DataTree:
-    """The study's result tree ``core`` (:func:`bayesfric.study.tree.study_tree`) with the
-    report's nodes added (layout in the module docstring); ``core`` itself is left as it is.
+                extra: dict[str, xr.Dataset] | None = None) -> xr.DataTree:
+    """The study's result tree ``core`` (:func:`bayesfric.study.tree.study_tree`, with the run's
+    :func:`~bayesfric.study.tree.run_attrs`) with the report's nodes added (layout in the module
+    docstring); ``core`` itself is left as it is.
 
     ``tables`` are the report's CSV tables by node name (:data:`bayesfric.report.stored.CSV_FILES`:
     ``ranking``, ``parameters``, ``claims``, ``sizing``, ``score_rows``) as records or a data frame,
     so the tree and the CSV files hold the same rows; ``extra`` adds nodes by path (the report's
-    content and figures, :mod:`bayesfric.report.stored`); ``seconds`` is the run's wall time.
+    content and figures, :mod:`bayesfric.report.stored`).
     """
     tree = core.copy(deep=False)
-    tree.attrs["seconds"] = float(seconds)
     for name, rows in tables.items():
         tree[name] = xr.DataTree(table_dataset(rows, CSV_FILES[name]))
     for path, node in (extra or {}).items():

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import base64
 import contextlib
-import math
 import os
 import re
 import secrets
@@ -178,7 +177,7 @@ def write_reports(tree: xr.DataTree, folder: Path, data: xr.Dataset, fits: Mappi
         tables["sizing"] = sizing_report.records(sizing)
     tables["score_rows"] = view.table  # law by law, each law's rows in its scorers' order (study.tree._merged)
     extra = {"report": content_node(content), "report/figures": figures_node(folder)}
-    tree = result_tree(tree, tables, extra, float(tree.attrs.get("seconds", math.nan)))
+    tree = result_tree(tree, tables, extra)
     write_results(tree, folder)
     render_report(tree, folder)  # from the tree in memory; the file renders the same (tests/report/test_rerender.py)
     return tree
