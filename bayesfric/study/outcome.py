@@ -20,8 +20,6 @@ if TYPE_CHECKING:  # annotations only (compare is below study: no cycle at any l
     import pandas as pd
 
     from bayesfric.compare import CVResult, EstimatorAgreement, Evidence, LooResult, PitShape, RankingSensitivity
-    from bayesfric.sizing import SizingResult
-    from bayesfric.study.claimspec import ClaimResult
 
 __all__ = ["Checks", "LawOutcome", "QuickRun", "StudyOutcome", "UnitSeconds", "Weight"]
 
@@ -157,7 +155,10 @@ class UnitSeconds:
 
 @dataclass
 class StudyOutcome:
-    """The study, its data and every law's outcome, plus study-level findings."""
+    """The study, its data and every law's outcome, plus study-level results: what the result
+    tree is built from (:func:`bayesfric.study.tree.study_tree`). The claims' results and the
+    sizing result are not kept here: the runner evaluates them from the tree and passes them to
+    the report."""
 
     study: Study
     data: xr.Dataset
@@ -168,6 +169,4 @@ class StudyOutcome:
     sensitivity: RankingSensitivity | None = None  # the LOO ranking under power-scaled priors (two or more fits)
     weight_errors: list[tuple[str, str]] = field(default_factory=list)  # (weighting, why it was not computed)
     quick: QuickRun | None = None  # the capped settings of a --quick run
-    sizing: SizingResult | None = None  # when the study asks sizing questions
     table: pd.DataFrame | None = None  # the law × metric table (bayesfric.study.scores.score_table), computed once
-    claims: list[ClaimResult] = field(default_factory=list)  # one per [[claims]] entry

@@ -265,16 +265,17 @@ def _write_study(prepared, out_root: Path, quick: bool, fresh: bool, client, tim
         _assign_weights(outcome)
         outcome.table = score_table(outcome)
         tree = study_tree(outcome)  # built once: sizing, the claims and the report read it
+        sized = None
         if questions:
             print(f"[{study.name}] sizing {len(questions)} question(s) ...", flush=True)
             fits = {w.name: tree[f"fits/{w.name}"] for w in outcome.laws}
-            outcome.sizing = sizing.size_study(questions, ds, sizing.sources(tree, work, list(fits), fits=fits),
-                                               sizing.basis_schemes(tree), study_name=study.name, seed=seed)
-        outcome.claims = evaluate_claims(study.claims, tree)
+            sized = sizing.size_study(questions, ds, sizing.sources(tree, work, list(fits), fits=fits),
+                                      sizing.basis_schemes(tree), study_name=study.name, seed=seed)
+        claims = evaluate_claims(study.claims, tree)
         tree.attrs.update(run_attrs(time.perf_counter() - start, _unit_seconds(rows)))
         from bayesfric.report.summary import write_reports  # here: bayesfric.report reads bayesfric.study
 
-        tree = write_reports(tree, work, ds, {w.name: w.fit for w in outcome.laws}, outcome.claims, outcome.sizing)
+        tree = write_reports(tree, work, ds, {w.name: w.fit for w in outcome.laws}, claims, sized)
         (work / INPUTS_FILE).write_text(inputs_key + "\n")  # an unchanged rerun reuses the whole report
         try:
             fsutil.install_folder(work, final, study.name)

@@ -15,6 +15,7 @@ from bayesfric.inference.diagnostics import Verdict
 from bayesfric.laws import get_law
 from bayesfric.model import build_program
 from bayesfric.report.summary import write_reports
+from bayesfric.study.claims import evaluate_claims
 from bayesfric.study.outcome import Checks, LawOutcome, StudyOutcome, Weight
 from bayesfric.study.scores import score_table
 from bayesfric.study.tree import run_attrs, study_tree
@@ -88,10 +89,12 @@ def outcome(study, tmp: Path, *, failed: str | None = None) -> StudyOutcome:
 
 def write_outcome(out: StudyOutcome, folder: Path, seconds: float = 0.0) -> xr.DataTree:
     """The report of ``out`` written as the runner writes one: the outcome's result tree with the
-    run's seconds, the data set, each law's fit, the claims and the sizing result."""
+    run's seconds, the study's claims evaluated from that tree, the data set and each law's fit
+    (no sizing question)."""
     tree = study_tree(out)
     tree.attrs.update(run_attrs(seconds, None))
-    return write_reports(tree, folder, out.data, {w.name: w.fit for w in out.laws}, out.claims, out.sizing)
+    claims = evaluate_claims(out.study.claims, tree)
+    return write_reports(tree, folder, out.data, {w.name: w.fit for w in out.laws}, claims)
 
 
 def write_bench_study(folder: Path, capacity: str | None = None) -> Path:

@@ -15,9 +15,7 @@ from pathlib import Path
 import pytest
 
 from bayesfric.study import load_study
-from bayesfric.study.claims import evaluate_claims
 from bayesfric.study.runner import run_study
-from bayesfric.study.tree import study_tree
 from tests.report.browser import PHONE, WIDTH, find_chromium, inspect_page
 from tests.report.fakes import outcome, write_bench_study, write_outcome
 
@@ -61,7 +59,6 @@ def test_fake_outcome_report_in_chromium(tmp_path):
         '[compare]\nevidence = false\n[[compare.blocked]]\naxis = "velocity"\nthreshold = 1.0\nlabel = "outside"\n'
         '[[claims]]\ntext = "c"\nsource = "seed"\nkind = "best"\nlaw = "coulomb_viscous"\nmetric = "elpd_loo"\n')
     out = outcome(load_study(tmp_path / "tiny.toml"), tmp_path)
-    out.claims = evaluate_claims(out.study.claims, study_tree(out))
     folder = tmp_path / "report"
     folder.mkdir()
     write_outcome(out, folder)

@@ -144,12 +144,12 @@ def test_basis_is_rendered_in_the_table_csv_and_summary(study, tmp_path):
     from bayesfric.report.content import _claim_warnings, _claims, claim_records
 
     out = outcome(study, tmp_path)
-    out.claims = evaluate_claims([
+    results = evaluate_claims([
         claim(kind="best", law="coulomb", metric="elpd_loo", basis="pipeline check"),  # not reproduced
         claim(kind="best", law="coulomb_viscous", metric="elpd_loo", basis="evidence"),
         claim(kind="best", law="coulomb_viscous", metric="elpd_loo"),  # measured/simulated data: evidence
     ], study_tree(out))
-    records = claim_records(out.claims)
+    records = claim_records(results)
     table = _claims(records)
     basis = table.header.index("basis")
     assert [row[basis] for row in table.rows] == ["pipeline check, not evidence", "evidence", "evidence"]

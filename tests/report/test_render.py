@@ -7,8 +7,6 @@ import pytest
 from bayesfric.report.content import SECTIONS
 from bayesfric.report.findings import Finding
 from bayesfric.study import load_study
-from bayesfric.study.claims import evaluate_claims
-from bayesfric.study.tree import study_tree
 from tests.report.fakes import outcome, write_outcome
 
 HOSTILE = '<script>alert(1)</script> **bold** & `code`'
@@ -23,7 +21,6 @@ def report(tmp_path_factory):
         '[compare]\nevidence = false\n[[compare.blocked]]\naxis = "velocity"\nthreshold = 1.0\nlabel = "outside"\n'
         f'[[claims]]\ntext = "{HOSTILE}"\nsource = "seed"\nkind = "best"\nlaw = "coulomb"\nmetric = "elpd_loo"\n')
     out = outcome(load_study(tmp / "tiny.toml"), tmp)
-    out.claims = evaluate_claims(out.study.claims, study_tree(out))
     folder = tmp / "report"
     folder.mkdir()
     write_outcome(out, folder)
