@@ -66,7 +66,9 @@ def child(law_name: str, design: str, seed: int, init: str = "median") -> dict:
     return {"law": law_name, "design": design, "init": init, "rows": int(ds.sizes["obs"]), "seconds": seconds,
             "passed": bool(verdict.passed), "rhat_max": verdict.rhat_max, "ess_bulk_min": verdict.ess_bulk_min,
             "ess_tail_min": verdict.ess_tail_min, "divergences": verdict.divergences,
-            "steps_per_draw": steps, "problems": list(verdict.problems)}
+            "steps_per_draw": steps, "problems": list(verdict.problems),
+            "loglik_rhat_max": verdict.loglik_rhat_max, "loglik_ess_bulk_min": verdict.loglik_ess_bulk_min,
+            "predictions_converged": verdict.predictions_converged}
 
 
 def run_one(law_name: str, design: str, seed: int, limit: float, init: str = "median") -> dict:

@@ -10,7 +10,7 @@ import xarray as xr
 
 from bayesfric.datasets.synthetic import simulate
 from bayesfric.inference import GATE, check, fit, load_fit, save_fit, verdict_of
-from bayesfric.inference.diagnostics import check_folds
+from bayesfric.inference.diagnostics import Verdict, check_folds
 from bayesfric.laws import get_law
 from bayesfric.model import Noise
 
@@ -79,6 +79,36 @@ def test_gate_per_fold_in_one_pass_equals_the_gate_per_fold():
     assert together == alone
     assert [v.passed for v in together] == [True, False, False]
     assert any("R-hat" in p for p in together[1].problems) and together[2].divergences == 3
+
+
+def test_the_gate_tells_unidentified_parameters_from_an_unconverged_fit():
+    """When the chains disagree, the pointwise log-likelihood says why: on a ridge (a + b fixed by
+    the data, a and b not) every chain fits each row alike, and the verdict says the parameters are
+    not identified; with chains in separate modes of the fit itself it says so instead."""
+    from scipy.stats import norm
+
+    rng = np.random.default_rng(1)
+    chains, draws, rows = 4, 500, 30
+    y = rng.normal(size=rows)
+    total = rng.normal(0.0, 0.05, size=(chains, draws))  # a + b: alike in every chain
+
+    def verdict(total: np.ndarray):
+        a = total / 2 + np.arange(chains)[:, None]  # each chain at another place on the ridge
+        ll = norm.logpdf(y, loc=total[..., None])
+        return check(xr.DataTree.from_dict({
+            "posterior": xr.Dataset({"a": (("chain", "draw"), a), "b": (("chain", "draw"), total - a)}),
+            "log_likelihood": xr.Dataset({"y": (("chain", "draw", "obs"), ll)})}))
+
+    ridge = verdict(total)
+    assert not ridge.passed and ridge.rhat_max > 2 and ridge.predictions_converged is True
+    assert ridge.loglik_rhat_max <= GATE.rhat_max and ridge.loglik_ess_bulk_min >= GATE.ess_bulk_min
+    assert "the parameters are not identified from these data" in str(ridge)
+    modes = verdict(total + 0.5 * np.arange(chains)[:, None])  # the chains fit the data differently
+    assert not modes.passed and modes.predictions_converged is False and modes.loglik_rhat_max > 1.1
+    assert "disagree on the fit to the data itself" in str(modes)
+    mixed = check(xr.DataTree.from_dict({"posterior": xr.Dataset({"a": (("chain", "draw"), total)})}))
+    assert mixed.passed and mixed.predictions_converged is None and mixed.predictions_note == ""
+    assert Verdict.from_json(ridge.to_json()) == ridge  # stored with the fit and read back
 
 
 def test_gate_thresholds_in_one_place():

@@ -11,7 +11,7 @@ cache (:mod:`bayesfric.exported`), instead of before.
 from __future__ import annotations
 
 import json
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from types import ModuleType
 
 import numpy as np
@@ -25,6 +25,12 @@ def import_statistics() -> ModuleType:
     import arviz_stats
 
     return arviz_stats
+
+
+#: Rows of the pointwise log-likelihood read to tell unidentified parameters from an unconverged
+#: fit (:attr:`Verdict.predictions_note`): evenly spaced over the data beyond this many (approximate
+#: there: the extremes over the other rows are not seen).
+LOGLIK_ROWS = 2000
 
 
 @dataclass(frozen=True)
@@ -55,6 +61,26 @@ class Verdict:
     ebfmi_min: float | None
     acceptance_mean: float | None
     problems: list[str] = field(default_factory=list)
+    #: When the chains did not mix (R-hat or bulk ESS failed): the largest R-hat and the smallest
+    #: bulk ESS of the pointwise log-likelihood (one per data row), and whether both pass the gate.
+    loglik_rhat_max: float | None = None
+    loglik_ess_bulk_min: float | None = None
+    predictions_converged: bool | None = None
+
+    @property
+    def predictions_note(self) -> str:
+        """Why the chains did not mix, said from the pointwise log-likelihood: the fit to the data
+        converged and only the parameters are unidentified, or the fit itself did not converge
+        (``""`` when the gate passed or the chains mixed)."""
+        if self.passed or self.predictions_converged is None:
+            return ""
+        stats = (f"pointwise log-likelihood R-hat max {self.loglik_rhat_max:.3f}, bulk ESS min "
+                 f"{self.loglik_ess_bulk_min:.0f}")
+        if self.predictions_converged:
+            return (f"{stats}: the chains agree on the fit to every row, so the parameters are not identified "
+                    "from these data (a ridge or interchangeable terms: see the pair plot), not the predictions")
+        return f"{stats}: the chains disagree on the fit to the data itself (separate modes or unconverged), " \
+               "not only on the parameters"
 
     def to_json(self) -> str:
         return json.dumps(asdict(self))
@@ -76,6 +102,8 @@ class Verdict:
         text = f"{head}: " + ", ".join(parts)
         if self.problems:
             text += " -- " + "; ".join(self.problems)
+        if note := self.predictions_note:
+            text += f" ({note})"
         return text
 
 
@@ -99,7 +127,26 @@ def check(dt: xr.DataTree, var_names: list[str] | None = None, gate: Gate = GATE
     """Apply the gate to a fit's posterior (all sampled and derived variables by default)."""
     post = dt["posterior"].to_dataset()
     stats = dt["sample_stats"].to_dataset() if "sample_stats" in dt.children else xr.Dataset()
-    return check_folds(post, stats, var_names, gate, fold=None)[0]
+    verdict = check_folds(post, stats, var_names, gate, fold=None)[0]
+    mixed = verdict.rhat_max <= gate.rhat_max and verdict.ess_bulk_min >= gate.ess_bulk_min
+    if mixed or "log_likelihood" not in dt.children:
+        return verdict
+    return _with_predictions(verdict, dt["log_likelihood"].to_dataset(), gate)
+
+
+def _with_predictions(verdict: Verdict, loglik: xr.Dataset, gate: Gate) -> Verdict:
+    """``verdict`` with the R-hat and bulk ESS of the pointwise log-likelihood: the convergence of
+    the fit to each data row, which a law whose parameters are not identified (a ridge,
+    interchangeable elements) reaches although its parameters' chains disagree."""
+    arviz_stats = import_statistics()
+    rows = [d for d in loglik.dims if d not in ("chain", "draw")]
+    for dim in rows:  # at most LOGLIK_ROWS rows, evenly spaced: bounded cost and memory on large data
+        if loglik.sizes[dim] > LOGLIK_ROWS:
+            loglik = loglik.isel({dim: np.linspace(0, loglik.sizes[dim] - 1, LOGLIK_ROWS).astype(int)})
+    rhat = float(np.nanmax(_per_fold(arviz_stats.rhat(loglik), np.nanmax, None)))
+    ess = float(np.nanmin(_per_fold(arviz_stats.ess(loglik, method="bulk"), np.nanmin, None)))
+    converged = bool(rhat <= gate.rhat_max and ess >= gate.ess_bulk_min)
+    return replace(verdict, loglik_rhat_max=rhat, loglik_ess_bulk_min=ess, predictions_converged=converged)
 
 
 def check_folds(posterior: xr.Dataset, sample_stats: xr.Dataset, var_names: list[str] | None = None,

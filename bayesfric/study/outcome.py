@@ -108,7 +108,8 @@ class LawOutcome:
         """One line per problem found in this law's results, in the order the stages ran."""
         out = []
         if not self.verdict.passed:
-            out.append("diagnostics FAILED: " + "; ".join(self.verdict.problems))
+            note = self.verdict.predictions_note
+            out.append("diagnostics FAILED: " + "; ".join(self.verdict.problems) + (f" ({note})" if note else ""))
         if self.skipped:
             out.append(f"{', '.join(self.skipped)} skipped: the full fit failed the diagnostics gate "
                        f"([compare] failed_fits = \"{self.failed_fits}\"; \"run\" computes them anyway)")
