@@ -2,7 +2,8 @@
 
 A :class:`TreeView` holds the law × metric table (``/scores`` as the tidy table of
 :mod:`bayesfric.study.scores`), the ranking criteria, the per-law nodes and the root attrs; the
-report's ranking, findings, checks table and law sections read it and nothing else of the run.
+report's ranking, findings, checks table, law sections and figures read it and nothing else of
+the run's results (the figures also take the data set and the full fits' predictive draws).
 """
 
 from __future__ import annotations
