@@ -270,9 +270,9 @@ def test_run_a_python_study_then_size_its_result(tmp_path):
 
 @pytest.mark.slow  # every docstring example of the API, fits and a study run included (~2 min)
 def test_docstring_examples_run():
-    from bayesfric.api import fitfile, fitting, sizing, studies
+    from bayesfric.api import fitfile, fitting, reports, sizing, studies
 
-    for module in (fitting, fitfile, sizing, studies):
+    for module in (fitting, fitfile, sizing, studies, reports):
         failed, tried = doctest.testmod(module, optionflags=doctest.ELLIPSIS)
         assert tried > 0 and failed == 0, module.__name__
 

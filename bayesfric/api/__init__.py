@@ -19,8 +19,9 @@ Every argument is checked where it is given; a bad one raises a one-line
 
 from bayesfric.api.fitfile import load_fit
 from bayesfric.api.fitting import compare_laws, fit, law, load_data
+from bayesfric.api.reports import write_report
 from bayesfric.api.sizing import size
-from bayesfric.api.studies import Study, StudyResult, run, write_report
+from bayesfric.api.studies import Study, StudyResult, run
 from bayesfric.laws.base import Param
 from bayesfric.priors import Prior
 

@@ -8,8 +8,8 @@ so every error names the key as a study file would, prefixed ``Study('<name>')``
 that holds the report folder, the result tree the run saved as ``results.nc`` and every law's fit,
 as the run held them in memory (an unchanged rerun reads them from the earlier run's folder). The
 report itself (``summary.md``, ``report.html``, CSV tables, figures) is written by :func:`run`
-and rendered from the result tree alone; :func:`write_report` renders it again from a result, its
-tree or its ``results.nc`` into another folder.
+and rendered from the result tree alone; :func:`bayesfric.api.reports.write_report` renders it
+again from a result, its tree or its ``results.nc`` into another folder.
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ from bayesfric.laws.base import Law
 from bayesfric.priors import Prior
 from bayesfric.study import config
 
-__all__ = ["Study", "StudyResult", "run", "as_study", "write_report"]
+__all__ = ["Study", "StudyResult", "run", "as_study"]
 
 
 def _plain(value: Any) -> Any:
@@ -364,47 +364,3 @@ def run(study: Study | str | Path, out: str | Path = "reports", *, quick: bool =
         return StudyResult.read(chosen, done.folder)
     return StudyResult.from_tree(chosen, done.folder, done.tree, done.fits)
 
-
-def write_report(result: StudyResult | xr.DataTree | str | Path, folder: str | Path) -> Path:
-    """Write a study's report into a new folder from its result tree alone: ``summary.md``,
-    ``report.html``, the CSV tables, the figures and ``results.nc`` (what ``bayesfric report
-    results.nc --out FOLDER`` does), the same bytes as the run's own report.
-
-    Parameters
-    ----------
-    result : StudyResult, xarray.DataTree, str or Path
-        What :func:`run` returned, its result tree (``result.tree``), or a ``results.nc`` file.
-    folder : str or Path
-        A new or empty folder; written atomically (a hidden folder beside it, renamed when complete).
-
-    Returns
-    -------
-    Path
-        ``folder``.
-
-    Raises
-    ------
-    UserError
-        ``result`` holds no study report (a fit, another file), or ``folder`` exists and is not
-        empty, is a link, or cannot be created: one line, nothing written.
-
-    Examples
-    --------
-    >>> import bayesfric, tempfile, pathlib
-    >>> study = bayesfric.Study("doc2", "robot_joint", laws=["coulomb_viscous"],
-    ...                         sampler={"draws": 100, "tune": 100, "chains": 2}, compare={"evidence": False})
-    >>> result = bayesfric.run(study, tempfile.mkdtemp())  # doctest: +ELLIPSIS
-    [doc2] ...
-    >>> copy = bayesfric.write_report(result, pathlib.Path(tempfile.mkdtemp()) / "copy")
-    >>> (copy / "summary.md").read_bytes() == (result.folder / "summary.md").read_bytes()
-    True
-    """
-    from bayesfric.report.summary import rerender
-
-    if isinstance(result, StudyResult):
-        if result.tree is None:
-            raise UserError("result: holds no result tree (read it with StudyResult.read, or pass its results.nc)")
-        result = result.tree
-    elif not isinstance(result, xr.DataTree | str | Path):
-        raise UserError(f"result: a StudyResult, its result tree or a results.nc file, got {type(result).__name__}")
-    return rerender(result, folder)
