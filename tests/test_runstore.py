@@ -15,7 +15,7 @@ import xarray as xr
 
 from bayesfric.study import load_study
 from bayesfric.study.plan import _fold_schemes, _run_settings, load_study_data
-from bayesfric.study.store import STORE_ENV, Record, RunStore
+from bayesfric.study.store import STORE_ENV, RunStore
 from bayesfric.study.units import make_job, plan_law
 from tests.hostile.harness import assert_user_error
 from tests.test_study import data_csv, study_text, write_bench_data  # noqa: F401 - the fixture is used by name
@@ -63,21 +63,21 @@ def test_unit_keys_change_with_every_input_and_only_then(tmp_path, data_csv):  #
 def test_store_entries_round_trip_and_a_damaged_entry_is_a_miss(tmp_path):
     store = RunStore(tmp_path / "store")
     key = "a" * 32
-    result = Record({"key": key, "value": 1.5}, {"x": np.arange(3.0)})
-    store.put(key, "npz", result)
-    back = store.get(key, "npz")
-    assert back.record == {"key": key, "value": 1.5} and list(back.arrays) == ["x"]
-    assert np.array_equal(back.arrays["x"], np.arange(3.0))
-    assert RunStore(tmp_path / "store", read=False).get(key, "npz") is None  # --fresh
+    result = xr.Dataset({"x": ("obs", np.arange(3.0)), "handling": "none", "refitted": True},
+                        attrs={"key": key, "compute_s": 1.5})
+    store.put(key, "unit.nc", result)
+    back = store.get(key, "unit.nc")
+    xr.testing.assert_identical(back, result)  # values, dtypes (a bool stays a bool) and attrs
+    assert RunStore(tmp_path / "store", read=False).get(key, "unit.nc") is None  # --fresh
     other = "b" * 32
-    store.put(other, "npz", result)  # an entry under another key's name: not trusted
-    assert store.get(other, "npz") is None
-    payload = store.path(key, "npz").read_bytes()
-    store.path(key, "npz").write_bytes(payload[: len(payload) // 2])  # truncated
-    assert store.get(key, "npz") is None
+    store.put(other, "unit.nc", result)  # an entry under another key's name: not trusted
+    assert store.get(other, "unit.nc") is None
+    payload = store.path(key, "unit.nc").read_bytes()
+    store.path(key, "unit.nc").write_bytes(payload[: len(payload) // 2])  # truncated
+    assert store.get(key, "unit.nc") is None
     store.path(key, "nc").write_bytes(b"not a NetCDF file")
     assert store.get(key, "nc") is None
-    assert store.get("c" * 32, "npz") is None  # absent
+    assert store.get("c" * 32, "unit.nc") is None  # absent
 
 
 def test_clean_removes_temporary_files_of_dead_writers_only(tmp_path):
@@ -133,7 +133,7 @@ def _run(path: Path, out: Path, *extra: str, quick: bool = True) -> subprocess.P
 
 def _entries(store: Path) -> list[Path]:
     """Finished store entries (not temporary files of writes in progress)."""
-    return sorted(p for p in store.glob("*") if not p.name.startswith(".") and p.suffix in (".nc", ".npz"))
+    return sorted(p for p in store.glob("*") if not p.name.startswith(".") and p.suffix == ".nc")
 
 
 def _finish(proc: subprocess.Popen) -> str:
@@ -166,7 +166,10 @@ def test_kill_minus_nine_then_rerun_equals_an_uninterrupted_run(tmp_path, serial
     proc = _run(path, tmp_path / "out")
     store = tmp_path / "out" / ".store" / "tiny"
     deadline = time.monotonic() + 300
-    while not any(p.suffix == ".npz" for p in _entries(store)) and proc.poll() is None and time.monotonic() < deadline:
+    def past_a_fit() -> bool:
+        return any(p.name.endswith(".unit.nc") for p in _entries(store))
+
+    while not past_a_fit() and proc.poll() is None and time.monotonic() < deadline:
         time.sleep(0.05)  # kill right after the first unit past a fit landed: mid-run
     assert proc.poll() is None, "the run ended before it could be killed"
     os.killpg(proc.pid, signal.SIGKILL)
@@ -189,7 +192,7 @@ def test_kill_minus_nine_then_rerun_equals_an_uninterrupted_run(tmp_path, serial
     assert {p.name: p.stat().st_mtime_ns for p in folder.iterdir()} == before
 
     # one damaged entry is recomputed, not trusted; everything else is reused
-    victim = [p for p in _entries(store) if p.suffix == ".npz"][0]
+    victim = [p for p in _entries(store) if p.name.endswith(".unit.nc")][0]
     victim.write_bytes(victim.read_bytes()[:100])
     shutil.rmtree(folder)  # without the report, the rerun rebuilds it from the store
     _finish(_run(path, tmp_path / "out"))

@@ -56,19 +56,6 @@ class HeldOut:
     mu: np.ndarray
     noise_var: np.ndarray
 
-    def arrays(self) -> dict[str, np.ndarray]:
-        """The fields as named arrays (what the run store keeps)."""
-        return {"heldout_index": self.index, "heldout_fold": self.fold, "heldout_mu": self.mu,
-                "heldout_noise_var": self.noise_var}
-
-    @classmethod
-    def from_arrays(cls, arrays) -> HeldOut | None:
-        """Inverse of :meth:`arrays`; None when the arrays were not kept."""
-        if "heldout_mu" not in arrays:
-            return None
-        return cls(np.asarray(arrays["heldout_index"], dtype=int), np.asarray(arrays["heldout_fold"], dtype=int),
-                   np.asarray(arrays["heldout_mu"], dtype=float), np.asarray(arrays["heldout_noise_var"], dtype=float))
-
 
 def _thin(n: int, keep: int) -> np.ndarray:
     return np.unique(np.linspace(0, n - 1, min(n, keep)).round().astype(int))

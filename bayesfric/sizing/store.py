@@ -33,7 +33,7 @@ import xarray as xr
 
 from bayesfric.inference import load_fit
 from bayesfric.sizing.basis import LOO
-from bayesfric.sizing.calibration import Miss, Scheme, measure_miss
+from bayesfric.sizing.calibration import Miss, Scheme
 from bayesfric.sizing.compute import LawSource
 from bayesfric.sizing.points import SizingError
 
@@ -43,51 +43,40 @@ __all__ = ["NODES", "RESULTS", "schemes_of", "basis_node", "read_basis", "exclus
 RESULTS = "results.nc"
 #: The result-tree nodes sizing reads.
 NODES = ("weights", "diagnostics", "sizing_basis")
+#: The fields of a measured miss (:class:`bayesfric.sizing.calibration.Miss`) besides its count.
 MISS_FIELDS = ("rate", "beta", "se", "reach")
 
 
-def schemes_of(outcome) -> list[Scheme]:
+def schemes_of(study, data: xr.Dataset, blocked: Sequence[str]) -> list[Scheme]:
     """The study's blocked extrapolation schemes as sizing reads them (leave-future-out ones are
     not envelope extrapolations and are left out); ``|x|`` where the input has both signs, as
-    :func:`bayesfric.compare.blocked_masks` blocks it."""
+    :func:`bayesfric.compare.blocked_masks` blocks it. ``blocked`` are the schemes' labels, in the
+    order of ``study.blocked``."""
     out = []
-    for label, spec in zip(outcome.blocked, outcome.study.blocked, strict=True):
+    for label, spec in zip(blocked, study.blocked, strict=True):
         if spec.future:
             continue
-        values = outcome.data[spec.axis].values
+        values = data[spec.axis].values
         out.append(Scheme(label, spec.axis, spec.direction, bool((values < 0).any() and (values > 0).any())))
     return out
 
 
-def _miss_arrays(outcome, schemes: Sequence[Scheme]) -> dict[str, tuple]:
-    shape = (len(outcome.laws), len(schemes))
-    values = {k: np.full(shape, np.nan) for k in MISS_FIELDS}
-    count = np.full(shape, -1, dtype=np.int64)
-    for i, w in enumerate(outcome.laws):
-        for j, scheme in enumerate(schemes):
-            miss = measure_miss(w.cv[scheme.label], outcome.data, scheme) if scheme.label in w.cv else None
-            if miss is not None:
-                for k in MISS_FIELDS:
-                    values[k][i, j] = getattr(miss, k)
-                count[i, j] = miss.n
-    dims = ("law", "scheme")
-    return {f"miss_{k}": (dims, v) for k, v in values.items()} | {"miss_n": (dims, count)}
-
-
-def basis_node(outcome) -> xr.Dataset:
-    """The ``/sizing_basis`` node of a :class:`~bayesfric.study.outcome.StudyOutcome` (after its
-    weights): fit files, evidence disagreement, misses, penalties and blocked schemes."""
-    schemes = schemes_of(outcome)
-    laws = [w.name for w in outcome.laws]
-    labels = list(dict.fromkeys(k for w in outcome.laws for k in w.penalty))
-    penalty = np.array([[float(w.penalty.get(k, math.nan)) for k in labels] for w in outcome.laws])
-    disagreement = [float(w.agreement.difference) if w.agreement is not None else math.nan for w in outcome.laws]
+def basis_node(laws: Sequence[xr.Dataset], schemes: Sequence[Scheme]) -> xr.Dataset:
+    """The ``/sizing_basis`` node from each law's result Dataset (after its weights,
+    :mod:`bayesfric.study.lawresult`): fit files, evidence disagreement, misses on ``schemes``
+    (:func:`schemes_of`), penalties and the blocked schemes."""
+    names = [str(w.attrs["law"]) for w in laws]
+    labels = list(dict.fromkeys(str(k) for w in laws for k, done in zip(w["scheme"].values,
+                                                                         w["penalty_computed"].values, strict=True)
+                                if done))
+    penalty = np.array([[float(w["penalty"].sel(scheme=k)) if k in w["scheme"].values and
+                         bool(w["penalty_computed"].sel(scheme=k)) else math.nan for k in labels] for w in laws])
     node = xr.Dataset(
-        {"fit": ("law", [f"fits/{w.fit_file.name}" for w in outcome.laws]),
-         "evidence_disagreement": ("law", disagreement),
+        {"fit": ("law", [str(w.attrs["fit_file"]) for w in laws]),
+         "evidence_disagreement": ("law", [float(w["evidence_difference"]) for w in laws]),
          "penalty": (("law", "penalty_scheme"), penalty.reshape(len(laws), len(labels)))}
-        | _miss_arrays(outcome, schemes),
-        coords={"law": laws, "scheme": [s.label for s in schemes], "penalty_scheme": labels,
+        | _miss_arrays(laws, schemes),
+        coords={"law": names, "scheme": [s.label for s in schemes], "penalty_scheme": labels,
                 "axis": ("scheme", [s.axis for s in schemes]),
                 "direction": ("scheme", [s.direction for s in schemes]),
                 "use_abs": ("scheme", [s.use_abs for s in schemes])},
@@ -95,6 +84,21 @@ def basis_node(outcome) -> xr.Dataset:
     node["miss_n"].attrs["description"] = "held-out points of the blocked fold's miss; -1: no miss measured"
     node["penalty"].attrs.update(units="nats per held-out point")
     return node
+
+
+def _miss_arrays(laws: Sequence[xr.Dataset], schemes: Sequence[Scheme]) -> dict[str, tuple]:
+    shape = (len(laws), len(schemes))
+    values = {k: np.full(shape, np.nan) for k in MISS_FIELDS}
+    count = np.full(shape, -1, dtype=np.int64)
+    for i, w in enumerate(laws):
+        for j, scheme in enumerate(schemes):
+            if scheme.label in w["miss_scheme"].values:
+                at = w.sel(miss_scheme=scheme.label)
+                for k in MISS_FIELDS:
+                    values[k][i, j] = float(at[f"miss_{k}"])
+                count[i, j] = int(at["miss_n"])
+    dims = ("law", "scheme")
+    return {f"miss_{k}": (dims, v) for k, v in values.items()} | {"miss_n": (dims, count)}
 
 
 def read_basis(folder: Path) -> xr.DataTree:

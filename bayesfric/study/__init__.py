@@ -3,7 +3,7 @@
 A study is run by :func:`bayesfric.study.runner.run_study` (the public :func:`bayesfric.run`),
 the seed studies by :func:`bayesfric.study.mainjob.run_flagship`. This package's ``__init__``
 imports neither: the runner imports :mod:`bayesfric.report`, which imports this package (its
-scores and outcome), and commands that only read the study schema (``bayesfric fit``) should not
+scores and result tree), and commands that only read the study schema (``bayesfric fit``) should not
 pay for importing every comparison, report and sizing module.
 """
 

@@ -4,7 +4,7 @@ its data-independent checks (:func:`make_claim`) and its checks against the stud
 against the posterior: :mod:`bayesfric.study.claims`, which re-exports these names.
 
 Split from the evaluation so that the study's types (:class:`bayesfric.study.spec.Study` holds
-its claims) sit below the law × metric table and the outcome, which the evaluation reads.
+its claims) sit below the law × metric table and the result tree, which the evaluation reads.
 """
 
 from __future__ import annotations

@@ -5,8 +5,8 @@ the store is read back; the others are computed here (serial) or on the workers 
 ``Client`` (``--workers N`` starts a ``LocalCluster`` of N single-threaded processes;
 ``--scheduler ADDRESS`` connects to a running cluster, see :func:`open_client`). A law's fit runs
 first; when it is done (or read back) its other units are scheduled, all independent of each
-other, and the laws are independent of each other. Results (the fit, or a
-:class:`~bayesfric.study.store.Record`) travel back to this process as objects (pickled by Dask
+other, and the laws are independent of each other. Results (the fit, or the unit's
+``xarray.Dataset``) travel back to this process as objects (pickled by Dask
 from a worker, handed over as they are in this process) and are written to the store here, one
 atomic file per unit as soon as it is done, so a worker that dies, or a run that is killed, loses
 only the units in flight, and the workers need no file system shared with the client. Serial
@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import math
 import sys
 import time
 from collections import deque
@@ -48,7 +49,8 @@ from bayesfric.study.units import COSTLY, LawJob, Unit, compute, compute_seconds
 #: Seconds to wait for ``--scheduler ADDRESS`` to answer.
 CONNECT_TIMEOUT_S = 20
 
-__all__ = ["Timing", "run_units", "open_client", "timing_table", "write_timings", "Progress"]
+__all__ = ["Timing", "run_units", "open_client", "timing_table", "write_timings", "Progress", "UnitSeconds",
+           "unit_seconds"]
 
 
 @dataclass(frozen=True)
@@ -62,6 +64,26 @@ class Timing:
     status: str
     seconds: float  # wall seconds spent in this run (0 for reused and skipped units)
     stored_seconds: float  # what the unit cost when it was computed (NaN: skipped, or stored by an older run)
+
+
+@dataclass(frozen=True)
+class UnitSeconds:
+    """Seconds the units computed in this run took, and what the reused ones cost when computed
+    (``unknown``: reused units stored without their seconds)."""
+
+    computed: float
+    reused: int
+    saved: float
+    unknown: int
+
+
+def unit_seconds(rows: list[Timing]) -> UnitSeconds:
+    """The :class:`UnitSeconds` of a run's timing rows (the report's footer: a resumed run's wall
+    time alone hides the real cost)."""
+    reused = [r.stored_seconds for r in rows if r.status == "reused"]
+    return UnitSeconds(computed=float(sum(r.seconds for r in rows if r.status == "computed")), reused=len(reused),
+                       saved=float(sum(s for s in reused if math.isfinite(s))),
+                       unknown=sum(not math.isfinite(s) for s in reused))
 
 
 class CostModel:
@@ -268,8 +290,8 @@ def run_units(plans: list[tuple[LawJob, Unit, list[Unit]]], store: RunStore, *, 
     -------
     results : dict
         Unit key -> result: the fit (an ``xarray.DataTree``, fully in memory; its file is in the
-        store, ``store.path(key, "nc")``) or a :class:`~bayesfric.study.store.Record`, computed
-        in this run or read back from the store.
+        store, ``store.path(key, "nc")``) or the unit's ``xarray.Dataset``, computed in this run
+        or read back from the store.
     skipped : dict
         Law -> units not run because its fit failed the gate (``failed_fits = "skip"``).
     timings : list of Timing

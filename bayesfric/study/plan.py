@@ -9,7 +9,10 @@ been written.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from bayesfric import compare, fsutil, limits, sizing
 from bayesfric.datasets import DataError, load_dataset, resolve, select
@@ -22,13 +25,21 @@ from bayesfric.study.claims import ClaimError, basis_problem, check_claim
 from bayesfric.study.config import Study, StudyError, load_study, sampler_settings, walkers_problem
 from bayesfric.study.store import store_folder
 
-__all__ = ["validate_against_data", "sizing_questions", "load_study_data", "QUICK", "QUICK_KFOLD"]
+__all__ = ["validate_against_data", "sizing_questions", "load_study_data", "QUICK", "QUICK_KFOLD", "QuickRun"]
 
 #: ``--quick`` caps per sampler (a setting is lowered to its cap, never raised) and the cap on
 #: K-fold folds: a smoke test of the whole pipeline, not for decisions (reports say so).
+@dataclass(frozen=True)
+class QuickRun:
+    """The settings a ``--quick`` run capped: the sampler's, and K-fold's (asked, used)."""
+
+    settings: Mapping[str, Any]
+    kfold: tuple[int, int]
+
+
 QUICK = {"nuts": {"draws": 300, "tune": 300, "chains": 2}, "emcee": {"draws": 1000, "tune": 1000, "thin": 10}}
 QUICK_KFOLD = 4
-#: Result keys of a law outcome that a CV scheme label must not shadow.
+#: Unit labels of a law (:func:`bayesfric.study.units.rebuild` finds results by label): no CV scheme may take one.
 _RESERVED_LABELS = ("loo", "bridge", "SMC")
 
 

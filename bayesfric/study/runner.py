@@ -23,10 +23,8 @@ question and a sizing section in ``summary.md`` and ``report.html``.
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import hashlib
 import json
-import math
 import shutil
 import time
 from collections.abc import Mapping
@@ -37,21 +35,23 @@ import xarray as xr
 
 from bayesfric import compare, fsutil, sizing
 from bayesfric.fingerprint import package_fingerprint
+from bayesfric.laws.variants import law_of_fit
+from bayesfric.sizing.store import schemes_of
 from bayesfric.study import units
 from bayesfric.study.claims import evaluate_claims
 from bayesfric.study.config import Study, StudyError
-from bayesfric.study.executor import open_client, run_units, timing_table, write_timings
-from bayesfric.study.outcome import LawOutcome, QuickRun, StudyOutcome, UnitSeconds, Weight
+from bayesfric.study.executor import open_client, run_units, timing_table, unit_seconds, write_timings
+from bayesfric.study.lawresult import Weight, law_result
 from bayesfric.study.plan import (  # checked and planned before anything is written; re-exported
     QUICK,
     QUICK_KFOLD,
+    QuickRun,
     _plan_laws,
     _prepare,
     load_study_data,
     sizing_questions,
     validate_against_data,
 )
-from bayesfric.study.scores import score_table
 from bayesfric.study.store import RunStore, store_folder
 from bayesfric.study.tree import run_attrs, study_tree
 
@@ -102,16 +102,19 @@ def current_report(path: str | Path, out_root: str | Path = "reports", quick: bo
     return final
 
 
-def _run_laws(study: Study, ds, work: Path, plans: list, schemes, *, out_root: Path,
-              fresh: bool, client, timings: list, quick: bool, live_progress: bool | None = None) -> list[LawOutcome]:
-    """Every law's units through the run store and the executor; their outcomes, in study order.
+def _run_laws(study: Study, work: Path, plans: list, schemes, *, out_root: Path, fresh: bool, client,
+              timings: list, quick: bool, live_progress: bool | None = None) -> tuple[dict, dict]:
+    """Every law's units through the run store and the executor: each law's fit and its units'
+    results rebuilt as the compare layer's objects (:func:`bayesfric.study.units.rebuild`), by
+    law, in study order.
 
     Under ``--quick`` every stage runs even after a failed fit (``failed_fits = "run"``): quick
     settings rarely reach the gate's ESS, and a smoke test should exercise every stage.
 
     Units whose key is in the store are reused, the rest are computed (serially, or on the Dask
     ``client``); each result is stored as soon as it is done (:mod:`bayesfric.study.executor`).
-    The fits are copied into ``work/fits/``.
+    The fits are copied into ``work/fits/``; ``timings`` receives one row per unit and the
+    skipped stages are returned with the results.
     """
     store = RunStore(store_folder(out_root, study.name), read=not fresh)
     for tmp in store.clean():
@@ -121,55 +124,68 @@ def _run_laws(study: Study, ds, work: Path, plans: list, schemes, *, out_root: P
                                        client=client, live=live_progress)
     timings += rows
     kinds = {label: kind for label, _, kind in schemes}
-    outcomes = []
+    fits, scored = {}, {}
     for job, fit, rest in plans:
-        fit_file = work / "fits" / f"{job.spec.name}.nc"
+        name = job.spec.name
+        fit_file = work / "fits" / f"{name}.nc"
         fit_file.parent.mkdir(parents=True, exist_ok=True)
         # inside the work folder: installed atomically with the report; the bytes are the store's
         shutil.copyfile(store.path(fit.key, fit.kind), fit_file)
-        out = units.assemble(results[fit.key], fit_file, rest, results, kinds, skipped[job.spec.name], failed_fits)
-        seconds = {r.label if r.stage != "cv" else f"cv {r.label}": r.seconds for r in rows
-                   if r.law == job.spec.name and r.status == "computed"}
-        outcomes.append(dataclasses.replace(out, timings=seconds))
-    return outcomes
+        fits[name] = results[fit.key]
+        scored[name] = (units.rebuild(fits[name], rest, results, kinds), [u.label for u in skipped[name]])
+    return fits, scored
 
 
-def _unit_seconds(rows: list) -> UnitSeconds:
-    """Seconds the units computed in this run took, and what the reused ones cost when computed
-    (the report's footer: a resumed run's wall time alone hides the real cost)."""
-    reused = [r.stored_seconds for r in rows if r.status == "reused"]
-    return UnitSeconds(computed=float(sum(r.seconds for r in rows if r.status == "computed")), reused=len(reused),
-                       saved=float(sum(s for s in reused if math.isfinite(s))),
-                       unknown=sum(not math.isfinite(s) for s in reused))
-
-
-def _assign_weights(out: StudyOutcome) -> None:
-    """Stacking and pseudo-BMA+ weights from LOO, stacking from the first blocked scheme, and the
-    prior sensitivity of the LOO ranking. Failed fits are excluded unless the study says otherwise."""
-    fits = {w.name: w.fit for w in out.laws}
+def _weights(study: Study, blocked: list[str], scored: dict, fits: dict) -> tuple[dict, list]:
+    """Stacking and pseudo-BMA+ weights from LOO and stacking from every blocked scheme, by law,
+    and the weightings that could not be computed (why). Failed fits are excluded unless the
+    study says otherwise."""
     bases = []
-    if out.study.loo:
+    if study.loo:
         bases += [("stacking LOO", "loo", "stacking"), ("pseudo-BMA+ LOO", "loo", "pseudo-BMA+")]
     # every blocked scheme: a sizing question is weighed by the schemes that extrapolate in its direction
-    bases += [(f"stacking {label}", label, "stacking") for label in out.blocked]
-    by_law: dict[str, dict[str, Weight]] = {w.name: {} for w in out.laws}
+    bases += [(f"stacking {label}", label, "stacking") for label in blocked]
+    by_law: dict[str, dict[str, Weight]] = {name: {} for name in scored}
+    errors = []
     for label, key, method in bases:
-        results = {w.name: r for w in out.laws if (r := w.loo if key == "loo" else w.cv.get(key)) is not None}
+        results = {name: r for name, (s, _) in scored.items()
+                   if (r := s.loo if key == "loo" else s.cv.get(key)) is not None}
         try:
-            weights = compare.model_weights(results, method=method, include_failed=out.study.include_failed,
-                                            fits=fits)
+            weights = compare.model_weights(results, method=method, include_failed=study.include_failed, fits=fits)
         except ValueError as exc:  # e.g. every fit excluded
-            out.weight_errors.append((label, str(exc)))
+            errors.append((label, str(exc)))
             continue
         for name in by_law:
             excluded = weights.excluded.get(name, "")
             by_law[name][label] = Weight(weights.weights.get(name, 0.0 if excluded else float("nan")), excluded)
-    out.laws = [dataclasses.replace(w, weights=by_law[w.name]) for w in out.laws]
-    if out.study.loo and len(fits) > 1:
-        reliable = {w.name: w.fit for w in out.laws if w.reliable or out.study.include_failed}
-        if len(reliable) > 1:
-            psis = {w.name: w.loo.psis for w in out.laws if w.name in reliable and w.loo is not None}
-            out.sensitivity = compare.ranking_sensitivity(reliable, baseline=psis)
+    return by_law, errors
+
+
+def _sensitivity(study: Study, scored: dict, fits: dict) -> compare.RankingSensitivity | None:
+    """The prior sensitivity of the LOO ranking (two or more fits that may be ranked)."""
+    if not study.loo or len(fits) < 2:
+        return None
+    reliable = {name: fit for name, fit in fits.items() if compare.verdict_of(fit).passed or study.include_failed}
+    if len(reliable) < 2:
+        return None
+    psis = {name: scored[name][0].loo.psis for name in reliable if scored[name][0].loo is not None}
+    return compare.ranking_sensitivity(reliable, baseline=psis)
+
+
+def _law_results(study: Study, ds, blocked: list[str], scored: dict, fits: dict, weights: dict, rows: list,
+                 failed_fits: str) -> list[xr.Dataset]:
+    """Each law's result Dataset (:func:`bayesfric.study.lawresult.law_result`), in study order."""
+    schemes = schemes_of(study, ds, blocked)
+    out = []
+    for name, (s, skipped) in scored.items():
+        misses = {m.label: sizing.measure_miss(s.cv[m.label], ds, m) if m.label in s.cv else None for m in schemes}
+        seconds = {r.label if r.stage != "cv" else f"cv {r.label}": r.seconds for r in rows
+                   if r.law == name and r.status == "computed"}
+        out.append(law_result(law_of_fit(fits[name].attrs), f"fits/{name}.nc", compare.verdict_of(fits[name]),
+                              loo=s.loo, cv=s.cv, penalty=s.penalty, evidence=s.evidence, agreement=s.agreement,
+                              checks=s.checks, misses=misses, weights=weights[name], skipped=skipped,
+                              failed_fits=failed_fits, timings=seconds))
+    return out
 
 
 @dataclass(frozen=True)
@@ -236,6 +252,18 @@ def execute_study(path: str | Path | Study, out_root: str | Path = "reports", qu
         return _write_study(prepared, Path(out_root), quick, fresh, client, timings, start, live_progress)
 
 
+def _result_tree(study: Study, ds, schemes: list, fits: dict, scored: dict, rows: list,
+                 quick: QuickRun | None) -> xr.DataTree:
+    """The study's result tree (:func:`bayesfric.study.tree.study_tree`) from its laws' results:
+    their weights, the ranking's prior sensitivity and each law's result Dataset."""
+    blocked = [label for label, _, kind in schemes if kind == "blocked"]
+    weights, errors = _weights(study, blocked, scored, fits)
+    laws = _law_results(study, ds, blocked, scored, fits, weights, rows,
+                        "run" if quick is not None else study.failed_fits)
+    return study_tree(study, ds, schemes, laws, fits, sensitivity=_sensitivity(study, scored, fits),
+                      weight_errors=errors, quick=quick)
+
+
 def _write_study(prepared, out_root: Path, quick: bool, fresh: bool, client, timings: list | None,
                  start: float, live_progress: bool | None = None) -> StudyRun:
     """Run the prepared study's units and write its report folder atomically (see :func:`run_study`)."""
@@ -252,30 +280,24 @@ def _write_study(prepared, out_root: Path, quick: bool, fresh: bool, client, tim
     work = fsutil.create_work_folder(root, study.name)
     try:
         rows: list = []
-        outcomes = _run_laws(study, ds, work, plans, schemes, out_root=out_root, fresh=fresh,
-                             client=client, timings=rows, quick=quick, live_progress=live_progress)
+        fits, scored = _run_laws(study, work, plans, schemes, out_root=out_root, fresh=fresh, client=client,
+                                 timings=rows, quick=quick, live_progress=live_progress)
         write_timings(rows, work / "timings.csv")
         if timings is not None:
             timings += rows
-        outcome = StudyOutcome(study=study, data=ds, laws=outcomes, schemes=[s[0] for s in schemes],
-                               blocked=[s[0] for s in schemes if s[2] == "blocked"],
-                               heldout={s[0]: s[1].heldout.any(axis=0) for s in schemes})
-        if quick:
-            outcome.quick = QuickRun(settings, (study.kfold, kfold))
-        _assign_weights(outcome)
-        outcome.table = score_table(outcome)
-        tree = study_tree(outcome)  # built once: sizing, the claims and the report read it
+        tree = _result_tree(study, ds, schemes, fits, scored, rows, QuickRun(settings, (study.kfold, kfold))
+                            if quick else None)  # built once: sizing, the claims and the report read it
         sized = None
         if questions:
             print(f"[{study.name}] sizing {len(questions)} question(s) ...", flush=True)
-            fits = {w.name: tree[f"fits/{w.name}"] for w in outcome.laws}
-            sized = sizing.size_study(questions, ds, sizing.sources(tree, work, list(fits), fits=fits),
+            held = {name: tree[f"fits/{name}"] for name in fits}
+            sized = sizing.size_study(questions, ds, sizing.sources(tree, work, list(held), fits=held),
                                       sizing.basis_schemes(tree), study_name=study.name, seed=seed)
         claims = evaluate_claims(study.claims, tree)
-        tree.attrs.update(run_attrs(time.perf_counter() - start, _unit_seconds(rows)))
+        tree.attrs.update(run_attrs(time.perf_counter() - start, unit_seconds(rows)))
         from bayesfric.report.summary import write_reports  # here: bayesfric.report reads bayesfric.study
 
-        tree = write_reports(tree, work, ds, {w.name: w.fit for w in outcome.laws}, claims, sized)
+        tree = write_reports(tree, work, ds, fits, claims, sized)
         (work / INPUTS_FILE).write_text(inputs_key + "\n")  # an unchanged rerun reuses the whole report
         try:
             fsutil.install_folder(work, final, study.name)
@@ -286,4 +308,4 @@ def _write_study(prepared, out_root: Path, quick: bool, fresh: bool, client, tim
         raise
     print(timing_table(rows, f"[{study.name}] time per stage"), flush=True)
     print(f"[{study.name}] report written to {final} ({time.perf_counter() - start:.0f} s)")
-    return StudyRun(final, tree, {w.name: w.fit for w in outcome.laws})
+    return StudyRun(final, tree, fits)

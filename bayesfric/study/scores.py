@@ -31,9 +31,11 @@ import pandas as pd
 from bayesfric.study.metrics import METRICS, Criterion
 
 if TYPE_CHECKING:
+    from collections.abc import Sequence
+
     import xarray as xr
 
-    from bayesfric.study.outcome import StudyOutcome
+    from bayesfric.study.spec import Study
 
 __all__ = ["METRICS", "COLUMNS", "Criterion", "score_table", "best", "passed_over", "ranking_order", "criteria",
            "value", "fold_failure", "table_of", "criteria_of"]
@@ -41,22 +43,25 @@ __all__ = ["METRICS", "COLUMNS", "Criterion", "score_table", "best", "passed_ove
 COLUMNS = ["law", "metric", "scheme", "estimate", "se", "reliable", "reason"]
 
 
-def _gate(w, include_failed: bool) -> tuple[bool, str]:
-    if w.reliable:
+def _gate(w: xr.Dataset, include_failed: bool) -> tuple[bool, str]:
+    if bool(w["passed"]):
         return True, ""
     if include_failed:
         return True, "fit failed the diagnostics gate; ranked because the study sets include_failed"
     return False, "fit failed the diagnostics gate"
 
 
-def _loo_rows(w, gate) -> list[tuple]:
-    loo = w.loo
-    if loo is None or not math.isfinite(loo.elpd):
+def _name(w: xr.Dataset) -> str:
+    return str(w.attrs["law"])
+
+
+def _loo_rows(w: xr.Dataset, gate) -> list[tuple]:
+    if not bool(w["loo_computed"]) or not math.isfinite(float(w["elpd_loo"])):
         return []
     ok, why = gate
-    if ok and not loo.reliable:
-        ok, why = False, f"high Pareto k not resolved ({loo.handling})"
-    return [(w.name, "elpd_loo", "", loo.elpd, loo.se, ok, why)]
+    if ok and not bool(w["loo_reliable"]):
+        ok, why = False, f"high Pareto k not resolved ({w['loo_handling'].item()})"
+    return [(_name(w), "elpd_loo", "", float(w["elpd_loo"]), float(w["elpd_loo_se"]), ok, why)]
 
 
 def fold_failure(cv) -> str:
@@ -65,45 +70,52 @@ def fold_failure(cv) -> str:
     return cv.failure
 
 
-def _cv_rows(w, gate, blocked: list[str]) -> list[tuple]:
+def _cv_rows(w: xr.Dataset, gate, blocked: list[str]) -> list[tuple]:
     rows = []
-    for label, cv in w.cv.items():
+    for label in map(str, w["scheme"].values):
+        at = w.sel(scheme=label)
         ok, why = gate
-        if ok and not cv.reliable:
-            ok, why = False, fold_failure(cv)
-        rows.append((w.name, "elpd_cv", label, cv.elpd, cv.se, ok, why))
-        if label in blocked and label in w.penalty:
+        if ok and not bool(at["cv_ok"]):
+            ok, why = False, str(at["cv_failure"].values)  # fold_failure of the scheme's result
+        rows.append((_name(w), "elpd_cv", label, float(at["cv_elpd"]), float(at["cv_se"]), ok, why))
+        if label in blocked and bool(at["penalty_computed"]):
             # The penalty is a mean of paired pointwise differences (LOO minus blocked, the same
             # held-out points): its standard error is that of the differences' mean
             # (bayesfric.compare.Penalty), NaN when it was not computed.
-            se = w.penalty_se.get(label, math.nan)
-            rows.append((w.name, "penalty", label, w.penalty[label], se, ok, why))
+            rows.append((_name(w), "penalty", label, float(at["penalty"]), float(at["penalty_se"]), ok, why))
     return rows
 
 
-def _evidence_rows(w, gate) -> list[tuple]:
+def _evidence_rows(w: xr.Dataset, gate) -> list[tuple]:
     rows = []
-    for estimator, ev in w.evidence.items():
+    for estimator in map(str, w["estimator"].values):
+        at = w.sel(estimator=estimator)
         ok, why = gate
-        if ok and not w.evidence_agree:
-            ok, why = False, (f"evidence estimators disagree by {abs(w.agreement.difference):.2f} nat: "
+        if ok and not bool(w["evidence_agree"]):
+            ok, why = False, (f"evidence estimators disagree by {abs(float(w['evidence_difference'])):.2f} nat: "
                               "left out of the evidence ranking")
-        rows.append((w.name, "log_evidence", estimator, ev.log_z, ev.error, ok, why))
+        rows.append((_name(w), "log_evidence", estimator, float(at["log_z"]), float(at["log_z_error"]), ok, why))
     return rows
 
 
-def _weight_rows(w) -> list[tuple]:
-    return [(w.name, "weight", method, weight.value, math.nan, not weight.excluded, weight.excluded)
-            for method, weight in w.weights.items()]
+def _weight_rows(w: xr.Dataset) -> list[tuple]:
+    return [(_name(w), "weight", str(method), float(value), math.nan, not str(excluded), str(excluded))
+            for method, value, excluded in zip(w["weighting"].values, w["weight"].values,
+                                               w["weight_excluded"].values, strict=True)]
 
 
-def score_table(outcome: StudyOutcome) -> pd.DataFrame:
-    """The tidy law × metric table of a :class:`~bayesfric.study.outcome.StudyOutcome`.
+def score_table(laws: Sequence[xr.Dataset], blocked: Sequence[str], include_failed: bool = False) -> pd.DataFrame:
+    """The tidy law × metric table of a study's law results.
 
     Parameters
     ----------
-    outcome : StudyOutcome
-        Per-law results (after the weights were assigned).
+    laws : sequence of xarray.Dataset
+        Each law's results after its weights (:func:`bayesfric.study.lawresult.law_result`), in
+        the study's order.
+    blocked : sequence of str
+        The study's blocked-extrapolation scheme labels (their penalties are scored).
+    include_failed : bool
+        The study ranks fits that failed the diagnostics gate (``[compare] include_failed``).
 
     Returns
     -------
@@ -111,9 +123,9 @@ def score_table(outcome: StudyOutcome) -> pd.DataFrame:
         Columns :data:`COLUMNS`, one row per law, metric and scheme that was computed.
     """
     rows: list[tuple] = []
-    for w in outcome.laws:
-        gate = _gate(w, outcome.study.include_failed)
-        rows += _loo_rows(w, gate) + _cv_rows(w, gate, outcome.blocked) + _evidence_rows(w, gate)
+    for w in laws:
+        gate = _gate(w, include_failed)
+        rows += _loo_rows(w, gate) + _cv_rows(w, gate, list(blocked)) + _evidence_rows(w, gate)
         rows += _weight_rows(w)
     table = pd.DataFrame(rows, columns=COLUMNS)
     return table.astype({"estimate": float, "se": float, "reliable": bool})
@@ -189,14 +201,15 @@ def ranking_order(table: pd.DataFrame, laws: list[str], criterion: Criterion | N
     return sorted(laws, key=key)
 
 
-def criteria(outcome: StudyOutcome) -> list[Criterion]:
+def criteria(study: Study, schemes: Sequence[str], blocked: Sequence[str],
+             laws: Sequence[xr.Dataset]) -> list[Criterion]:
     """The study's ranking criteria in display order: blocked schemes (the question), LOO, the
-    other CV schemes, the log-evidence estimators."""
-    out = [Criterion("elpd_cv", s, "extrapolation") for s in outcome.blocked]
-    if outcome.study.loo:
+    other CV schemes, the log-evidence estimators the laws' results hold."""
+    out = [Criterion("elpd_cv", s, "extrapolation") for s in blocked]
+    if study.loo:
         out.append(Criterion("elpd_loo", "", "interpolation"))
-    out += [Criterion("elpd_cv", s, "cross-validation") for s in outcome.schemes if s not in outcome.blocked]
-    estimators = list(dict.fromkeys(k for w in outcome.laws for k in w.evidence))
+    out += [Criterion("elpd_cv", s, "cross-validation") for s in schemes if s not in blocked]
+    estimators = list(dict.fromkeys(str(k) for w in laws for k in w["estimator"].values))
     out += [Criterion("log_evidence", e, "evidence") for e in estimators]
     return out
 

@@ -3,7 +3,7 @@
 
 What a study file may say and how it is checked: :mod:`bayesfric.study.config` (which re-exports
 these names), with the schema tables of :mod:`bayesfric.study.sections`. These types sit below the
-claims' evaluation, the law × metric table and the outcome, which all read a :class:`Study`.
+claims' evaluation, the law × metric table and the result tree, which all read a :class:`Study`.
 """
 
 from __future__ import annotations

@@ -8,13 +8,13 @@ renderings and the command line), the package version, the resolved priors, nois
 constants, the content of the selected data, the scheme's masks, the sampler settings and the seed.
 A unit whose key is in the store is read back instead of computed.
 
-Layout: ``<root>/<key>.nc`` (a full fit, NetCDF) or ``<root>/<key>.npz`` (every other unit: its
-:class:`Record`, arrays plus one JSON record, which holds the unit's compute seconds). A fit's
-compute seconds lie beside it in ``<root>/<key>.nc.json`` (:meth:`RunStore.put_seconds`), outside the
-NetCDF file so a fit's file stays a function of its inputs; a reused unit reports what it saved.
-The store holds results as objects in memory and as files on disk: :meth:`RunStore.put` encodes
-a result as it writes it and :meth:`RunStore.get` decodes it as it reads it, the only places a
-result becomes bytes (a run's units hand each other the objects themselves).
+Layout: ``<root>/<key>.nc`` (a full fit, a NetCDF DataTree) or ``<root>/<key>.unit.nc`` (every
+other unit: its scorer's ``xarray.Dataset``, :mod:`bayesfric.study.units`, whose attrs hold its key
+and compute seconds). A fit's compute seconds lie beside it in ``<root>/<key>.nc.json``
+(:meth:`RunStore.put_seconds`), outside the NetCDF file so a fit's file stays a function of its
+inputs; a reused unit reports what it saved. The store holds results as objects in memory and as
+NetCDF files on disk: :meth:`RunStore.put` writes a result and :meth:`RunStore.get` reads it, the
+only places a result becomes bytes (a run's units hand each other the objects themselves).
 ``root`` is :func:`store_folder`: ``$BAYESFRIC_STORE_DIR/<study>``
 if that variable is set, else ``<reports root>/.store/<study>``; below the reports root it is
 reached through real folders only, never a symbolic link. Each entry is one file written
@@ -32,17 +32,13 @@ import json
 import os
 import secrets
 import socket
-import zipfile
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
-import numpy as np
 import xarray as xr
 
 from bayesfric.fsutil import PathError, check_output_folder, lexically_inside, real_folders
 
-__all__ = ["RunStore", "Record", "Result", "store_folder", "STORE_ENV"]
+__all__ = ["RunStore", "Result", "store_folder", "STORE_ENV"]
 
 #: Environment variable that moves the store out of the reports folder.
 STORE_ENV = "BAYESFRIC_STORE_DIR"
@@ -95,35 +91,8 @@ def _atomic_write(path: Path, payload: bytes) -> None:
             tmp.unlink()
 
 
-@dataclass(frozen=True)
-class Record:
-    """The result of a unit other than a fit: a JSON-able ``record`` and named ``arrays``.
-
-    Stored as one npz file (:meth:`to_bytes`): the arrays plus the record as JSON under
-    ``__record__``. ``record["key"]`` is the unit's key (a file under another key's name is not
-    trusted) and ``record["compute_s"]`` the seconds it took to compute.
-    """
-
-    record: dict[str, Any]
-    arrays: dict[str, np.ndarray] = field(default_factory=dict)
-
-    def to_bytes(self) -> bytes:
-        """The npz bytes of the store's file."""
-        buffer = io.BytesIO()
-        np.savez(buffer, __record__=np.array(json.dumps(self.record)),
-                 **{k: np.asarray(v) for k, v in self.arrays.items()})
-        return buffer.getvalue()
-
-    @classmethod
-    def from_bytes(cls, payload: bytes) -> Record:
-        """Inverse of :meth:`to_bytes`."""
-        with np.load(io.BytesIO(payload), allow_pickle=False) as npz:
-            arrays = {k: npz[k] for k in npz.files}
-        return cls(json.loads(str(arrays.pop("__record__"))), arrays)
-
-
-#: A unit's result: the fit (a DataTree) or a :class:`Record`.
-Result = xr.DataTree | Record
+#: A unit's result: the fit (a DataTree) or the unit's Dataset.
+Result = xr.DataTree | xr.Dataset
 
 
 class RunStore:
@@ -142,7 +111,7 @@ class RunStore:
         self.read = read
 
     def path(self, key: str, kind: str) -> Path:
-        """File of the entry ``key``; ``kind`` is ``"nc"`` (a fit) or ``"npz"``."""
+        """File of the entry ``key``; ``kind`` is ``"nc"`` (a fit) or ``"unit.nc"``."""
         return self.folder / f"{key}.{kind}"
 
     def get(self, key: str, kind: str) -> Result | None:
@@ -153,11 +122,11 @@ class RunStore:
         path = self.path(key, kind)
         try:
             payload = path.read_bytes()
-            if kind == "npz":
-                result = Record.from_bytes(payload)
-                return result if result.record.get("key") == key else None
+            if kind != "nc":
+                result = load_unit_bytes(payload)
+                return result if result.attrs.get("key") == key else None
             return load_fit_bytes(payload)
-        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, json.JSONDecodeError):
+        except (OSError, ValueError, KeyError, EOFError):
             return None
         except Exception:  # noqa: BLE001 - h5py/netCDF raise their own types on a damaged file: a miss
             return None
@@ -177,10 +146,9 @@ class RunStore:
         return removed
 
     def put(self, key: str, kind: str, result: Result) -> Path:
-        """Write an entry atomically (an existing one is replaced): a fit as NetCDF, a
-        :class:`Record` as npz."""
+        """Write an entry atomically (an existing one is replaced), as NetCDF."""
         path = self.path(key, kind)
-        _atomic_write(path, result.to_bytes() if isinstance(result, Record) else fit_to_bytes(result))
+        _atomic_write(path, fit_to_bytes(result))
         return path
 
     def put_seconds(self, key: str, kind: str, seconds: float) -> None:
@@ -206,8 +174,9 @@ def _pid_alive(pid: int) -> bool:
     return True
 
 
-def fit_to_bytes(dt: xr.DataTree) -> bytes:
-    """A fit as NetCDF bytes (h5netcdf, as :func:`bayesfric.inference.save_fit` writes; no temporary file)."""
+def fit_to_bytes(dt: xr.DataTree | xr.Dataset) -> bytes:
+    """A fit (or a unit's Dataset) as NetCDF bytes (h5netcdf, as :func:`bayesfric.inference.save_fit`
+    writes; no temporary file)."""
     buffer = io.BytesIO()
     with _local_locks():
         dt.to_netcdf(buffer, engine="h5netcdf")
@@ -227,3 +196,9 @@ def _local_locks():
 def load_fit_bytes(payload: bytes) -> xr.DataTree:
     """Inverse of :func:`fit_to_bytes` (the fit fully loaded into memory)."""
     return xr.open_datatree(io.BytesIO(payload), engine="h5netcdf").load()
+
+
+def load_unit_bytes(payload: bytes) -> xr.Dataset:
+    """Inverse of :func:`fit_to_bytes` for a unit's Dataset (fully loaded into memory)."""
+    with xr.open_dataset(io.BytesIO(payload), engine="h5netcdf") as ds:
+        return ds.load()

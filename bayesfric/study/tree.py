@@ -47,16 +47,16 @@ Sizing, the claims and the report read this tree (the report adds its own nodes 
     and ``fit_file``; the pointwise log-likelihood and predictive draws stay in the full fit
     ``fits/<law>.nc``.
 
-The report's content model (ranking, findings, checks, law sections, data lines, footer) reads
-this tree alone, with the claims' results and the sizing result (:mod:`bayesfric.report.content`).
-What is not yet true (issue 31 item 1): the tree is built from the in-memory
-:class:`~bayesfric.study.outcome.StudyOutcome`, not by the scorers themselves, and the report's
-figures are still drawn from that outcome.
+The tree is built from each law's result Dataset (:mod:`bayesfric.study.lawresult`, itself
+flattened from the units' Datasets) and the study's plan; the report's content model and figures
+(ranking, findings, checks, law sections, data lines, footer) read this tree alone, with the
+claims' results and the sizing result (:mod:`bayesfric.report.content`).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -64,13 +64,15 @@ import xarray as xr
 
 from bayesfric._version import __version__
 from bayesfric.compare.checks import PARETO_K_RELIABLE, RankingSensitivity
-from bayesfric.sizing.store import basis_node
-from bayesfric.study.scores import criteria
+from bayesfric.sizing.store import basis_node, schemes_of
+from bayesfric.study.scores import criteria, score_table
 
 if TYPE_CHECKING:
-    from bayesfric.study.outcome import StudyOutcome, UnitSeconds
+    from bayesfric.study.executor import UnitSeconds
+    from bayesfric.study.plan import QuickRun
+    from bayesfric.study.spec import Study
 
-__all__ = ["study_tree", "law_nodes", "criterion_name", "FIT_GROUPS", "LAW_NODES", "DATA_ATTRS", "data_attrs",
+__all__ = ["study_tree", "criterion_name", "FIT_GROUPS", "LAW_NODES", "DATA_ATTRS", "data_attrs",
            "run_attrs", "weight_errors", "QUICK_SETTINGS",
            "sensitivity_of"]
 
@@ -103,17 +105,14 @@ def _merged(sequences: list[list[str]]) -> list[str]:
     return out
 
 
-def _criteria(outcome: StudyOutcome) -> xr.Dataset:
+def _criteria(crits: list) -> xr.Dataset:
     """``/criteria``: the study's ranking criteria in display order (:func:`bayesfric.study.scores.criteria`)."""
-    crits = criteria(outcome)
     return xr.Dataset({"metric": ("rank", [c.metric for c in crits]), "scheme": ("rank", [c.scheme for c in crits]),
                        "kind": ("rank", [c.kind for c in crits])}, coords={"rank": np.arange(len(crits))},
                       attrs={"description": "ranking criteria in display order: the first ranks the laws"})
 
 
-def _scores(outcome: StudyOutcome) -> xr.Dataset:
-    table = outcome.table
-    laws = [w.name for w in outcome.laws]
+def _scores(table, laws: list[str]) -> xr.Dataset:
     pairs = list(zip(table["metric"], table["scheme"], strict=True))
     crit = _merged([[criterion_name(m, s) for m, s in zip(rows["metric"], rows["scheme"], strict=True)]
                     for _, rows in table.groupby("law", sort=False)])
@@ -138,52 +137,46 @@ def _scores(outcome: StudyOutcome) -> xr.Dataset:
     return node
 
 
-def _pointwise(outcome: StudyOutcome) -> xr.Dataset:
-    n = int(outcome.data.sizes["obs"])
-    laws = [w.name for w in outcome.laws]
-    crit = ["elpd_loo"] + [criterion_name("elpd_cv", s) for s in outcome.schemes]
+def _pointwise(laws: Sequence[xr.Dataset], n: int, schemes: Sequence[tuple], axes: dict[str, str]) -> xr.Dataset:
+    """``/pointwise`` from each law's results; ``schemes`` are the study's (label, folds, kind) and
+    ``axes`` the input each blocked scheme blocks along."""
+    names = [_name(w) for w in laws]
+    labels = [s[0] for s in schemes]
+    crit = ["elpd_loo"] + [criterion_name("elpd_cv", s) for s in labels]
     elpd = np.full((len(crit), len(laws), n), np.nan)
     pareto_k = np.full((len(laws), n), np.nan)
-    for i, w in enumerate(outcome.laws):
-        if w.loo is not None:
-            elpd[0, i] = np.asarray(w.loo.elpd_i, dtype=float)
-            if np.size(w.loo.pareto_k) == n:  # every row scored (a subsampled LOO has k̂ on its subsample only)
-                pareto_k[i] = np.asarray(w.loo.pareto_k, dtype=float)
-        for j, scheme in enumerate(outcome.schemes, start=1):
-            cv = w.cv.get(scheme)
-            if cv is not None:
-                elpd[j, i] = np.asarray(cv.elpd_i, dtype=float)
     scored = np.zeros((len(laws), n), dtype=bool)  # rows PSIS-LOO scored exactly (a subsample's rows)
-    for i, w in enumerate(outcome.laws):
-        if w.loo is not None:
-            scored[i] = True if w.loo.subsample is None else np.isin(np.arange(n), w.loo.subsample.rows)
-    schemes = list(outcome.heldout)
-    axes = {label: b.axis for label, b in zip(outcome.blocked, outcome.study.blocked, strict=False)}
-    heldout = np.array([np.asarray(outcome.heldout[s], dtype=bool) for s in schemes]).reshape(len(schemes), n)
+    for i, w in enumerate(laws):
+        if bool(w["loo_computed"]):
+            elpd[0, i] = w["elpd_loo_i"].values
+            pareto_k[i] = w["pareto_k"].values
+            scored[i] = w["loo_scored"].values
+        for j, scheme in enumerate(labels, start=1):
+            if scheme in w["scheme"].values:
+                elpd[j, i] = w["cv_elpd_i"].sel(scheme=scheme).values
+    heldout = np.array([s[1].heldout.any(axis=0) for s in schemes], dtype=bool).reshape(len(schemes), n)
     node = xr.Dataset({"elpd": (("criterion", "law", "obs"), elpd), "heldout": (("scheme", "obs"), heldout),
                        "pareto_k": (("law", "obs"), pareto_k), "loo_scored": (("law", "obs"), scored)},
-                      coords={"criterion": crit, "law": laws, "scheme": schemes, "obs": np.arange(n),
-                              "blocked": ("scheme", [s in outcome.blocked for s in schemes]),
-                              "axis": ("scheme", [axes.get(s, "") for s in schemes])})
+                      coords={"criterion": crit, "law": names, "scheme": labels, "obs": np.arange(n),
+                              "blocked": ("scheme", [s[2] == "blocked" for s in schemes]),
+                              "axis": ("scheme", [axes.get(s[0], "") for s in schemes])})
     node["loo_scored"].attrs["description"] = "rows PSIS-LOO scored exactly (all but a subsample's others)"
     return node
 
 
-def _weights(outcome: StudyOutcome) -> xr.Dataset:
-    laws = [w.name for w in outcome.laws]
-    names = list(dict.fromkeys(k for w in outcome.laws for k in w.weights))
+def _weights(laws: Sequence[xr.Dataset], errors: Sequence[tuple[str, str]]) -> xr.Dataset:
+    names = list(dict.fromkeys(str(k) for w in laws for k in w["weighting"].values))
     value = np.full((len(laws), len(names)), np.nan)
     excluded = np.full((len(laws), len(names)), "", dtype=object)
-    for i, w in enumerate(outcome.laws):
-        for j, k in enumerate(names):
-            if k in w.weights:
-                value[i, j], excluded[i, j] = w.weights[k].value, w.weights[k].excluded
+    for i, w in enumerate(laws):
+        for k, v, why in zip(w["weighting"].values, w["weight"].values, w["weight_excluded"].values, strict=True):
+            value[i, names.index(str(k))], excluded[i, names.index(str(k))] = v, str(why)
     dims = ("law", "weighting")
-    failed = [label for label, _ in outcome.weight_errors]
     node = xr.Dataset({"weight": (dims, value), "excluded": (dims, excluded.astype(str)),
-                       "not_computed": ("failed_weighting", np.array([why for _, why in outcome.weight_errors],
+                       "not_computed": ("failed_weighting", np.array([why for _, why in errors],
                                                                      dtype=object).astype(str))},
-                      coords={"law": laws, "weighting": names, "failed_weighting": np.array(failed, dtype=str)})
+                      coords={"law": [_name(w) for w in laws], "weighting": names,
+                              "failed_weighting": np.array([label for label, _ in errors], dtype=str)})
     node["not_computed"].attrs["description"] = "why a weighting was not computed at all (none when all were)"
     return node
 
@@ -197,97 +190,68 @@ def weight_errors(tree: xr.DataTree) -> list[tuple[str, str]]:
                                              strict=True)]
 
 
-def _diagnostics(outcome: StudyOutcome) -> xr.Dataset:
-    laws = [w.name for w in outcome.laws]
-    diag = xr.Dataset({
-        "passed": ("law", [bool(w.verdict.passed) for w in outcome.laws]),
-        "problems": ("law", ["; ".join(w.verdict.problems) for w in outcome.laws]),
-        "evidence_agree": ("law", [bool(w.evidence_agree) for w in outcome.laws]),
-        "cv_reliable": ("law", [bool(w.cv_reliable) for w in outcome.laws]),
-        "skipped": ("law", [", ".join(w.skipped) for w in outcome.laws]),
-        "seconds": ("law", [float(w.seconds) for w in outcome.laws]),
-        "verdict": ("law", [str(w.verdict) for w in outcome.laws]),
-        "flags": ("law", ["\n".join(w.flags) for w in outcome.laws]),
-        "p_loo": ("law", [float(w.loo.p_loo) if w.loo is not None else math.nan for w in outcome.laws]),
-        "n_high_k": ("law", [int(w.loo.n_high_k) if w.loo is not None else -1 for w in outcome.laws]),
-        "rhat_max": ("law", [float(w.verdict.rhat_max) for w in outcome.laws]),
-        "ess_bulk_min": ("law", [float(w.verdict.ess_bulk_min) for w in outcome.laws]),
-        "n_params": ("law", [sum(max(1, math.prod(p.shape)) for p in w.law.params.values()) for w in outcome.laws]),
-        "evidence_compared": ("law", [w.agreement is not None for w in outcome.laws]),
-        "evidence_disagreement": ("law", [abs(w.agreement.difference) if w.agreement is not None else math.nan
-                                          for w in outcome.laws]),
-    } | _loo_fields(outcome.laws), coords={"law": laws})
-    diag["flags"].attrs["description"] = "one line per problem found in the law's results (LawOutcome.flags)"
+#: ``/diagnostics`` variables: copied from each law's result (:mod:`bayesfric.study.lawresult`).
+DIAGNOSTICS = ("passed", "problems", "evidence_agree", "cv_reliable", "skipped", "seconds", "verdict", "flags",
+               "p_loo", "n_high_k", "rhat_max", "ess_bulk_min", "n_params", "evidence_compared",
+               "evidence_disagreement", "pareto_k_max", "loo_rows_scored", "loo_rows", "loo_subsampling_se",
+               "loo_subsampled")
+#: ``/checks`` variables besides the LOO-PIT values and band.
+CHECKS = ("prior_implausible", "loo_pit_pvalue", "loo_pit_ok", "loo_pit_direction", "psense", "ci_prob", "checked")
+
+
+def _name(w: xr.Dataset) -> str:
+    return str(w.attrs["law"])
+
+
+def _per_law(laws: Sequence[xr.Dataset], names: Sequence[str]) -> xr.Dataset:
+    """The 0-d variables ``names`` of every law's result, over ``law``."""
+    def value(w, k):
+        return abs(float(w["evidence_difference"])) if k == "evidence_disagreement" else w[k].values.item()
+
+    return xr.Dataset({k: ("law", [value(w, k) for w in laws]) for k in names},
+                      coords={"law": [_name(w) for w in laws]})
+
+
+def _padded(laws: Sequence[xr.Dataset], var: str, dim: str, shape: tuple[int, ...] = ()) -> np.ndarray:
+    """``var`` of every law NaN-padded along its last dimension ``dim`` (empty where a law has none)."""
+    arrays = [np.asarray(w[var].values, dtype=float) if var in w else np.zeros((*shape, 0)) for w in laws]
+    width = max((a.shape[-1] for a in arrays), default=0)
+    pad = [np.pad(a, [(0, 0)] * (a.ndim - 1) + [(0, width - a.shape[-1])], constant_values=math.nan) for a in arrays]
+    return np.array(pad).reshape(len(laws), *shape, width)
+
+
+def _diagnostics(laws: Sequence[xr.Dataset]) -> xr.Dataset:
+    diag = _per_law(laws, DIAGNOSTICS)
+    diag["flags"].attrs["description"] = "one line per problem found in the law's results"
     diag["n_high_k"].attrs["description"] = "PSIS-LOO points above the Pareto-k threshold; -1: no LOO"
-    stages = list(dict.fromkeys(k for w in outcome.laws for k in w.timings))
-    diag["timing"] = (("law", "stage"), np.array([[float(w.timings.get(k, math.nan)) for k in stages]
-                                                  for w in outcome.laws]).reshape(len(laws), len(stages)))
+    stages = list(dict.fromkeys(str(k) for w in laws for k in w["stage"].values))
+    diag["timing"] = (("law", "stage"), np.array([[float(w["timing"].sel(stage=k)) if k in w["stage"].values
+                                                   else math.nan for k in stages] for w in laws])
+                      .reshape(len(laws), len(stages)))
     diag = diag.assign_coords(stage=stages)
     diag["timing"].attrs.update(units="s", description="wall seconds per stage computed in this run (NaN: reused)")
     return diag
 
 
-def _loo_fields(laws: list) -> dict[str, tuple]:
-    """Per law: the largest Pareto k̂ of its PSIS-LOO, and where LOO was subsampled, how."""
-    def k_max(loo) -> float:
-        k = np.asarray(loo.pareto_k, dtype=float) if loo is not None else np.zeros(0)
-        return float(np.nanmax(k)) if np.isfinite(k).any() else math.nan
-
-    subs = [w.loo.subsample if w.loo is not None else None for w in laws]
-    return {
-        "pareto_k_max": ("law", [k_max(w.loo) for w in laws]),
-        "loo_rows_scored": ("law", [int(s.size) if s is not None else -1 for s in subs]),
-        "loo_rows": ("law", [int(s.n_rows) if s is not None else -1 for s in subs]),
-        "loo_subsampling_se": ("law", [float(w.loo.subsampling_se) if s is not None else math.nan
-                                       for w, s in zip(laws, subs, strict=True)]),
-        "loo_subsampled": ("law", [w.loo.subsampled if s is not None else "" for w, s in zip(laws, subs, strict=True)]),
-    }
-
-
-def _checks(outcome: StudyOutcome) -> xr.Dataset:
-    checks = [w.checks for w in outcome.laws]
-    nan = math.nan
-    chk = xr.Dataset({
-        "prior_implausible": ("law", [c.prior_implausible if c else nan for c in checks]),
-        "loo_pit_pvalue": ("law", [c.loo_pit_pvalue if c else nan for c in checks]),
-        "loo_pit_ok": ("law", [bool(c.loo_pit_ok) if c else True for c in checks]),
-        "loo_pit_direction": ("law", [c.pit_shape.label if c and c.pit_shape is not None else "" for c in checks]),
-        "psense": ("law", [", ".join(c.psense) if c else "" for c in checks]),
-        "ci_prob": ("law", [c.ci_prob if c else nan for c in checks]),
-        "checked": ("law", [c is not None for c in checks]),
-    }, coords={"law": [w.name for w in outcome.laws]})
-    pits = [np.asarray(c.pit, dtype=float).ravel() if c is not None and c.pit is not None else np.zeros(0)
-            for c in checks]
-    width = max((len(p) for p in pits), default=0)
-    chk["pit"] = (("law", "pit_row"), np.array([np.pad(p, (0, width - len(p)), constant_values=nan) for p in pits])
-                  .reshape(len(checks), width))
+def _checks(laws: Sequence[xr.Dataset]) -> xr.Dataset:
+    chk = _per_law(laws, CHECKS)
+    chk["pit"] = (("law", "pit_row"), _padded(laws, "pit", "pit_row"))
     chk["pit"].attrs["description"] = "LOO-PIT values of the rows the check read (NaN-padded)"
-    bands = [np.asarray(c.pit_band, dtype=float).reshape(3, -1) if c is not None and c.pit_band is not None
-             else np.zeros((3, 0)) for c in checks]
-    width = max((b.shape[1] for b in bands), default=0)
-    chk["pit_band"] = (("law", "band_edge", "band_point"),
-                       np.array([np.pad(b, ((0, 0), (0, width - b.shape[1])), constant_values=nan) for b in bands])
-                       .reshape(len(checks), 3, width))
+    chk["pit_band"] = (("law", "band_edge", "band_point"), _padded(laws, "pit_band", "band_point", (3,)))
     chk = chk.assign_coords(band_edge=["point", "lower", "upper"])
     chk["pit_band"].attrs["description"] = "the LOO-PIT ECDF's simultaneous band the check tested (NaN-padded)"
     return chk
 
 
-def law_nodes(outcome: StudyOutcome) -> dict[str, xr.Dataset]:
-    """The per-law nodes ``/weights``, ``/diagnostics``, ``/checks`` and ``/sizing_basis``
-    (:func:`bayesfric.sizing.store.basis_node`) of a study's outcome after its weights."""
-    return {"weights": _weights(outcome), "diagnostics": _diagnostics(outcome), "checks": _checks(outcome),
-            "sizing_basis": basis_node(outcome)}
-
-
-def _fits(outcome: StudyOutcome) -> dict[str, xr.Dataset]:
+def _fits(laws: Sequence[xr.Dataset], fits: Mapping[str, xr.DataTree]) -> dict[str, xr.Dataset]:
     nodes = {}
-    for w in outcome.laws:
-        attrs = {k: v for k, v in w.fit.attrs.items() if _attr_ok(v)} | {"fit_file": f"fits/{w.fit_file.name}"}
-        nodes[f"fits/{w.name}"] = xr.Dataset(attrs=attrs)
+    for w in laws:
+        name, fit = _name(w), fits[_name(w)]
+        attrs = {k: v for k, v in fit.attrs.items() if _attr_ok(v)} | {"fit_file": w.attrs["fit_file"]}
+        nodes[f"fits/{name}"] = xr.Dataset(attrs=attrs)
         for group in FIT_GROUPS:
-            if group in w.fit.children:
-                nodes[f"fits/{w.name}/{group}"] = w.fit[group].to_dataset()
+            if group in fit.children:
+                nodes[f"fits/{name}/{group}"] = fit[group].to_dataset()
     return nodes
 
 
@@ -295,24 +259,23 @@ def _attr_ok(value) -> bool:
     return isinstance(value, str | int | float | np.number) and not isinstance(value, bool)
 
 
-def _root_attrs(outcome: StudyOutcome) -> dict:
-    st, data = outcome.study, outcome.data
+def _root_attrs(st: Study, data: xr.Dataset, schemes: Sequence[tuple], quick: bool,
+                sensitivity: RankingSensitivity | None) -> dict:
     noise = st.noise.kind + (f", partial-pooled offsets per {st.noise.group}" if st.noise.group else "")
     return {"study": st.name, "dataset": str(data.attrs.get("name", "")),
             "data_hash": str(data.attrs.get("data_hash", "")), "bayesfric_version": __version__,
-            "schemes": "; ".join(outcome.schemes), "blocked_schemes": "; ".join(outcome.blocked),
-            "quick": int(outcome.quick is not None),
-            "ranking_changed": int(outcome.sensitivity is not None and outcome.sensitivity.changed),
+            "schemes": "; ".join(s[0] for s in schemes),
+            "blocked_schemes": "; ".join(s[0] for s in schemes if s[2] == "blocked"), "quick": int(quick),
+            "ranking_changed": int(sensitivity is not None and sensitivity.changed),
             "title": st.title, "question": st.question, "study_file": str(st.path),
             "study_file_exists": int(st.path.is_file()), "include_failed": int(st.include_failed),
             "failed_fits": st.failed_fits, "noise": noise, "sampler": str(st.sampler), "n_obs": int(data.sizes["obs"])
             } | {f"data_{k}": str(v) for k in DATA_ATTRS if (v := data.attrs.get(k)) is not None}
 
 
-def _sensitivity(outcome: StudyOutcome) -> dict[str, xr.Dataset]:
+def _sensitivity(sens: RankingSensitivity | None) -> dict[str, xr.Dataset]:
     """``/ranking_sensitivity``: elpd_LOO, largest Pareto k̂ and place of each ranked law at each
     prior power α (:func:`bayesfric.compare.ranking_sensitivity`); none with fewer than two fits."""
-    sens = outcome.sensitivity
     if sens is None:
         return {}
     alphas, laws = list(sens.ranking), list(sens.ranking[1.0])
@@ -349,12 +312,12 @@ def sensitivity_of(tree: xr.DataTree) -> RankingSensitivity | None:
     return RankingSensitivity(elpd, ranking, max_k, bool(node.attrs["changed"]))
 
 
-def _quick(outcome: StudyOutcome) -> dict[str, xr.Dataset]:
+def _quick(quick: QuickRun | None) -> dict[str, xr.Dataset]:
     """``/quick``: the settings a ``--quick`` run capped (none otherwise)."""
-    if outcome.quick is None:
+    if quick is None:
         return {}
-    asked, used = outcome.quick.kfold
-    attrs = {k: v for k, v in outcome.quick.settings.items() if k in QUICK_SETTINGS}
+    asked, used = quick.kfold
+    attrs = {k: v for k, v in quick.settings.items() if k in QUICK_SETTINGS}
     return {"quick": xr.Dataset(attrs=attrs | {"kfold_asked": int(asked), "kfold_used": int(used)})}
 
 
@@ -374,21 +337,45 @@ def run_attrs(seconds: float, unit_seconds: UnitSeconds | None) -> dict[str, flo
     return attrs
 
 
-def study_tree(outcome: StudyOutcome) -> xr.DataTree:
-    """The study's results as one DataTree (layout in the module docstring), from its outcome
-    after the weights and the score table (``outcome.table``).
+def study_tree(study: Study, data: xr.Dataset, schemes: Sequence[tuple], laws: Sequence[xr.Dataset],
+               fits: Mapping[str, xr.DataTree], *, sensitivity: RankingSensitivity | None = None,
+               weight_errors: Sequence[tuple[str, str]] = (), quick: QuickRun | None = None) -> xr.DataTree:
+    """The study's results as one DataTree (layout in the module docstring).
 
     Parameters
     ----------
-    outcome : StudyOutcome
-        Every law's results, weights and the law × metric table.
+    study : Study
+        The study as run.
+    data : xarray.Dataset
+        Its selected data.
+    schemes : sequence of tuple
+        Its cross-validation schemes, ``(label, folds, kind)`` in display order
+        (:func:`bayesfric.study.plan.cv_schemes`).
+    laws : sequence of xarray.Dataset
+        Each law's results after its weights (:func:`bayesfric.study.lawresult.law_result`).
+    fits : mapping
+        Law -> its full fit.
+    sensitivity : RankingSensitivity, optional
+        The LOO ranking under power-scaled priors (two or more fits).
+    weight_errors : sequence of (str, str)
+        The weightings not computed, and why.
+    quick : QuickRun, optional
+        The capped settings of a ``--quick`` run.
 
     Returns
     -------
     xarray.DataTree
-        ``/``, ``/scores``, ``/pointwise``, :data:`LAW_NODES` and ``/fits/<law>``.
+        ``/``, ``/scores``, ``/criteria``, ``/pointwise``, :data:`LAW_NODES`, ``/ranking_sensitivity``,
+        ``/quick`` and ``/fits/<law>``.
     """
-    nodes = {"/": xr.Dataset(attrs=_root_attrs(outcome)), "scores": _scores(outcome),
-             "criteria": _criteria(outcome), "pointwise": _pointwise(outcome)}
-    nodes |= law_nodes(outcome) | _sensitivity(outcome) | _quick(outcome) | _fits(outcome)
+    blocked = [s[0] for s in schemes if s[2] == "blocked"]
+    table = score_table(laws, blocked, study.include_failed)
+    axes = {label: b.axis for label, b in zip(blocked, study.blocked, strict=False)}
+    nodes = {"/": xr.Dataset(attrs=_root_attrs(study, data, schemes, quick is not None, sensitivity)),
+             "scores": _scores(table, [_name(w) for w in laws]),
+             "criteria": _criteria(criteria(study, [s[0] for s in schemes], blocked, laws)),
+             "pointwise": _pointwise(laws, int(data.sizes["obs"]), schemes, axes),
+             "weights": _weights(laws, weight_errors), "diagnostics": _diagnostics(laws), "checks": _checks(laws),
+             "sizing_basis": basis_node(laws, schemes_of(study, data, blocked))}
+    nodes |= _sensitivity(sensitivity) | _quick(quick) | _fits(laws, fits)
     return xr.DataTree.from_dict(nodes)

@@ -5,17 +5,19 @@ Units of one law (:func:`plan_law`): ``fit`` (the full fit), then — all readin
 ``bridge`` and ``importance`` evidence estimates, ``smc`` (opt-in) and ``checks`` (prior
 predictive, LOO-PIT, power-scaling sensitivity). Every unit runs through :func:`compute`, a pure
 function of a :class:`LawJob` (the law, its priors and constants, noise, selected data, sampler
-settings, seed), the :class:`Unit` and the fit; it returns the fit (a DataTree) or a
-:class:`~bayesfric.study.store.Record` (arrays plus a JSON-able record), plain objects that the run
-store writes and reads back (:mod:`bayesfric.study.store`) and a Dask worker sends as they are; in
-one process the units hand each other the objects, never their bytes. Each unit gets the study
-seed explicitly (no random stream is shared between units), so the order in which units run —
-serially or on any number of workers — does not change a number. :func:`assemble` turns the results back into a
-:class:`~bayesfric.study.outcome.LawOutcome`; the same function reads fresh and stored results.
+settings, seed), the :class:`Unit` and the fit; it returns the fit (a DataTree) or the unit's
+``xarray.Dataset`` (its scorer's result: :func:`loo_dataset`, :func:`cv_dataset`,
+:func:`evidence_dataset`, :func:`checks_dataset`), which the run store writes as NetCDF and reads
+back (:mod:`bayesfric.study.store`) and a Dask worker sends as it is; in one process the units hand
+each other the objects, never their bytes. Each unit gets the study seed explicitly (no random
+stream is shared between units), so the order in which units run — serially or on any number of
+workers — does not change a number. :func:`rebuild` turns a law's Datasets into the compare
+layer's result objects (fresh and stored alike), which the runner weighs and flattens into the
+law's result (:mod:`bayesfric.study.lawresult`).
 
 The fit's verdict decides the rest: under ``[compare] failed_fits = "skip"`` (the default) a law
 whose full fit failed the diagnostics gate gets no CV refits and no evidence (the costly stages);
-its outcome lists them in ``skipped`` and its flags say why. That is why every unit of a law waits
+its result lists them in ``skipped`` and its flags say why. That is why every unit of a law waits
 for its fit, even those that could start without it (blocked CV, importance sampling).
 """
 
@@ -24,7 +26,7 @@ from __future__ import annotations
 import json
 import time
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import xarray as xr
@@ -35,12 +37,11 @@ from bayesfric.compare.loo import loo_from_values
 from bayesfric.fingerprint import data_fingerprint, law_fingerprint, unit_key
 from bayesfric.inference import MAPPINGS_BUDGET, SAMPLERS, release_compiled_code
 from bayesfric.inference.diagnostics import Verdict
-from bayesfric.laws.variants import law_of_fit
 from bayesfric.model import Noise, build_program
-from bayesfric.study.outcome import Checks, LawOutcome
-from bayesfric.study.store import Record, Result
+from bayesfric.study.store import Result
 
-__all__ = ["LawJob", "Unit", "make_job", "plan_law", "compute", "assemble", "COSTLY"]
+__all__ = ["LawJob", "Unit", "make_job", "plan_law", "compute", "compute_seconds", "rebuild", "Scored", "COSTLY",
+           "loo_dataset", "cv_dataset", "evidence_dataset", "checks_dataset"]
 
 #: Stages skipped for a law whose full fit failed the gate under ``failed_fits = "skip"``.
 COSTLY = ("cv", "bridge", "importance", "smc")
@@ -71,8 +72,8 @@ class Unit:
 
     @property
     def kind(self) -> str:
-        """Store file kind: ``"nc"`` for the fit, ``"npz"`` otherwise."""
-        return "nc" if self.stage == "fit" else "npz"
+        """Store file kind: ``"nc"`` for the fit, ``"unit.nc"`` (the unit's Dataset) otherwise."""
+        return "nc" if self.stage == "fit" else "unit.nc"
 
     @property
     def title(self) -> str:
@@ -153,53 +154,96 @@ def _json_default(value: Any) -> Any:
     return value.tolist() if hasattr(value, "tolist") else str(value)
 
 
-def _evidence_record(result) -> dict:
-    return {"log_z": result.log_z, "error": result.error, "method": result.method,
-            "diagnostics": json.loads(json.dumps(result.diagnostics, default=_json_default))}
+def _text(mapping: dict) -> str:
+    """A free-form dict (an estimator's diagnostics, a sampler's settings) as one JSON value of the
+    unit's Dataset: its keys differ by estimator and sampler, so they are not variables."""
+    return json.dumps(mapping, default=_json_default)
 
 
-def _compute_rest(job: LawJob, unit: Unit, fit: xr.DataTree) -> tuple[dict, dict]:
-    """(record, arrays) of a unit after the fit."""
+def evidence_dataset(result: compare.Evidence) -> xr.Dataset:
+    """An evidence estimate as its unit's Dataset: ``log_z``, ``error``, ``method``, ``diagnostics``."""
+    return xr.Dataset({"log_z": result.log_z, "error": result.error, "method": result.method,
+                       "diagnostics": _text(result.diagnostics)})
+
+
+def loo_dataset(loo: compare.LooResult) -> xr.Dataset:
+    """The LOO unit's Dataset: the pointwise elpd (exact refit values in place) and how the high-k
+    points were handled; the Pareto-smoothed part is recomputed from the fit (:func:`rebuild`)."""
+    return xr.Dataset({"elpd_i": ("obs", np.asarray(loo.elpd_i, dtype=float)),
+                       "refit_failed": ("refit_failed_row", np.asarray(loo.refit_failed, dtype=np.int64)),
+                       "handling": loo.handling, "refitted": bool(loo.refitted)})
+
+
+def cv_dataset(cv: compare.CVResult) -> xr.Dataset:
+    """A cross-validation unit's Dataset: the estimate, the pointwise elpd, the rows held out, each
+    fold's verdict (as JSON, as the fit keeps its own) and the held-out predictive where kept."""
+    kept = cv.predictive
+    ds = xr.Dataset({"elpd": cv.elpd, "se": cv.se, "seconds": cv.seconds, "law": cv.law, "scheme": cv.scheme,
+                     "elpd_i": ("obs", np.asarray(cv.elpd_i, dtype=float)),
+                     "heldout": ("obs", np.asarray(cv.heldout, dtype=bool)),
+                     "verdict": ("fold", np.array([v.to_json() for v in cv.verdicts], dtype=str)),
+                     "settings": _text(cv.settings)})
+    if kept is not None:
+        ds = ds.assign(heldout_index=("kept", kept.index), heldout_fold=("kept", kept.fold),
+                       heldout_mu=(("kept_draw", "kept"), kept.mu), heldout_noise_var=("kept", kept.noise_var))
+    return ds
+
+
+def checks_dataset(implausible: float, ks_pvalue: float, within_band: bool, ci_prob: float, psense: list[str],
+                   pit: np.ndarray | None = None, band: np.ndarray | None = None) -> xr.Dataset:
+    """The checks unit's Dataset: the prior predictive's implausible fraction, the LOO-PIT test
+    (p-value, inside its ``ci_prob`` band, the values and the band's ``(point, lower, upper)``)
+    and the parameters power-scaling flags (``psense``)."""
+    ds = xr.Dataset({"prior_implausible": float(implausible), "loo_pit_pvalue": float(ks_pvalue),
+                     "loo_pit_ok": bool(within_band), "ci_prob": float(ci_prob),
+                     "psense": ("psense_flag", np.array(list(psense), dtype=str))})
+    if pit is not None:
+        ds["pit"] = ("pit_row", np.asarray(pit, dtype=float).ravel())
+    if band is not None:
+        ds["pit_band"] = (("band_edge", "band_point"), np.asarray(band, dtype=float).reshape(3, -1))
+    return ds
+
+
+def _checks_unit(job: LawJob, fit: xr.DataTree, program) -> xr.Dataset:
+    pit = compare.loo_pit_check(fit, seed=job.seed)
+    sens = compare.prior_sensitivity(fit)
+    prior = compare.fit_prior_draws(fit, program.law.params)  # the fit's 500 prior draws
+    implausible = compare.prior_predictive_check(program, seed=job.seed, prior=prior).implausible
+    psense = [f"{i} ({d})" for i, d in zip(sens.index, sens["diagnosis"], strict=True) if d != "-"]
+    return checks_dataset(implausible, pit.ks_pvalue, pit.within_band, pit.ci_prob, psense, pit.pit, pit.band)
+
+
+def _compute_rest(job: LawJob, unit: Unit, fit: xr.DataTree) -> xr.Dataset:
+    """The Dataset of a unit after the fit (its scorer's result)."""
     passed = compare.verdict_of(fit).passed
     if unit.stage == "loo":
         # refits that drop one point start from the full fit's draws when it passed the gate
-        loo = compare.psis_loo(fit, engine=lambda: _engine(job, fit, warm=passed), seed=job.seed)
-        return ({"handling": loo.handling, "refit_failed": loo.refit_failed, "refitted": loo.refitted},
-                {"elpd_i": loo.elpd_i})
+        return loo_dataset(compare.psis_loo(fit, engine=lambda: _engine(job, fit, warm=passed), seed=job.seed))
     if unit.stage == "cv":
         # random K-fold drops a few points (warm start); grouped and blocked folds start cold
         p = unit.params
         folds = compare.Folds(np.asarray(p["train"]), np.asarray(p["heldout"]), p["scheme"], p["labels"])
-        cv = compare.cross_validate(_engine(job, fit, warm=passed and p["kind"] == "kfold"), folds, seed=job.seed,
-                                    predictive=p["kind"] == "blocked")
-        kept = cv.predictive.arrays() if cv.predictive is not None else {}
-        return ({"law": cv.law, "scheme": cv.scheme, "elpd": cv.elpd, "se": cv.se, "seconds": cv.seconds,
-                 "verdicts": [v.to_json() for v in cv.verdicts], "settings": cv.settings},
-                {"elpd_i": cv.elpd_i, "heldout": cv.heldout} | kept)
+        return cv_dataset(compare.cross_validate(_engine(job, fit, warm=passed and p["kind"] == "kfold"), folds,
+                                                 seed=job.seed, predictive=p["kind"] == "blocked"))
     program = _program(job)
     if unit.stage == "bridge":
-        return _evidence_record(compare.bridge_log_evidence(program, fit, seed=job.seed)), {}
+        return evidence_dataset(compare.bridge_log_evidence(program, fit, seed=job.seed))
     if unit.stage == "importance":
-        return _evidence_record(compare.laplace_is_log_evidence(program, seed=job.seed)), {}
+        return evidence_dataset(compare.laplace_is_log_evidence(program, seed=job.seed))
     if unit.stage == "smc":
-        return _evidence_record(compare.smc_log_evidence(program, seed=job.seed, particles=unit.params["particles"],
-                                                         runs=unit.params["runs"])), {}
+        return evidence_dataset(compare.smc_log_evidence(program, seed=job.seed, particles=unit.params["particles"],
+                                                         runs=unit.params["runs"]))
     if unit.stage == "checks":
-        pit = compare.loo_pit_check(fit, seed=job.seed)
-        sens = compare.prior_sensitivity(fit)
-        prior = compare.fit_prior_draws(fit, program.law.params)  # the fit's 500 prior draws
-        return {"implausible": compare.prior_predictive_check(program, seed=job.seed, prior=prior).implausible,
-                "ks_pvalue": pit.ks_pvalue, "within_band": bool(pit.within_band), "ci_prob": pit.ci_prob,
-                "psense": [f"{i} ({d})" for i, d in zip(sens.index, sens["diagnosis"], strict=True) if d != "-"]}, \
-            {"pit": pit.pit, "pit_band": pit.band}  # the LOO-PIT values and band: the report draws them
+        return _checks_unit(job, fit, program)  # the LOO-PIT values and band: the report draws them
     raise ValueError(f"unknown unit stage {unit.stage!r}")
 
 
 def compute(job: LawJob, unit: Unit, fit: xr.DataTree | None = None) -> tuple[Result, float]:
-    """Compute one unit; return its result (the fit, or a :class:`Record`) and its wall seconds.
+    """Compute one unit; return its result (the fit, or the unit's Dataset) and its wall seconds.
 
     ``fit`` (the law's fit) is required by every unit except the fit itself. Runs in this process
-    or on a Dask worker alike.
+    or on a Dask worker alike. A unit's Dataset carries its ``key``, ``stage`` and ``compute_s``
+    (the seconds it took) as attributes: the run store trusts an entry only under its own key.
     """
     start = time.perf_counter()
     if unit.stage == "fit":
@@ -208,63 +252,68 @@ def compute(job: LawJob, unit: Unit, fit: xr.DataTree | None = None) -> tuple[Re
         else:
             dt = SAMPLERS[job.sampler](_program(job), job.ds, seed=job.seed, **job.settings)
         return dt, time.perf_counter() - start
-    record, arrays = _compute_rest(job, unit, fit)
+    result = _compute_rest(job, unit, fit)
     seconds = time.perf_counter() - start
-    return Record({"key": unit.key, "stage": unit.stage, "compute_s": seconds} | record, arrays), seconds
+    result.attrs.update(key=unit.key, stage=unit.stage, compute_s=seconds)
+    return result, seconds
 
 
 def compute_seconds(unit: Unit, result: Result) -> float:
     """Wall seconds the unit took when it was computed (NaN for a fit: its seconds lie beside it
     in the store, :meth:`bayesfric.study.store.RunStore.seconds`)."""
-    if not isinstance(result, Record):
+    if not isinstance(result, xr.Dataset):
         return float("nan")
-    return float(result.record.get("compute_s", float("nan")))
+    return float(result.attrs.get("compute_s", float("nan")))
 
 
-# -- assembling ----------------------------------------------------------------------------------
-def _evidence(result: Record) -> compare.Evidence:
-    record = result.record
-    return compare.Evidence(record["log_z"], record["error"], record["method"], record["diagnostics"])
+# -- rebuilding the compare layer's results -------------------------------------------------------
+class Scored(NamedTuple):
+    """One law's results as the compare layer's objects, rebuilt from its units' Datasets
+    (:func:`rebuild`). Transient: the runner weighs the laws with them and flattens each into the
+    law's result Dataset (:func:`bayesfric.study.lawresult.law_result`); they are not kept."""
+
+    loo: compare.LooResult | None
+    cv: dict[str, compare.CVResult]
+    penalty: dict[str, compare.Penalty]
+    evidence: dict[str, compare.Evidence]
+    agreement: compare.EstimatorAgreement | None
+    checks: xr.Dataset | None
 
 
-def assemble(fit: xr.DataTree, fit_file, units: list[Unit], results: dict[str, Result],
-             kinds: dict[str, str], skipped: list[Unit], failed_fits: str) -> LawOutcome:
-    """The :class:`LawOutcome` of a law from its fit and its units' results (fresh or stored).
+def _evidence(ds: xr.Dataset) -> compare.Evidence:
+    return compare.Evidence(float(ds["log_z"]), float(ds["error"]), str(ds["method"].values),
+                            json.loads(str(ds["diagnostics"].values)))
 
-    ``kinds`` maps a CV label to its scheme kind (kfold, grouped, blocked); ``skipped`` lists the
-    units not run because the fit failed the gate.
+
+def rebuild(fit: xr.DataTree, units: list[Unit], results: dict[str, Result], kinds: dict[str, str]) -> Scored:
+    """The :class:`Scored` results of a law from its fit and its units' Datasets (fresh or stored).
+
+    ``kinds`` maps a CV label to its scheme kind (kfold, grouped, blocked): a blocked scheme's
+    extrapolation penalty is computed here from LOO and its pointwise elpd.
     """
-    by_stage = {u.label: results[u.key] for u in units if u.key in results}
+    by_label = {u.label: results[u.key] for u in units if u.key in results}
     loo = None
-    if "loo" in by_stage:
-        record, arrays = by_stage["loo"].record, by_stage["loo"].arrays
-        loo = loo_from_values(fit, arrays["elpd_i"], record["handling"], record["refit_failed"], record["refitted"])
+    if "loo" in by_label:
+        ds = by_label["loo"]
+        loo = loo_from_values(fit, ds["elpd_i"].values, str(ds["handling"].values),
+                              [int(i) for i in ds["refit_failed"].values], bool(ds["refitted"]))
     cv = {u.label: _cv(results[u.key]) for u in units if u.stage == "cv" and u.key in results}
-    penalties = {label: compare.extrapolation_penalty(loo, result) for label, result in cv.items()
-                 if kinds[label] == "blocked" and loo is not None}
-    evidence = {name: _evidence(by_stage[name]) for name in ("bridge", "importance", "SMC") if name in by_stage}
+    penalty = {label: compare.extrapolation_penalty(loo, result) for label, result in cv.items()
+               if kinds[label] == "blocked" and loo is not None}
+    evidence = {name: _evidence(by_label[name]) for name in ("bridge", "importance", "SMC") if name in by_label}
     # Two estimators that share only the density (bench_evidence.py); never averaged.
     agreement = (compare.compare_estimators(evidence["bridge"], evidence["importance"])
                  if {"bridge", "importance"} <= set(evidence) else None)
-    checks = _checks(by_stage["checks"].record, by_stage["checks"].arrays) if "checks" in by_stage else None
-    return LawOutcome(law=law_of_fit(fit.attrs), fit=fit, fit_file=fit_file, verdict=compare.verdict_of(fit),
-                      loo=loo, cv=cv, penalty={k: p.per_point for k, p in penalties.items()},
-                      penalty_se={k: p.se for k, p in penalties.items()}, evidence=evidence, agreement=agreement,
-                      checks=checks,
-                      skipped=tuple(u.label for u in skipped), failed_fits=failed_fits)
+    return Scored(loo, cv, penalty, evidence, agreement, by_label.get("checks"))
 
 
-def _cv(result: Record) -> compare.CVResult:
-    record, arrays = result.record, result.arrays
-    return compare.CVResult(law=record["law"], scheme=record["scheme"], elpd=record["elpd"], se=record["se"],
-                            elpd_i=arrays["elpd_i"], heldout=arrays["heldout"].astype(bool),
-                            verdicts=[Verdict.from_json(v) for v in record["verdicts"]], seconds=record["seconds"],
-                            settings=record["settings"], predictive=HeldOut.from_arrays(arrays))
-
-
-def _checks(record: dict, arrays: dict) -> Checks:
-    pit = arrays.get("pit")
-    return Checks(prior_implausible=record["implausible"], loo_pit_pvalue=record["ks_pvalue"],
-                  loo_pit_ok=bool(record["within_band"]), ci_prob=record["ci_prob"], psense=tuple(record["psense"]),
-                  pit=pit, pit_band=arrays.get("pit_band"),
-                  pit_shape=compare.pit_shape(pit) if pit is not None else None)
+def _cv(ds: xr.Dataset) -> compare.CVResult:
+    kept = (HeldOut(ds["heldout_index"].values.astype(int), ds["heldout_fold"].values.astype(int),
+                    ds["heldout_mu"].values.astype(float), ds["heldout_noise_var"].values.astype(float))
+            if "heldout_mu" in ds else None)
+    return compare.CVResult(law=str(ds["law"].values), scheme=str(ds["scheme"].values), elpd=float(ds["elpd"]),
+                            se=float(ds["se"]), elpd_i=ds["elpd_i"].values.astype(float),
+                            heldout=ds["heldout"].values.astype(bool),
+                            verdicts=[Verdict.from_json(str(v)) for v in ds["verdict"].values],
+                            seconds=float(ds["seconds"]), settings=json.loads(str(ds["settings"].values)),
+                            predictive=kept)

@@ -1,24 +1,34 @@
-"""Study outcomes without sampling, for fast report tests: posterior draws are drawn around given
-values with numpy (not a posterior of the data — stated here, used only to exercise renderings)."""
+"""Study results without sampling, for fast report tests: posterior draws are drawn around given
+values with numpy (not a posterior of the data — stated here, used only to exercise renderings).
+
+A fake run (:class:`FakeRun`) holds each law's compare-layer results (:class:`FakeLaw`) the way
+the runner holds them between its units and its result tree; :func:`tree_of` flattens them with
+the runner's own functions (:func:`bayesfric.study.lawresult.law_result`,
+:func:`bayesfric.study.tree.study_tree`)."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import xarray as xr
 
-from bayesfric.compare import CVResult, Evidence, LooResult
+from bayesfric.compare import CVResult, EstimatorAgreement, Evidence, LooResult, Penalty, RankingSensitivity
 from bayesfric.datasets.synthetic import simulate
 from bayesfric.inference.datatree import provenance
 from bayesfric.inference.diagnostics import Verdict
 from bayesfric.laws import get_law
+from bayesfric.laws.base import Law
 from bayesfric.model import build_program
 from bayesfric.report.summary import write_reports
 from bayesfric.study.claims import evaluate_claims
-from bayesfric.study.outcome import Checks, LawOutcome, StudyOutcome, Weight
-from bayesfric.study.scores import score_table
+from bayesfric.study.lawresult import Weight, law_result
+from bayesfric.study.plan import QuickRun
+from bayesfric.study.spec import Study
 from bayesfric.study.tree import run_attrs, study_tree
+from bayesfric.study.units import checks_dataset
 from tests.bench_data import write_bench
 
 OK = Verdict(True, 1.0, 1000.0, 1000.0, 0, 1.0, 0.9)
@@ -68,7 +78,68 @@ def evidence(log_z: float, error: float, method: str) -> Evidence:
     return Evidence(log_z, error, method, {"reliable": True})
 
 
-def outcome(study, tmp: Path, *, failed: str | None = None) -> StudyOutcome:
+def checks(pvalue: float = 0.4, ok: bool = True, ci_prob: float = 0.94, pit=None, band=None) -> xr.Dataset:
+    """A checks unit's Dataset (no prior-predictive or power-scaling findings)."""
+    return checks_dataset(float("nan"), pvalue, ok, ci_prob, [], pit, band)
+
+
+@dataclass
+class FakeLaw:
+    """One law's results as the runner holds them before its result tree (fakes, not sampled)."""
+
+    law: Law
+    fit: xr.DataTree | None
+    verdict: Verdict
+    loo: LooResult | None = None
+    cv: dict[str, CVResult] = field(default_factory=dict)
+    penalty: dict[str, float] = field(default_factory=dict)
+    penalty_se: dict[str, float] = field(default_factory=dict)
+    evidence: dict[str, Evidence] = field(default_factory=dict)
+    agreement: EstimatorAgreement | None = None
+    checks: xr.Dataset | None = None
+    weights: dict[str, Weight] = field(default_factory=dict)
+    timings: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def name(self) -> str:
+        return self.law.name
+
+    def result(self) -> xr.Dataset:
+        """The law's result Dataset, as the runner flattens it."""
+        penalty = {k: Penalty(self.name, k, v, self.penalty_se.get(k, float("nan")), 1, True)
+                   for k, v in self.penalty.items()}
+        return law_result(self.law, f"fits/{self.name}.nc", self.verdict, loo=self.loo, cv=self.cv, penalty=penalty,
+                          evidence=self.evidence, agreement=self.agreement, checks=self.checks,
+                          weights=self.weights, timings=self.timings)
+
+
+@dataclass
+class FakeRun:
+    """A study's fake results: its laws, its schemes' held-out rows and its sensitivity."""
+
+    study: Study
+    data: xr.Dataset | None
+    laws: list[FakeLaw]
+    heldout: dict[str, np.ndarray] = field(default_factory=dict)  # scheme label -> held-out rows (all blocked)
+    sensitivity: RankingSensitivity | None = None
+    quick: QuickRun | None = None
+
+    @property
+    def blocked(self) -> list[str]:
+        return list(self.heldout)
+
+    @property
+    def schemes(self) -> list[tuple]:
+        return [(label, SimpleNamespace(heldout=held[None, :]), "blocked") for label, held in self.heldout.items()]
+
+
+def tree_of(run: FakeRun) -> xr.DataTree:
+    """The run's result tree, built as the runner builds one."""
+    return study_tree(run.study, run.data, run.schemes, [w.result() for w in run.laws],
+                      {w.name: w.fit for w in run.laws}, sensitivity=run.sensitivity, quick=run.quick)
+
+
+def outcome(study, tmp: Path, *, failed: str | None = None) -> FakeRun:
     """Two laws (coulomb, coulomb_viscous) with LOO, one blocked scheme and stacking weights;
     ``failed`` names a law whose fit failed the gate."""
     ds = data()
@@ -77,21 +148,19 @@ def outcome(study, tmp: Path, *, failed: str | None = None) -> StudyOutcome:
     laws = []
     for name, centre, loo, cv, pen, w in (("coulomb", {"T_C": 6.3}, -90.0, -160.0, 15.0, 0.0),
                                           ("coulomb_viscous", {"T_C": 5.0, "c_v": 2.0}, 9.0, -4.0, 0.5, 1.0)):
-        laws.append(LawOutcome(
-            law=get_law(name), fit=fake_fit(name, ds, centre), fit_file=tmp / f"{name}.nc",
-            verdict=BAD if name == failed else OK, loo=loo_result(name, loo, 3.0, n=held.size),
-            cv={label: cv_result(name, label, cv, 2.0, held)}, penalty={label: pen},
-            weights={f"stacking {label}": Weight(w), "stacking LOO": Weight(w)}, checks=Checks(loo_pit_pvalue=0.4)))
-    out = StudyOutcome(study=study, data=ds, laws=laws, schemes=[label], blocked=[label], heldout={label: held})
-    out.table = score_table(out)
-    return out
+        laws.append(FakeLaw(
+            law=get_law(name), fit=fake_fit(name, ds, centre), verdict=BAD if name == failed else OK,
+            loo=loo_result(name, loo, 3.0, n=held.size), cv={label: cv_result(name, label, cv, 2.0, held)},
+            penalty={label: pen}, weights={f"stacking {label}": Weight(w), "stacking LOO": Weight(w)},
+            checks=checks(0.4)))
+    return FakeRun(study=study, data=ds, laws=laws, heldout={label: held})
 
 
-def write_outcome(out: StudyOutcome, folder: Path, seconds: float = 0.0) -> xr.DataTree:
-    """The report of ``out`` written as the runner writes one: the outcome's result tree with the
+def write_outcome(out: FakeRun, folder: Path, seconds: float = 0.0) -> xr.DataTree:
+    """The report of ``out`` written as the runner writes one: the run's result tree with the
     run's seconds, the study's claims evaluated from that tree, the data set and each law's fit
     (no sizing question)."""
-    tree = study_tree(out)
+    tree = tree_of(out)
     tree.attrs.update(run_attrs(seconds, None))
     claims = evaluate_claims(out.study.claims, tree)
     return write_reports(tree, folder, out.data, {w.name: w.fit for w in out.laws}, claims)

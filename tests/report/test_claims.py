@@ -10,10 +10,9 @@ from bayesfric.study import STUDIES_DIR, load_study
 from bayesfric.study.claims import evaluate_claims, make_claim
 from bayesfric.study.config import CLAIM
 from bayesfric.study.schema import parse
-from bayesfric.study.tree import study_tree
 from tests.hostile.harness import assert_user_error
 from tests.hostile.test_study_corpus import study_toml, tree  # noqa: F401  (the case-tree fixture)
-from tests.report.fakes import outcome
+from tests.report.fakes import outcome, tree_of
 
 BLOCKED = "velocity 1 (train ≤ cut, score below)"
 
@@ -46,7 +45,7 @@ def test_ratio_parameter_score_and_best_against_hand_computed_values(study, tmp_
         claim(kind="score", law="coulomb", metric="penalty", scheme="outside", expect=[1.0, math.inf]),
         claim(kind="best", law="coulomb", metric="elpd_cv", scheme="outside"),
     ]
-    ratio, fixed, chord, param, score, best = evaluate_claims(claims, study_tree(out))
+    ratio, fixed, chord, param, score, best = evaluate_claims(claims, tree_of(out))
     assert ratio.verdict == "reproduced" and ratio.value == pytest.approx(11 / 6 - 1, rel=0.03)
     assert ratio.lo < ratio.value < ratio.hi
     # numerator fixed, denominator coulomb's posterior (T_C ~ 6.3 ± 5 %)
@@ -61,7 +60,7 @@ def test_ratio_parameter_score_and_best_against_hand_computed_values(study, tmp_
 def test_failed_fit_makes_a_claim_not_testable(study, tmp_path):
     out = outcome(study, tmp_path, failed="coulomb_viscous")
     (result,) = evaluate_claims([claim(kind="parameter", law="coulomb_viscous", parameter="c_v", expect=[1, 3])],
-                                study_tree(out))
+                                tree_of(out))
     assert result.verdict == "not testable" and "failed the diagnostics gate" in result.why
     assert math.isnan(result.value)
 
@@ -122,7 +121,7 @@ def test_fully_fixed_numerator_needs_only_the_reference_fit(study, tmp_path):
     out = outcome(study, tmp_path, failed="coulomb")
     c = claim(kind="ratio", law="coulomb", fixed={"T_C": 4.0}, at={"velocity": "1 rad/s"},
               reference="coulomb_viscous", expect=[-0.5, -0.2])  # 4 / (5 + 2) − 1 = −0.43
-    (result,) = evaluate_claims([c], study_tree(out))
+    (result,) = evaluate_claims([c], tree_of(out))
     assert result.verdict == "reproduced" and result.value == pytest.approx(4 / 7 - 1, rel=0.03)
 
 
@@ -148,7 +147,7 @@ def test_basis_is_rendered_in_the_table_csv_and_summary(study, tmp_path):
         claim(kind="best", law="coulomb", metric="elpd_loo", basis="pipeline check"),  # not reproduced
         claim(kind="best", law="coulomb_viscous", metric="elpd_loo", basis="evidence"),
         claim(kind="best", law="coulomb_viscous", metric="elpd_loo"),  # measured/simulated data: evidence
-    ], study_tree(out))
+    ], tree_of(out))
     records = claim_records(results)
     table = _claims(records)
     basis = table.header.index("basis")
@@ -205,14 +204,11 @@ def _variant_fit(law, draws: dict[str, float], sd: float = 1e-3):
 
 
 def _with(out, name: str, law, fit):
-    """``out`` with the law labelled ``name`` replaced by ``law`` and its fit (its score table
-    rebuilt: the table's rows carry the new law's name, as a study run's would)."""
+    """``out`` with the law labelled ``name`` replaced by ``law`` and its fit (its result tree's
+    rows carry the new law's name, as a study run's would)."""
     import dataclasses
 
-    from bayesfric.study.scores import score_table
-
     out.laws = [dataclasses.replace(w, law=law, fit=fit) if w.name == name else w for w in out.laws]
-    out.table = score_table(out)
     return out
 
 
@@ -230,7 +226,7 @@ def test_claim_on_an_offset_variant_predicts_with_the_offset(study, tmp_path):
     c = make_claim(parse(CLAIM, {"text": "t", "source": "s", "kind": "ratio", "law": "coulomb_viscous",
                                  "at": {"velocity": "3 rad/s"}, "reference_at": {"velocity": "1 rad/s"},
                                  "expect": [0.35, 0.45]}), {"coulomb_viscous": law})
-    (result,) = evaluate_claims([c], study_tree(out))
+    (result,) = evaluate_claims([c], tree_of(out))
     assert result.value == pytest.approx(0.4, rel=1e-2) and result.verdict == "reproduced"
     assert np.median(mean_draws(fit, {"velocity": 3.0})) == pytest.approx(14.0, rel=1e-2)
 
@@ -251,7 +247,7 @@ def test_claim_on_a_fixed_variant_reads_its_fixed_value_and_may_override_it(stud
     catalogue = make_claim(parse(CLAIM, {"text": "t", "source": "s", "kind": "ratio", "law": "cv_fixed",
                                          "fixed": {"c_v": 4.0}, "at": {"velocity": "3 rad/s"},
                                          "reference_at": {"velocity": "1 rad/s"}, "expect": [1.3, 1.5]}), laws)
-    first, second = evaluate_claims([own, catalogue], study_tree(out))
+    first, second = evaluate_claims([own, catalogue], tree_of(out))
     assert first.value == pytest.approx(11 / 7 - 1, rel=1e-2) and first.verdict == "reproduced"
     assert second.value == pytest.approx(17 / 7 - 1, rel=1e-2) and second.verdict == "reproduced"
     with pytest.raises(ClaimError, match="has no parameter 'c_v'"):  # fixed: not a posterior parameter
@@ -272,7 +268,7 @@ def test_study_claim_may_name_a_variant_by_its_label(tmp_path):
 def test_score_difference_uses_the_paired_standard_error(study, tmp_path):
     out = outcome(study, tmp_path)
     (diff,) = evaluate_claims([claim(kind="score", law="coulomb", reference="coulomb_viscous", metric="elpd_loo",
-                                     expect=[-math.inf, 0.0])], study_tree(out))
+                                     expect=[-math.inf, 0.0])], tree_of(out))
     # fakes: elpd_loo −90 and 9, pointwise values constant per law -> paired se 0
     assert diff.value == pytest.approx(-99.0) and diff.verdict == "reproduced"
     assert diff.hi - diff.lo == pytest.approx(0.0, abs=1e-9)

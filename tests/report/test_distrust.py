@@ -11,11 +11,8 @@ import numpy as np
 import pytest
 from scipy.stats import norm
 
-from bayesfric.compare import pit_shape
 from bayesfric.study import load_study
-from bayesfric.study.outcome import Checks
-from bayesfric.study.scores import score_table
-from tests.report.fakes import cv_result, outcome, write_outcome
+from tests.report.fakes import checks, cv_result, outcome, write_outcome
 
 STUDY = ('[study]\nname = "tiny"\n[data]\ndataset = "robot_joint"\n[[laws]]\nname = "coulomb"\n[[laws]]\n'
          'name = "coulomb_viscous"\n[compare]\nevidence = false\n[[compare.blocked]]\naxis = "velocity"\n'
@@ -36,14 +33,11 @@ def folder(tmp_path_factory):
     y = np.random.default_rng(3).standard_normal(cv.fit["posterior_predictive"]["response"].shape[-1] * 10)
     pit = norm.cdf(y / 0.5)
     band = np.stack([np.linspace(0, 1, 11), np.linspace(0, 1, 11) - 0.05, np.linspace(0, 1, 11) + 0.05])
-    cv = replace(cv, penalty_se={label: 0.1234},
-                 checks=Checks(loo_pit_pvalue=1e-6, loo_pit_ok=False, ci_prob=0.99, pit=pit, pit_band=band,
-                               pit_shape=pit_shape(pit)))
+    cv = replace(cv, penalty_se={label: 0.1234}, checks=checks(1e-6, ok=False, ci_prob=0.99, pit=pit, band=band))
     old = cvv.cv[label]
     cvv = replace(cvv, penalty_se={label: 0.0456},
                   cv={label: cv_result(cvv.name, label, old.elpd, old.se, old.heldout, reliable=False)})
     out.laws = [cv, cvv]
-    out.table = score_table(out)
     path = tmp / "report"
     path.mkdir()
     write_outcome(out, path)

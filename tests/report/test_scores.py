@@ -10,8 +10,7 @@ from bayesfric.inference.diagnostics import Verdict
 from bayesfric.laws import get_law
 from bayesfric.study import load_study
 from bayesfric.study import scores as sc
-from bayesfric.study.outcome import LawOutcome, StudyOutcome
-from tests.report.fakes import OK, cv_result, evidence, loo_result
+from tests.report.fakes import OK, FakeLaw, cv_result, evidence, loo_result
 
 LABEL = "train inside, score outside"
 STUDY = ('[study]\nname = "tiny"\n[data]\ndataset = "robot_joint"\n[[laws]]\nname = "coulomb"\n'
@@ -31,14 +30,17 @@ def law(tmp_path, name, loo, blocked=None, blocked_ok=True, verdict=OK, estimate
     agreement = None
     if estimates:
         agreement = EstimatorAgreement(estimates["bridge"], estimates["importance"], 3.0, 0.2, agree)
-    return LawOutcome(law=get_law(name), fit=None, fit_file=tmp_path, verdict=verdict, loo=loo_result(name, loo, 1.0),
-                      cv=cv, penalty={LABEL: 0.5} if cv else {}, evidence=estimates or {}, agreement=agreement)
+    return FakeLaw(law=get_law(name), fit=None, verdict=verdict, loo=loo_result(name, loo, 1.0, n=10),
+                   cv=cv, penalty={LABEL: 0.5} if cv else {}, evidence=estimates or {}, agreement=agreement)
+
+
+def scored(study, laws, blocked=(LABEL,)):
+    """The study's score table of the fake laws' results, as the result tree builds it."""
+    return sc.score_table([w.result() for w in laws], list(blocked), study.include_failed)
 
 
 def test_table_is_tidy_one_row_per_law_metric_scheme(study, tmp_path):
-    out = StudyOutcome(study=study, data=None, schemes=[LABEL], blocked=[LABEL],
-                       laws=[law(tmp_path, "coulomb", -10.0, -5.0), law(tmp_path, "coulomb_viscous", -2.0, -8.0)])
-    table = sc.score_table(out)
+    table = scored(study, [law(tmp_path, "coulomb", -10.0, -5.0), law(tmp_path, "coulomb_viscous", -2.0, -8.0)])
     assert list(table.columns) == sc.COLUMNS
     assert not table.duplicated(["law", "metric", "scheme"]).any()
     assert set(table["metric"]) == {"elpd_loo", "elpd_cv", "penalty"}
@@ -49,10 +51,8 @@ def test_table_is_tidy_one_row_per_law_metric_scheme(study, tmp_path):
 
 def test_winner_skips_unreliable_fold_and_names_it(study, tmp_path):
     """A law whose blocked fold failed the gate is not ranked; passed_over names it."""
-    out = StudyOutcome(study=study, data=None, schemes=[LABEL], blocked=[LABEL],
-                       laws=[law(tmp_path, "coulomb", -10.0, -5.0, blocked_ok=False),
-                             law(tmp_path, "coulomb_viscous", -2.0, -8.0)])
-    table = sc.score_table(out)
+    table = scored(study, [law(tmp_path, "coulomb", -10.0, -5.0, blocked_ok=False),
+                           law(tmp_path, "coulomb_viscous", -2.0, -8.0)])
     assert sc.best(table, "elpd_loo") == "coulomb_viscous" and sc.passed_over(table, "elpd_loo") == []
     assert sc.best(table, "elpd_cv", LABEL) == "coulomb_viscous"
     assert sc.passed_over(table, "elpd_cv", LABEL) == ["coulomb"]
@@ -67,10 +67,8 @@ def test_evidence_disagreement_keeps_a_law_out_of_the_evidence_ranking(study, tm
     def ev(z):
         return {"bridge": evidence(z, 0.01, "bridge"), "importance": evidence(z + 3, 0.01, "laplace-is")}
 
-    out = StudyOutcome(study=study, data=None, schemes=[], blocked=[],
-                       laws=[law(tmp_path, "coulomb", -5.0, estimates=ev(-1.0), agree=False),
-                             law(tmp_path, "coulomb_viscous", -5.0, estimates=ev(-4.0))])
-    table = sc.score_table(out)
+    table = scored(study, [law(tmp_path, "coulomb", -5.0, estimates=ev(-1.0), agree=False),
+                           law(tmp_path, "coulomb_viscous", -5.0, estimates=ev(-4.0))], blocked=())
     assert sc.best(table, "log_evidence", "bridge") == sc.best(table, "log_evidence", "importance") == "coulomb_viscous"
     assert sc.passed_over(table, "log_evidence", "bridge") == ["coulomb"]
     assert "disagree" in sc.value(table, "coulomb", "log_evidence", "bridge")["reason"]
@@ -79,10 +77,9 @@ def test_evidence_disagreement_keeps_a_law_out_of_the_evidence_ranking(study, tm
 def test_failed_fit_is_ranked_only_with_include_failed(study, tmp_path):
     bad = Verdict(False, 1.3, 10.0, 10.0, 5, 0.1, 0.9, problems=["R-hat"])
     laws = [law(tmp_path, "coulomb", 0.0, verdict=bad), law(tmp_path, "coulomb_viscous", -2.0)]
-    out = StudyOutcome(study=study, data=None, schemes=[], blocked=[], laws=laws)
-    assert sc.best(sc.score_table(out), "elpd_loo") == "coulomb_viscous"
+    assert sc.best(scored(study, laws, blocked=()), "elpd_loo") == "coulomb_viscous"
     study.include_failed = True
-    table = sc.score_table(out)
+    table = scored(study, laws, blocked=())
     assert sc.best(table, "elpd_loo") == "coulomb"
     assert "include_failed" in sc.value(table, "coulomb", "elpd_loo")["reason"]
 
@@ -90,7 +87,7 @@ def test_failed_fit_is_ranked_only_with_include_failed(study, tmp_path):
 def test_penalty_best_is_the_lowest(study, tmp_path):
     a, b = law(tmp_path, "coulomb", -1.0, -5.0), law(tmp_path, "coulomb_viscous", -1.0, -6.0)
     a.penalty[LABEL], b.penalty[LABEL] = 2.0, 0.1
-    table = sc.score_table(StudyOutcome(study=study, data=None, schemes=[LABEL], blocked=[LABEL], laws=[a, b]))
+    table = scored(study, [a, b])
     assert sc.best(table, "penalty", LABEL) == "coulomb_viscous"
 
 
@@ -100,7 +97,7 @@ def test_penalty_carries_its_standard_error(study, tmp_path):
 
     a = law(tmp_path, "coulomb", -1.0, -5.0)
     a = replace(a, penalty_se={LABEL: 0.12})
-    table = sc.score_table(StudyOutcome(study=study, data=None, schemes=[LABEL], blocked=[LABEL], laws=[a]))
+    table = scored(study, [a])
     assert sc.value(table, "coulomb", "penalty", LABEL)["se"] == 0.12
 
 
