@@ -10,6 +10,7 @@ dataclass / array / mapping canonicalised to JSON (:func:`canonical`).
 
 from __future__ import annotations
 
+import ast
 import hashlib
 import inspect
 import json
@@ -23,28 +24,86 @@ import xarray as xr
 
 from bayesfric.codegraph import roots_of, source_files
 
-__all__ = ["code_fingerprint", "package_fingerprint", "law_fingerprint", "data_fingerprint", "canonical",
-           "unit_key", "program_parts"]
+__all__ = ["code_fingerprint", "computing_files", "COMPUTING_ROOTS", "package_fingerprint", "law_fingerprint",
+           "data_fingerprint", "canonical", "unit_key", "program_parts"]
 
 _PACKAGE = Path(__file__).resolve().parent
-#: Parts of the package that only render, parse options or assemble the units' results into the
-#: result tree (``study/tree.py``): their edits do not change any unit's number or compiled program.
-_NOT_COMPUTING = ("report", "cli.py", "__main__.py", "study/executor.py", "study/store.py", "study/mainjob.py",
-                  "study/tree.py")
+#: Where a unit's computation starts: :mod:`bayesfric.study.units` computes every unit (fits,
+#: scores, the programs they trace), in a process that built its law from a
+#: :mod:`bayesfric.study.spec` entry.
+COMPUTING_ROOTS = ("study/units.py", "study/spec.py")
+#: Reached from the roots, but run by no unit: the run store (the units import its type alias).
+_NOT_COMPUTING = ("study/store.py",)
 
 
-@lru_cache(maxsize=1)
-def code_fingerprint() -> str:
-    """SHA-256 of the package version and the source of every computing module (not laws/)."""
+def _imported(path: Path, deep: bool) -> set[str]:
+    """Dotted names of the bayesfric modules the file imports, at module level or, ``deep``, inside
+    a function too (never ``if TYPE_CHECKING:``); ``from a import b`` names ``a`` and ``a.b``."""
+    names: set[str] = set()
+
+    def walk(node: ast.AST) -> None:
+        for child in ast.iter_child_nodes(node):
+            if isinstance(child, ast.FunctionDef | ast.AsyncFunctionDef | ast.Lambda) and not deep:
+                continue
+            if isinstance(child, ast.If) and "TYPE_CHECKING" in ast.unparse(child.test):
+                walk(ast.Module(body=child.orelse, type_ignores=[]))
+                continue
+            if isinstance(child, ast.Import):
+                names.update(a.name for a in child.names)
+            elif isinstance(child, ast.ImportFrom) and child.module:
+                names.update([child.module, *(f"{child.module}.{a.name}" for a in child.names)])
+            walk(child)
+
+    walk(ast.parse(path.read_bytes(), str(path)))
+    return {n for n in names if n == "bayesfric" or n.startswith("bayesfric.")}
+
+
+def _files_of(name: str, root: Path) -> list[Path]:
+    """The files importing module ``name`` runs: its own and its packages' ``__init__.py``."""
+    parts = name.split(".")[1:]
+    out = [root / "__init__.py"]
+    for i in range(1, len(parts) + 1):
+        base = root.joinpath(*parts[:i])
+        out += [f for f in (base / "__init__.py", base.with_suffix(".py")) if f.is_file()]
+    return out
+
+
+def computing_files(root: Path = _PACKAGE) -> list[str]:
+    """The package's files a unit's computation can run (paths relative to ``root``, sorted).
+
+    Every module :data:`COMPUTING_ROOTS` import, transitively (imports inside functions too,
+    ``if TYPE_CHECKING:`` ones not, nor those inside ``bayesfric/__init__.py``'s functions: its
+    ``__getattr__`` loads the public API on first use, which no unit does), with the
+    ``__init__.py`` of each package on the way, less
+    :data:`_NOT_COMPUTING` and the law families: a law's own modules enter its units' keys
+    through :func:`law_fingerprint` (``laws/base.py``, ``laws/__init__.py`` and
+    ``laws/variants.py``, which every law runs through, stay). What no unit imports (the runner,
+    a law's result Dataset, the result tree, the report, the API, the command line) is left out:
+    editing it changes no unit's number and no traced program.
+    """
+    todo = [root / r for r in COMPUTING_ROOTS]
+    found = set(todo)
+    while todo:
+        path = todo.pop()
+        for name in _imported(path, deep=path != root / "__init__.py"):
+            for f in _files_of(name, root):
+                if f not in found:
+                    found.add(f)
+                    todo.append(f)
+    rel = {f.relative_to(root).as_posix() for f in found}
+    return sorted(r for r in rel if r not in _NOT_COMPUTING and (
+        not r.startswith("laws/") or r in ("laws/base.py", "laws/__init__.py", "laws/variants.py")))
+
+
+@lru_cache(maxsize=4)
+def code_fingerprint(root: Path = _PACKAGE) -> str:
+    """SHA-256 of the package version and the source of every computing module
+    (:func:`computing_files`)."""
     from bayesfric._version import __version__
 
     digest = hashlib.sha256(str(__version__).encode())
-    for path in sorted(_PACKAGE.rglob("*.py")):
-        rel = path.relative_to(_PACKAGE).as_posix()
-        if rel.startswith(_NOT_COMPUTING) or (rel.startswith("laws/") and rel not in (
-                "laws/base.py", "laws/__init__.py", "laws/variants.py")):
-            continue
-        digest.update(rel.encode() + b"\0" + path.read_bytes())
+    for rel in computing_files(root):
+        digest.update(rel.encode() + b"\0" + (root / rel).read_bytes())
     return digest.hexdigest()
 
 

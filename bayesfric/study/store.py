@@ -3,8 +3,8 @@
 Every unit of a study (a law's full fit, its PSIS-LOO, each cross-validation scheme, each
 evidence estimate, the checks) is a pure function of its inputs. Its *key* is a SHA-256 over
 everything it depends on (:func:`bayesfric.fingerprint.unit_key`): the law's name and the source of the module that
-declares it, the source of the computing code (every module of :mod:`bayesfric` except the report
-renderings and the command line), the package version, the resolved priors, noise model and
+declares it, the source of the computing code (every module of :mod:`bayesfric` a unit can run:
+:func:`bayesfric.fingerprint.computing_files`), the package version, the resolved priors, noise model and
 constants, the content of the selected data, the scheme's masks, the sampler settings and the seed.
 A unit whose key is in the store is read back instead of computed.
 
