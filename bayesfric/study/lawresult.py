@@ -32,6 +32,7 @@ Variables (0-d unless a dimension is named; attrs ``law``, ``fit_file``, ``faile
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -117,10 +118,11 @@ def _checks(checks: xr.Dataset | None) -> dict:
         return {"checked": False, "prior_implausible": math.nan, "loo_pit_pvalue": math.nan, "loo_pit_ok": True,
                 "loo_pit_direction": "", "psense": "", "ci_prob": math.nan}
     pit = checks["pit"].values if "pit" in checks else None
-    out = {"checked": True, "prior_implausible": float(checks["prior_implausible"]),
-           "loo_pit_pvalue": float(checks["loo_pit_pvalue"]), "loo_pit_ok": bool(checks["loo_pit_ok"]),
+    a = checks.attrs
+    out = {"checked": True, "prior_implausible": float(a["prior_implausible"]),
+           "loo_pit_pvalue": float(a["loo_pit_pvalue"]), "loo_pit_ok": bool(a["loo_pit_ok"]),
            "loo_pit_direction": pit_shape(pit).label if pit is not None else "",
-           "psense": ", ".join(map(str, checks["psense"].values)), "ci_prob": float(checks["ci_prob"])}
+           "psense": ", ".join(json.loads(a["psense"])), "ci_prob": float(a["ci_prob"])}
     if pit is not None:
         out["pit"] = ("pit_row", np.asarray(pit, dtype=float))
     if "pit_band" in checks:
