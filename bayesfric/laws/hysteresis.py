@@ -83,7 +83,7 @@ from bayesfric.numerics import positive_power, power_ratio
 from bayesfric.priors import Prior
 
 __all__ = ["DAHL_LAWS", "dahl_torque", "lugre", "dahl_relax", "lugre_bristle", "START_STATE",
-           "held_velocity"]
+           "held_velocity", "phi1"]
 
 SEED = "seed 001 (Dahl 1977, solid friction parameters of ball bearings)"
 LUGRE = "Canudas de Wit et al. 1995 (LuGre), named in seed 002"
@@ -292,7 +292,7 @@ _LUGRE_NOTES = (
 )
 
 
-def _phi1(x):
+def phi1(x):
     """(1 − e^(−x))/x for x ≥ 0, equal to 1 − x/2 near 0 (finite gradient at x = 0)."""
     tiny = x < 1e-8
     x_safe = jnp.where(tiny, 1.0, x)
@@ -328,7 +328,7 @@ def lugre_bristle(velocity, time, trajectory_start, sigma0, F_c, dF_s, v_s, F_st
     decay = jnp.where(start, 0.0, jnp.exp(-rate_h))  # the start state replaces z at every start
     v_first = jnp.append(v_hold[1:], 0.0)  # the first step's held velocity, on the start row
     z_start = -F_start * jnp.sign(v_first) * g(v_first) / sigma0
-    gain = jnp.where(start, z_start, v_hold * h * _phi1(rate_h))
+    gain = jnp.where(start, z_start, v_hold * h * phi1(rate_h))
 
     def compose(first, second):  # affine maps z -> a z + b, applied first then second
         a1, b1 = first
