@@ -27,6 +27,7 @@ __all__ = [
     "SCALE_RANGE",
     "ROUNDING",
     "rounding_slack",
+    "DERIVED_POSITIONS",
 ]
 
 #: Allowed range (SI) of the largest |value| of an operating quantity: the data loader checks the
@@ -156,6 +157,11 @@ QUANTITIES: dict[str, Quantity] = {q.name: q for q in _VOCABULARY}
 
 #: Quantities a law may return as its response.
 RESPONSES = ("torque", "force", "velocity")
+
+#: Positions whose data scale is derived from a speed and ``time`` where a data set records those
+#: and not the position (``position: speed``; :func:`bayesfric.datasets.views.data_scale`): a law
+#: that reads the speed and time may scale a prior on a deflection by the position.
+DERIVED_POSITIONS = {"angle": "velocity", "displacement": "linear_velocity"}
 
 
 @lru_cache(maxsize=256)

@@ -11,9 +11,9 @@ import xarray as xr
 from bayesfric.datasets.loader import OBS_DIM, DataError
 from bayesfric.laws.base import TRAJECTORY_START, Law
 from bayesfric.priors import DataScale
-from bayesfric.quantities import QUANTITIES
+from bayesfric.quantities import DERIVED_POSITIONS, QUANTITIES
 
-__all__ = ["law_inputs", "response_values", "response_se", "data_scale", "select", "trajectory_starts"]
+__all__ = ["law_inputs", "response_values", "response_se", "data_scale", "select", "trajectory_starts", "travel"]
 
 
 def trajectory_starts(ds: xr.Dataset) -> np.ndarray:
@@ -69,9 +69,40 @@ def response_se(ds: xr.Dataset) -> np.ndarray | None:
 
 
 def data_scale(ds: xr.Dataset) -> DataScale:
-    """Scales used by data-scaled priors (rule in :mod:`bayesfric.priors`)."""
+    """Scales used by data-scaled priors (rule in :mod:`bayesfric.priors`).
+
+    Where the data set has a speed and time but no position input (:data:`bayesfric.quantities.DERIVED_POSITIONS`),
+    the position's scale is the largest excursion :func:`travel` integrates from them: the scale
+    of a prior on a deflection of a law that reads velocity and time (GMS's break-away deflections),
+    the same as the largest |angle| a recorded angle would give on loops from rest.
+    """
     inputs = {k: v.values for k, v in ds.coords.items() if v.attrs.get("role") == "input"}
+    for position, speed in DERIVED_POSITIONS.items():
+        if position not in inputs and speed in inputs and "time" in inputs:
+            inputs[position] = travel(inputs[speed], inputs["time"], trajectory_starts(ds))
     return DataScale.of(ds[ds.attrs["response"]].values, inputs)
+
+
+def travel(speed: np.ndarray, time: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """Position relative to each trajectory's first row, ∫ speed dt by the trapezoid rule.
+
+    Parameters
+    ----------
+    speed, time : array, shape (n,)
+        Rows in order within each trajectory (time restarts or continues, either way).
+    starts : array of bool, shape (n,)
+        True at each trajectory's first row (:func:`trajectory_starts`).
+
+    Returns
+    -------
+    array, shape (n,)
+        0 at every start.
+    """
+    v, t = np.asarray(speed, dtype=float), np.asarray(time, dtype=float)
+    steps = np.where(starts, 0.0, 0.5 * (v + np.r_[v[:1], v[:-1]]) * np.diff(t, prepend=t[:1]))
+    total = np.cumsum(np.where(np.isfinite(steps), steps, 0.0))
+    first = np.maximum.accumulate(np.where(starts, np.arange(v.size), 0))
+    return total - total[first]
 
 
 def select(ds: xr.Dataset, where: Mapping[str, Any] | None = None) -> xr.Dataset:

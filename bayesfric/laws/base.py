@@ -32,7 +32,7 @@ import jax.numpy as jnp
 
 from bayesfric.laws.errors import LawDeclarationError, VariantError
 from bayesfric.priors import Prior
-from bayesfric.quantities import QUANTITIES, RESPONSES, UnitError, parse_unit
+from bayesfric.quantities import DERIVED_POSITIONS, QUANTITIES, RESPONSES, UnitError, parse_unit
 
 __all__ = [
     "Param",
@@ -302,7 +302,8 @@ def law(
 
 def _check_param(where: str, pname: str, p: Param, inputs: tuple[str, ...]) -> None:
     """A declared parameter: a :class:`Param` with a unit, meaning, source and a prior scaled
-    only by what the law reads."""
+    only by what the law reads (or by a position it integrates from the speed and time it reads,
+    :data:`bayesfric.quantities.DERIVED_POSITIONS`)."""
     if not isinstance(p, Param):
         raise LawDeclarationError(f"{where}: parameter {pname!r} is not a Param")
     _check_unit(where, pname, p.unit)
@@ -311,7 +312,8 @@ def _check_param(where: str, pname: str, p: Param, inputs: tuple[str, ...]) -> N
     if not isinstance(p.prior, Prior):
         raise LawDeclarationError(f"{where}: parameter {pname!r} prior is not a Prior spec")
     for key in p.prior.scaled_by:
-        if key != "response" and key not in inputs:
+        derived = key in DERIVED_POSITIONS and {DERIVED_POSITIONS[key], "time"} <= set(inputs)
+        if key != "response" and key not in inputs and not derived:
             raise LawDeclarationError(
                 f"{where}: prior of {pname!r} is scaled by {key!r}, which the law does not read"
             )

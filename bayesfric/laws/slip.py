@@ -32,7 +32,11 @@ the break-away deflection of element i at rest.
 Ordering: in both laws Δ_i = Σ_{j≤i} δ_j with δ_j > 0 (a cumulative-positive parametrisation),
 so the elements are ordered by break-away deflection and cannot swap labels; the weights
 α = w/Σw with w_j ~ Gamma(2, 1) i.i.d., i.e. α ~ Dirichlet(2, …, 2) (Σw itself is not
-identified and keeps its Gamma(2N, 1) prior).
+identified and keeps its Gamma(2N, 1) prior). The increments' prior puts the median of Δ_N at 10 %
+of the largest |angle| for both laws; GMS reads no angle, so on data without one the scale is the
+largest excursion ∫v dt from a trajectory's start (:func:`bayesfric.datasets.views.travel`). GMS's
+scale was max|v|·max t until issue 29: 12.6× the stroke on two 1 Hz sine cycles, which started
+every element beyond the loops and left a chain on Dahl loops in an all-elastic mode (R-hat 2.2).
 
 Elasto-plastic (Dupont, Hayward, Armstrong & Altpeter 2002, IEEE TAC 47(5):787-792)
 -----------------------------------------------------------------------------------
@@ -98,9 +102,9 @@ def _weights(n: int) -> Param:
                  f"{MS} (W_i = α_i F_c); symmetric Dirichlet prior, no element preferred", shape=(n,))
 
 
-def _increments(n: int, scaled_by: dict[str, float], where: str) -> Param:
-    # median of the largest break-away deflection Δ_N: 10 % of the data's travel scale
-    return Param("rad", Prior("LogNormal", loc=math.log(0.1 / n), scale=1.5, scaled_by=scaled_by),
+def _increments(n: int, where: str) -> Param:
+    # median of the largest break-away deflection Δ_N: 10 % of the largest |angle| (module doc)
+    return Param("rad", Prior("LogNormal", loc=math.log(0.1 / n), scale=1.5, scaled_by={"angle": 1}),
                  "increments δ of the ordered break-away deflections Δ_i = Σ_{j≤i} δ_j",
                  f"{MS}; ordered (cumulative-positive) so elements cannot swap; prior median of "
                  f"Δ_N at 10 % of {where}", shape=(n,))
@@ -266,7 +270,7 @@ def maxwell_slip_law(n: int = N_DEFAULT) -> Law:
     asks for N by that name.
     """
     name = "maxwell_slip" if n == N_DEFAULT else f"maxwell_slip_n{n}"
-    params = {"F_c": F_C, "w": _weights(n), "dx": _increments(n, {"angle": 1}, "the largest |angle|")}
+    params = {"F_c": F_C, "w": _weights(n), "dx": _increments(n, "the largest |angle|")}
     inputs = ("angle", TRAJECTORY_START)
     sig = _signature(list(inputs) + list(params) + ["F_start"])
 
@@ -296,7 +300,8 @@ def gms_law(n: int = N_DEFAULT) -> Law:
                          "attraction rate C of slipping elements towards α_i s(v)",
                          f"{GMS}; {_GENERIC} (median: relaxation in 1 % of the record)"),
               "w": _weights(n),
-              "dx": _increments(n, {"velocity": 1, "time": 1}, "the travel scale max|v|·max t")}
+              "dx": _increments(n, "the largest |angle| (where none is recorded: the largest excursion "
+                                   "∫v dt from a trajectory's start, datasets.views.travel)")}
     inputs = ("velocity", "time", TRAJECTORY_START)
     sig = _signature(list(inputs) + list(params) + ["F_start"])
 

@@ -264,3 +264,35 @@ def test_elastoplastic_runs_on_force_data():
     force_law = translational(law)
     assert force_law.params["sigma0"].unit == "N/m"
     assert force_law.params["sigma0"].prior.scaled_by == {"response": 1}
+
+
+# --- the scale of the break-away deflections' prior on data without a position ---------------------
+def test_travel_integrates_speed_from_each_trajectory_start_by_hand():
+    from bayesfric.datasets.views import travel
+
+    speed = np.array([2.0, 2.0, 2.0, -1.0, -1.0, 4.0, 0.0])
+    time = np.array([0.0, 1.0, 2.0, 0.0, 0.5, 10.0, 11.0])  # time restarts at the second trajectory
+    starts_ = np.array([True, False, False, True, False, True, False])
+    # trapezoids: 2, 2 | start, -0.5 | start, 2
+    np.testing.assert_allclose(travel(speed, time, starts_), [0.0, 2.0, 4.0, 0.0, -0.5, 0.0, 2.0])
+
+
+def test_gms_deflection_prior_scales_with_the_loops_travel_not_speed_times_duration(simulator):
+    # issue 29: the break-away deflections' prior was scaled by max|v|·max t. On sinusoidal loops of
+    # amplitude A at 1 Hz over 2 cycles that is 2·2π ≈ 12.6 A, so the prior medians put every
+    # element's break-away beyond the loops and the chains of a GMS fit to Dahl loops settled in an
+    # all-elastic mode (R-hat 2.2). Without a recorded angle the scale is now the largest ∫v dt
+    # excursion: A itself, as a recorded angle gives.
+    from bayesfric.datasets.views import data_scale
+
+    law = get_law("gms")
+    t = np.arange(240) / 120.0
+    amplitude = 0.02
+    v = amplitude * 2 * np.pi * np.cos(2 * np.pi * t)
+    truth = dict(STRIBECK, C=50.0, w=W, dx=DX)
+    ds = simulator(law, {"velocity": v, "time": t}, truth, sigma=0.01, seed=1)
+    assert "angle" not in ds.coords
+    scale = data_scale(ds)
+    assert scale.inputs["angle"] == pytest.approx(amplitude, rel=1e-3)
+    resolved = law.params["dx"].prior.resolve(scale)
+    assert resolved.args["loc"] == pytest.approx(np.log(0.1 / N_DEFAULT * amplitude), rel=1e-3)
