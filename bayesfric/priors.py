@@ -16,10 +16,14 @@ against a dataset, the *data scale* is
 
 where R is the response scale and X_k the scale of input k (both: the largest absolute value in
 the data, ignoring non-finite entries and falling back to 1 for an all-zero column), and a, b_k are
-the declared powers. Location-scale arguments (``loc``, ``scale``, ``low``, ``high``) of the spec
-are multiplied by S; for ``LogNormal`` (whose ``loc`` is on the log scale) ``log S`` is added to
-``loc`` instead; a rate (``Exponential``, ``Gamma``) is divided by S. Shape arguments (``df``,
-``concentration`` ...) are left alone. Read: "a term of this law, at the largest tested input, is
+the declared powers. A position the data do not record but a law integrates from the speed and
+time it reads (GMS's break-away deflections) takes the largest excursion of ∫v dt from each
+trajectory's start (:data:`bayesfric.quantities.DERIVED_POSITIONS`,
+:func:`bayesfric.datasets.views.data_scale`).
+Location-scale arguments (``loc``, ``scale``, ``low``, ``high``) of the spec are multiplied by S;
+for ``LogNormal`` (whose ``loc`` is on the log scale) ``log S`` is added to ``loc`` instead; a
+rate (``Exponential``, ``Gamma``) is divided by S. Shape arguments (``df``, ``concentration`` ...)
+are left alone. Read: "a term of this law, at the largest tested input, is
 of the order of the largest observed response" -- so ``HalfNormal(scale=1)`` scaled by the rule
 puts about 68 % of its mass on terms no larger than the biggest observed response and leaves room
 for 2–3 times that.
