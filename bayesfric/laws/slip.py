@@ -199,7 +199,7 @@ def elastoplastic_deflection(velocity, time, trajectory_start, sigma0, beta, F_c
 
         def substep(_, u):
             # 1/a + (u − 1/a) e^(−ad) written without its cancellation: just above z_ba, a is tiny
-            # and that form lost the gradient (errors up to 1 % in d/dβ, tests/laws/test_slip.py)
+            # and that form lost the gradient (errors up to 1.3 % in d/dβ, tests/laws/test_slip.py)
             ad = blend(u, zm) * d
             moved = u * jnp.exp(-ad) + d * phi1(ad)
             return jnp.where(u < zm, jnp.minimum(moved, zm), moved)
