@@ -23,7 +23,7 @@ FAST_FILES = frozenset(f"tests/{name}.py" for name in (
     "datasets/test_robot_joint", "datasets/test_unwinder", "datasets/test_dahl_duplex", "datasets/test_drum_rollout",
     "datasets/test_pitch_bearing",
     "hostile/test_links_corpus", "hostile/test_variant_corpus", "hostile/test_data_corpus",
-    "hostile/test_study_corpus", "hostile/test_loader_properties",
+    "hostile/test_study_corpus", "hostile/test_loader_properties", "hostile/test_derived_scale",
     "test_example_studies", "test_priors", "test_sizing_misfit", "test_sizing_basis", "test_numerics",
     "test_sizing_truth", "test_asymmetry", "test_drive_dynamics", "test_structure", "test_density", "test_errors",
     "test_fingerprint",
