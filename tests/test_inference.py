@@ -277,8 +277,8 @@ def test_the_auto_metric_records_its_choice_and_falls_back_to_the_diagonal_one(s
     """``NutsEngine`` (default ``auto``) on Coulomb-viscous data at speeds 1-2 rad/s only, where
     T_C and c_v are strongly anti-correlated: every chain goes dense, the fit says so, and warm
     folds start from the fit's covariance. With a gate no fit can pass, a fit that went dense is
-    sampled again with the diagonal metric (no dense draw, recorded), on the same compiled
-    sampler."""
+    sampled again with the diagonal metric (no dense draw, recorded), at the same target and then
+    the raised one, on the same compiled sampler."""
     from bayesfric.compare.refit import RefitEngine
     from bayesfric.inference.diagnostics import Gate
     from bayesfric.model import build_program
@@ -297,5 +297,6 @@ def test_the_auto_metric_records_its_choice_and_falls_back_to_the_diagonal_one(s
     assert fits.diagonal.tolist() == [True] and not fits.stats["dense_metric"].any()
     assert not fits.verdicts[0].passed and strict.compilations == 1
     retried = json.loads(strict.fit(ds).attrs["sampler_settings"])
-    assert retried["retried"].endswith("with the diagonal metric (the warm-up had chosen a dense one)")
+    assert retried["retried"] == ("the dense metric the warm-up chose failed the gate: sampled again with the "
+                                  "diagonal one at 0.9, which failed too; then at 0.99")  # no gate is passed
     assert retried["metric"].startswith("auto: dense in 0 of 2")

@@ -118,11 +118,17 @@ class NutsEngine:
         (``benchmarks/bench_retry.py``); folds without divergences pay nothing. Before it, a
         single divergent transition in 4000 draws flipped which robot_joint fits and claims
         passed, with the chains' floating-point path. Under the ``auto`` metric a fold that
-        fails the gate after a chain chose the dense metric is also sampled again (at this
-        target when it diverged, else at ``target_accept``) with the diagonal metric (the
-        threshold is an argument of the compiled sampler too), and the fit records it: a dense
-        metric fails on some curved posteriors where the diagonal one passes (the unwinder's
-        ``thermal_vogel_power``: tail ESS below the gate, dense in all four chains).
+        fails the gate after a chain chose the dense metric is first sampled again with the
+        diagonal metric at ``target_accept`` (the threshold is an argument of the compiled
+        sampler too), and only if that run fails as well at this raised target, diagonal again:
+        the single retry before issue 29, same keys, so the verdict is never worse and the cost
+        at most one more sampling of that fold. The fit records each run. A dense metric fails
+        on some curved posteriors where the diagonal one passes (the unwinder's
+        ``thermal_vogel_power``: tail ESS below the gate, dense in all four chains;
+        Maxwell-slip on Dahl loops, 360 rows: divergences with the dense metric, none with the
+        diagonal one at 0.9, 74 leapfrog steps per draw where the raised target took 360,
+        issue 29). A fold that was never dense and diverged goes straight to the raised
+        target, as before.
     fold_batch : int
         Number of folds sampled together in one vectorised call (``vmap`` over
         ``fold_batch × chains`` NUTS chains). Fixed per engine so one compilation serves any K.
@@ -359,25 +365,37 @@ class NutsEngine:
         start = time.perf_counter()
         folds = np.arange(masks.shape[0])
         samples, stats, lpd = self._sample(masks, folds, seed, self.target_accept, DENSE_ABOVE)
-        targets = np.full(folds.size, self.target_accept)
-        verdicts = self._verdicts(samples, stats)
+        fits = FoldFits(samples, lpd, self._verdicts(samples, stats), 0.0, stats,
+                        np.full(folds.size, self.target_accept), np.zeros(folds.size, bool))
         raise_target = self.retry_target_accept is not None and self.retry_target_accept > self.target_accept
         went_dense = (stats["dense_metric"].any(axis=(1, 2)) if self.metric == "auto"
                       else np.zeros(folds.size, bool))
-        retry = [i for i, v in enumerate(verdicts)
-                 if not v.passed and ((v.divergences and raise_target) or went_dense[i])]
-        diagonal = np.zeros(folds.size, bool)
-        if retry:
-            target = self.retry_target_accept if raise_target else self.target_accept
-            again = self._sample(masks[retry], folds[retry], seed, target,
-                                 np.inf if self.metric == "auto" else DENSE_ABOVE)
-            for whole, part in ((samples, again[0]), (stats, again[1])):
-                for name in whole:
-                    whole[name][retry] = part[name]
-            lpd[retry], targets[retry], diagonal[retry] = again[2], target, went_dense[retry]
-            for i, verdict in zip(retry, self._verdicts(again[0], again[1]), strict=True):
-                verdicts[i] = verdict
-        return FoldFits(samples, lpd, verdicts, time.perf_counter() - start, stats, targets, diagonal)
+        # a dense metric that failed: first the diagonal one at the same target (its divergences
+        # may say the metric was wrong, not that the step was too long), then, if that fails
+        # too, the raised target (the one retry before issue 29: never a worse verdict)
+        self._again(fits, masks, seed, [i for i, v in enumerate(fits.verdicts) if not v.passed and went_dense[i]],
+                    self.target_accept)
+        if raise_target:
+            self._again(fits, masks, seed, [i for i, v in enumerate(fits.verdicts)
+                                            if not v.passed and (v.divergences or went_dense[i])],
+                        self.retry_target_accept)
+        fits.diagonal[:] = fits.diagonal & went_dense
+        fits.seconds = time.perf_counter() - start
+        return fits
+
+    def _again(self, fits: FoldFits, masks: np.ndarray, seed: int, retry: list[int], target: float) -> None:
+        """Sample the folds ``retry`` once more at ``target`` (diagonal metric under ``auto``), same
+        keys and starts, and keep that run in ``fits``."""
+        if not retry:
+            return
+        again = self._sample(masks[retry], np.asarray(retry), seed, target,
+                             np.inf if self.metric == "auto" else DENSE_ABOVE)
+        for whole, part in ((fits.samples, again[0]), (fits.stats, again[1])):
+            for name in whole:
+                whole[name][retry] = part[name]
+        fits.lpd[retry], fits.target_accept[retry], fits.diagonal[retry] = again[2], target, True
+        for i, verdict in zip(retry, self._verdicts(again[0], again[1]), strict=True):
+            fits.verdicts[i] = verdict
 
     def _sample(self, masks: np.ndarray, folds: np.ndarray, seed: int, target_accept: float,
                 dense_above: float) -> tuple:
@@ -459,10 +477,14 @@ class NutsEngine:
         elif self.metric != "diag":  # recorded when not the default, so existing fits keep their attrs
             settings["metric"] = self.metric
         raised = fits.target_accept[0] != self.target_accept
-        if raised or fits.diagonal[0]:
-            why = f"divergent transitions at target_accept {self.target_accept}" if raised else "failed the gate"
-            how = " with the diagonal metric (the warm-up had chosen a dense one)" if fits.diagonal[0] else ""
-            settings["retried"] = f"{why}: sampled again at {fits.target_accept[0]}{how}"
+        if fits.diagonal[0]:
+            settings["retried"] = (f"the dense metric the warm-up chose failed the gate: sampled again with the "
+                                   f"diagonal one at {self.target_accept}")
+            if raised:
+                settings["retried"] += f", which failed too; then at {fits.target_accept[0]}"
+        elif raised:
+            settings["retried"] = (f"divergent transitions at target_accept {self.target_accept}: sampled again "
+                                   f"at {fits.target_accept[0]}")
         return assemble(self.program, ds, samples, stats, sampler="nuts", settings=settings, seed=seed,
                         tables=self._tables)
 

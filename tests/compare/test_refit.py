@@ -267,6 +267,49 @@ def test_a_diverging_fold_is_sampled_again_at_the_retry_target(viscous_data):
         assert verdict.divergences == int(retried.stats["diverging"][k].sum())
 
 
+def test_a_dense_fold_that_failed_tries_the_diagonal_metric_before_a_raised_target(viscous_data, monkeypatch):
+    """The retry policy (issue 29), with the sampler replaced by a stub that records its calls and
+    reports divergences as scripted: a fold whose dense run failed is sampled again with the
+    diagonal metric at the same target, and at the raised target only if that run failed too;
+    a fold that never went dense and diverged goes straight to the raised target; a fold that
+    passed is never sampled again."""
+    from bayesfric.inference.diagnostics import Verdict
+
+    engine = RefitEngine(build_program(get_law("coulomb_viscous"), viscous_data), draws=10, tune=10, chains=2)
+    calls = []
+    # (fold, target, diagonal forced) -> divergences, or -1: fails the gate without any.
+    # fold 0: dense, diverges dense and diagonal -> 0.99; fold 1: dense, passes diagonal at 0.9;
+    # fold 2: diagonal, diverges -> 0.99; fold 3: passes at once; fold 4: dense, diverges, then
+    # fails the diagonal run at 0.9 on ESS alone -> 0.99 (the retry before issue 29)
+    script = {(0, 0.9, False): 3, (0, 0.9, True): 2, (0, 0.99, True): 0, (1, 0.9, False): 4,
+              (1, 0.9, True): 0, (2, 0.9, False): 1, (2, 0.99, True): 0, (3, 0.9, False): 0,
+              (4, 0.9, False): 2, (4, 0.9, True): -1, (4, 0.99, True): 0}
+    dense_first = np.array([True, True, False, False, True])
+
+    def sample(masks, folds, seed, target, dense_above):
+        forced = bool(np.isinf(dense_above))
+        calls.append((tuple(int(f) for f in folds), target, forced))
+        outcome = np.array([script[(int(f), target, forced)] for f in folds])
+        div = np.arange(10)[None, None, :] < np.maximum(outcome, 0)[:, None, None]
+        div = np.concatenate([div, np.zeros_like(div)], axis=1)  # chain 0 diverges, chain 1 not
+        dense = np.broadcast_to((dense_first[folds] & (not forced))[:, None, None], div.shape).copy()
+        n = len(folds)
+        return ({"T_C": np.zeros((n, 2, 10))}, {"diverging": div, "dense_metric": dense, "fail": outcome != 0},
+                np.zeros((n, masks.shape[1])))
+
+    def verdicts(samples, stats):
+        return [Verdict(not fail, 1.0, 1e3, 1e3, int(d.sum()), None, None)
+                for fail, d in zip(stats["fail"], stats["diverging"], strict=True)]
+
+    monkeypatch.setattr(engine, "_sample", sample)
+    monkeypatch.setattr(engine, "_verdicts", verdicts)
+    fits = engine.run(np.ones((5, viscous_data.sizes["obs"]), bool))
+    assert calls == [((0, 1, 2, 3, 4), 0.9, False), ((0, 1, 4), 0.9, True), ((0, 2, 4), 0.99, True)]
+    assert fits.target_accept.tolist() == [0.99, 0.9, 0.99, 0.9, 0.99]
+    assert fits.diagonal.tolist() == [True, True, False, False, True]
+    assert [v.passed for v in fits.verdicts] == [True] * 5
+
+
 def test_a_retried_full_fit_says_so_in_its_settings_and_report(viscous_data):
     """The full fit is a fold like any other: its retry is stored with it and shown in its report."""
     import json
@@ -277,8 +320,11 @@ def test_a_retried_full_fit_says_so_in_its_settings_and_report(viscous_data):
     engine = RefitEngine(program, draws=200, tune=200, chains=4, seed=2, target_accept=0.3)
     dt = engine.fit(viscous_data)
     settings = json.loads(dt.attrs["sampler_settings"])
-    assert settings["target_accept"] == 0.99 and "target_accept 0.3" in settings["retried"]
-    assert retry_note(dt).startswith(" (sampled again: divergent transitions at target_accept 0.3")
+    # here the warm-up went dense: the diagonal metric at 0.3 first, then the raised target
+    assert settings["target_accept"] == 0.99 and settings["retried"] == (
+        "the dense metric the warm-up chose failed the gate: sampled again with the diagonal one at 0.3, "
+        "which failed too; then at 0.99")
+    assert retry_note(dt) == f" (sampled again: {settings['retried']})"
     assert retry_note(dt) in fit_report(dt, program.law)
     dt.attrs["sampler_settings"] = json.dumps(settings | {"retried": None})
     assert retry_note(dt) == ""
