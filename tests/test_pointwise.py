@@ -162,7 +162,7 @@ def test_log_likelihood_on_demand_matches_the_stored_full_one(fits, data):
 
 
 def test_psis_loo_over_every_draw_of_a_thinned_fit_by_blocks_of_rows(fits, data):
-    """The README's recipe: az.loo over blocks of rows, the log-likelihood computed on demand,
+    """docs/data.md's recipe: az.loo over blocks of rows, the log-likelihood computed on demand,
     gives a thinned fit the PSIS-LOO of all its draws, as the full fit's stored one."""
     full, thin = fits
     posterior = thin["posterior"].to_dataset()

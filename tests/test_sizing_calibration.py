@@ -30,10 +30,10 @@ curve in ≥ 85 % at every reported point (2.5, 3 and 4 rad/s). The Stribeck + g
 scenario falls short (74–80.5 %): its fold's miss is mostly within one standard error of zero, so
 the rate is often estimated as 0 (see :mod:`bayesfric.sizing.calibration`); the test asserts
 only that calibration lifts its coverage well above the within-model one and prints the figure,
-which the README states. ``benchmarks/bench_calibration_frontier.py`` shows why no rule does much
+which docs/sizing.md states. ``benchmarks/bench_calibration_frontier.py`` shows why no rule does much
 better at this data size: the fold's standardised miss hardly differs from when the candidate is
 the truth (AUC 0.62 between the two). With the fold at 1.4 rad/s (ten held-out points) the sub-linear case
-fell short too (83 % at 3 rad/s, with the miss offset at 0.2). Figures: README, *Actuator sizing*.
+fell short too (83 % at 3 rad/s, with the miss offset at 0.2). Figures: docs/sizing.md.
 """
 
 from __future__ import annotations
@@ -161,7 +161,7 @@ def acceptance(replicates: int, level: float = 0.01) -> tuple[int, int]:
 
 
 def table(result: dict) -> str:
-    """The figures as printed (and quoted in the README)."""
+    """The figures as printed (and quoted in docs/sizing.md)."""
     lines = []
     for scenario, r in result.items():
         lines.append(f"{scenario}:")
