@@ -13,7 +13,7 @@ configure()  # x64 (and the persistent compilation cache) before any test builds
 #: fakes, the data sets' loaders, the structure checks and the hostile-input corpora. Chosen from a
 #: whole-suite ``--durations=0`` run (2026-11-26: each file under 35 s of test time at load 14,
 #: together 5 % of the suite's test seconds); ``make test`` runs them with everything else. The
-#: tier's wall time is stated in the README.
+#: tier's wall time is stated in benchmarks/README.md.
 FAST_FILES = frozenset(f"tests/{name}.py" for name in (
     "laws/test_declaration", "laws/test_classical", "laws/test_variants", "laws/test_ball_loads",
     "compare/test_folds", "compare/test_pit", "compare/test_weights", "compare/test_future", "compare/test_loo",
@@ -26,7 +26,7 @@ FAST_FILES = frozenset(f"tests/{name}.py" for name in (
     "hostile/test_study_corpus", "hostile/test_loader_properties", "hostile/test_derived_scale",
     "test_example_studies", "test_priors", "test_sizing_misfit", "test_sizing_basis", "test_numerics",
     "test_sizing_truth", "test_asymmetry", "test_drive_dynamics", "test_structure", "test_density", "test_errors",
-    "test_fingerprint",
+    "test_fingerprint", "test_readme",
 ))
 
 
