@@ -16,8 +16,8 @@ import numpyro  # noqa: F401  (see below)
 from bayesfric._version import __version__
 
 #: The public API (:mod:`bayesfric.api`), imported on first use so ``import bayesfric`` stays cheap.
-_API = ("load_data", "law", "Param", "Prior", "fit", "load_fit", "compare_laws", "size", "Study", "StudyResult", "run",
-        "write_report")
+_API = ("load_data", "law", "Param", "Prior", "fit", "load_fit", "compare_laws", "size", "predict", "score", "Study",
+        "StudyResult", "run", "write_report")
 __all__ = ["__version__", *_API]
 
 

@@ -1,4 +1,4 @@
-"""Command-line interface: ``bayesfric laws | fit | data | study | size | main``.
+"""Command-line interface: ``bayesfric laws | fit | data | study | report | size | predict | score | main``.
 
 Every user error (bad data, unknown law, bad prior, bad study file, bad option — argparse's own
 errors included) prints one line ``bayesfric: error: ...`` to stderr, exits with status 2 and
@@ -53,7 +53,8 @@ def build_parser() -> argparse.ArgumentParser:
     """The parser of every command; each sets ``func``, the :mod:`bayesfric.commands` function that runs it."""
     p = _Parser(prog="bayesfric", description="Bayesian model comparison of friction laws.")
     sub = p.add_subparsers(dest="command", required=True)
-    for add in (_add_laws, _add_fit, _add_data, _add_study, _add_report, _add_size, _add_main):
+    for add in (_add_laws, _add_fit, _add_data, _add_study, _add_report, _add_size, _add_predict, _add_score,
+                _add_main):
         add(sub)
     return p
 
@@ -142,6 +143,35 @@ def _add_size(sub) -> None:
                                              "(with --at; torque)")
     q.add_argument("--reports", default="reports", help="reports root folder of the study (default reports)")
     q.set_defaults(func=commands.cmd_size)
+
+
+def _predict_options(q: argparse.ArgumentParser) -> None:
+    """Options of ``predict`` and ``score``: what predicts, the new log, which group."""
+    q.add_argument("target", help="a study's report folder or its results.nc, or a fit file (.nc)")
+    q.add_argument("log", help="the new log: CSV file (sidecar FILE.toml next to it) or built-in data set name")
+    q.add_argument("--group", help="answer for this group of the fits (default: a new group, e.g. a new run)")
+    q.add_argument("--seed", type=int, default=0, help="seed of a new group's offsets")
+
+
+def _add_predict(sub) -> None:
+    """``bayesfric predict TARGET LOG --out FILE``: predictions at every row of a new log."""
+    q = sub.add_parser("predict", help="predict every row of a new log from a study's fits (and their "
+                                        "model average) or one fit, without refitting")
+    _predict_options(q)
+    q.add_argument("--out", required=True, help="CSV file of the predictions (one row per law and log row, SI)")
+    q.add_argument("--quantiles", type=float, nargs="+", default=None, metavar="Q",
+                   help="quantile levels in (0, 1) of the mean curve and of the predictive with noise "
+                        "(default 0.05 0.5 0.95)")
+    q.set_defaults(func=commands.cmd_predict)
+
+
+def _add_score(sub) -> None:
+    """``bayesfric score TARGET LOG``: the laws scored on a new log."""
+    q = sub.add_parser("score", help="score a study's laws (and their model average) or one fit on a new log: "
+                                      "elpd, RMS error, coverage of the 50 %% and 90 %% bands")
+    _predict_options(q)
+    q.add_argument("--out", help="also write the scores as a tidy CSV file (law, metric, value)")
+    q.set_defaults(func=commands.cmd_score)
 
 
 def _add_main(sub) -> None:

@@ -16,8 +16,8 @@ from bayesfric.datasets.loader import DataError
 from bayesfric.errors import UserError
 from bayesfric.priors import Prior, PriorError
 
-__all__ = ["cmd_laws", "cmd_fit", "cmd_data", "cmd_study", "cmd_report", "cmd_size", "cmd_main", "parse_priors",
-           "parse_fix", "parse_select"]
+__all__ = ["cmd_laws", "cmd_fit", "cmd_data", "cmd_study", "cmd_report", "cmd_size", "cmd_predict", "cmd_score",
+           "cmd_main", "parse_priors", "parse_fix", "parse_select"]
 
 
 def cmd_laws(args: argparse.Namespace) -> None:
@@ -240,6 +240,51 @@ def cmd_size(args: argparse.Namespace) -> None:
     else:
         raise UserError(f"{args.target}: give a study file (.toml) or a fit (.nc)")
     print(text_report(result))
+
+
+def _checked_out(path: str | None) -> None:
+    from bayesfric.fsutil import PathError, check_output_file
+
+    if path is not None:
+        try:
+            check_output_file(path)
+        except PathError as exc:
+            raise UserError(f"--out {exc}") from None
+
+
+def _about(attrs: dict) -> str:
+    """The lines ``predict`` and ``score`` print before their result: what answers, for what."""
+    lines = [f"{attrs['source']} on {attrs['data']}", f"answering for: {attrs['answer_for']}",
+             f"weights: {attrs['weighting']} ({attrs['weighting_note']})"]
+    lines += [f"{key}: {attrs[key]}" for key in ("excluded", "no_average", "noise_note") if attrs.get(key)]
+    return "\n".join(lines + [attrs["bands"]])
+
+
+def cmd_predict(args: argparse.Namespace) -> None:
+    from bayesfric.api.predicting import CLI_KEYS, QUANTILES, predicted, predictions_table
+    from bayesfric.csvout import write_csv
+    from bayesfric.quantities import QUANTITIES
+
+    _checked_out(args.out)
+    pred = predicted(args.target, args.log, QUANTILES if args.quantiles is None else args.quantiles, args.group,
+                     args.seed, CLI_KEYS)
+    print(_about(pred.attrs))
+    response = pred.attrs.get("response")
+    unit = f" ({response} in {QUANTITIES[response].unit}, inputs in SI)" if response in QUANTITIES else " (SI)"
+    write_csv(args.out, predictions_table(pred))
+    print(f"{pred.sizes['law']} × {pred.sizes['obs']} predictions written to {args.out}{unit}")
+
+
+def cmd_score(args: argparse.Namespace) -> None:
+    from bayesfric.api.predicting import CLI_KEYS, score_text, scored
+    from bayesfric.csvout import write_csv
+
+    _checked_out(args.out)
+    table = scored(args.target, args.log, args.group, args.seed, CLI_KEYS)
+    print(_about(table.attrs))
+    print(score_text(table))
+    if args.out:
+        print(f"scores written to {write_csv(args.out, table)}")
 
 
 def cmd_main(args: argparse.Namespace) -> None:

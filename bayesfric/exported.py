@@ -28,7 +28,7 @@ compilation to finish. XLA compiles, and reads a compiled program back from the 
 without holding the GIL (a pure-Python thread kept running throughout), so two programs load
 side by side while the caller waits for both: a warm ``joint_tribological`` fit took 1.64 s
 in-process with two threads against 1.72 s with one (8 interleaved pairs, 7 in favour), a cold
-``stribeck`` fit 5.06 against 5.44 s (3 pairs, 2026-11-24).
+``stribeck`` fit 5.06 against 5.44 s (3 pairs).
 
 With the cache switched off (``BAYESFRIC_NO_CACHE``) this is plain ``jax.jit``. A file that
 cannot be read back (truncated, another JAX) is traced again and replaced; writes are atomic;
@@ -93,8 +93,8 @@ def set_compile_threads(threads: int) -> None:
     cores, each with two compilation threads, slowed the one-thread parts of a study (the
     importance estimator's L-BFGS loop of small compiled calls) while the other process loaded
     or compiled: unwinder's thermal_poly_surface evidence pair took 1.01× its fit in a cold main
-    job against 0.43× with one thread per process, and the job itself 292 against 286 s
-    (2026-11-24, one pair). Compilations already started finish first.
+    job against 0.43× with one thread per process, and the job itself 292 against 286 s (one
+    pair). Compilations already started finish first.
     """
     global _THREADS
     if threads < 1:

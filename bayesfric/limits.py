@@ -60,8 +60,8 @@ CHUNK_NUMBERS = 2**22
 #: iterate, the draws resampled for the starts). XLA's buffer sizes (``memory_analysis``) of LuGre
 #: on 800 rows: 100 bytes per row of a value, 330 of a gradient, so at most ~0.2 GB of values (the
 #: 8 paths' gradients take 8 × rows × 330 bytes: 26 MB at 10⁴ rows). blackjax's approximation
-#: evaluated 8 paths × 101 iterates × 200 draws at once (13 GB of values at 800 rows; issue 29
-#: measured 16.7 GB). At 10⁴ rows all paths and 200 draws still run side by side; above 2²¹ rows
+#: evaluated 8 paths × 101 iterates × 200 draws at once (13 GB of values at 800 rows; a LuGre
+#: study peaked at 16.7 GB that way). At 10⁴ rows all paths and 200 draws still run side by side; above 2²¹ rows
 #: one evaluation exceeds it and the chains start at prior medians, with a warning.
 INIT_NUMBERS = 2**21
 #: Data rows above which PSIS-LOO is subsampled (:mod:`bayesfric.compare.loo_subsample`), and

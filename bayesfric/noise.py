@@ -23,7 +23,7 @@ observed point t, its last observed predecessor s = t − k in the same trajecto
 and with no observed predecessor in its trajectory e_t takes the stationary marginal. So a fold's
 training likelihood is the exact marginal likelihood of the points it keeps.
 
-Which predictive each score then reads (documented in the README, *Correlated residuals*):
+Which predictive each score then reads (documented in ``docs/laws.md``, *Correlated residuals*):
 
 * PSIS-LOO removes one term ``p(y_t | y_{<t}, θ)`` from the joint; it scores the one-step-ahead
   conditional predictive ``p(y_t | y_{<t})`` with a posterior that still sees every other term

@@ -8,7 +8,7 @@ divided by a parameter, ``exp(p · (log x − log s))`` lets XLA fold ``log x`` 
 (data are constants of the compiled sampler): ``(|v| / s) ** p`` 2.8 µs against 0.28 µs. A fit
 spends nearly all its sampling time in the log density's gradient: robot_joint's
 joint_tribological took 5.5 µs per evaluation with ``**`` and 1.6 µs with these functions
-(``benchmarks/bench_gradient.py``, 2026-11-24, medians of 3).
+(``benchmarks/bench_gradient.py``, medians of 3).
 
 An exponent known when the program is traced (a Python number: a declared constant, a fixed
 parameter, a literal such as 1.5) that is a multiple of 1/2 is computed exactly from ``sqrt``

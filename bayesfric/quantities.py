@@ -144,7 +144,7 @@ _VOCABULARY = [
     Quantity("displacement", "m", "translational displacement"),
     Quantity("time", "s", "time since the start of a trajectory", lower=0.0),
     Quantity("initial_velocity", "rad/s", "angular velocity at t = 0 of a coast-down trajectory"),
-    # drive dynamics (issue 29): inertia terms read these (bayesfric.laws.terms); a sidecar may
+    # drive dynamics: inertia terms read these (bayesfric.laws.terms); a sidecar may
     # derive them from velocity and time (bayesfric.datasets.derive)
     Quantity("acceleration", "rad/s**2", "angular acceleration of the moving part (joint, shaft)"),
     Quantity("linear_acceleration", "m/s**2", "acceleration of a translational axis (carriage, slider)"),

@@ -4,7 +4,7 @@ numpyro's ``StudentT.sample`` draws ``Z √(ν / V)`` with ``V ~ χ²(ν)`` from
 :func:`jax.random.gamma`, which splits a key per element and runs each element's rejection loop
 on its own. On the CPU that made the posterior predictive of a Student-t fit the slowest part of
 the fit: 4000 draws × 300 rows took 6.7 s (a normal noise model's 0.09 s), five of the seven
-seconds of a pitch_bearing fit (2026-11-26, 2 shared cores).
+seconds of a pitch_bearing fit (2 shared cores).
 
 :func:`standard_gamma` draws the same distribution by Marsaglia and Tsang's rejection method
 (ACM TOMS 26, 2000), vectorised over the whole array: every round proposes ``d (1 + c z)³``

@@ -8,6 +8,8 @@
 :func:`load_fit`         a saved fit -> ``(DataTree, Program)``: the program that produced it
 :func:`compare_laws`     fits ranked by PSIS-LOO with stacking weights -> ``pandas.DataFrame``
 :func:`size`             friction a drive must deliver at untested points (+ P(|T| > capacity))
+:func:`predict`          every row of a new log predicted by a study's laws and average, or a fit
+:func:`score`            the laws scored on a new log: elpd, RMS error, band coverage
 :class:`Study`, `run`    a full comparison study (blocked extrapolation, evidence, sizing,
                          report) -> :class:`StudyResult`
 :func:`write_report`     a study's report rendered again from its result tree (``results.nc``)
@@ -19,11 +21,12 @@ Every argument is checked where it is given; a bad one raises a one-line
 
 from bayesfric.api.fitfile import load_fit
 from bayesfric.api.fitting import compare_laws, fit, law, load_data
+from bayesfric.api.predicting import predict, score
 from bayesfric.api.reports import write_report
 from bayesfric.api.sizing import size
 from bayesfric.api.studies import Study, StudyResult, run
 from bayesfric.laws.base import Param
 from bayesfric.priors import Prior
 
-__all__ = ["load_data", "law", "Param", "Prior", "fit", "load_fit", "compare_laws", "size", "Study", "StudyResult",
-           "run", "write_report"]
+__all__ = ["load_data", "law", "Param", "Prior", "fit", "load_fit", "compare_laws", "size", "predict", "score", "Study",
+           "StudyResult", "run", "write_report"]

@@ -30,8 +30,8 @@ def import_statistics() -> ModuleType:
 #: Rows of the pointwise log-likelihood read to tell unidentified parameters from an unconverged
 #: fit (:attr:`Verdict.predictions_note`): evenly spaced over the data beyond this many, with the
 #: total log-likelihood over every row beside them (approximate: the extremes over the other rows
-#: are not seen). arviz-stats' R-hat and bulk ESS cost about 5 ms a row (4 × 1000 draws, measured
-#: 2026-11-27), so at most 0.5 s, only on a fit whose chains did not mix.
+#: are not seen). arviz-stats' R-hat and bulk ESS cost about 5 ms a row (4 × 1000 draws), so at
+#: most 0.5 s, only on a fit whose chains did not mix.
 LOGLIK_ROWS = 100
 
 

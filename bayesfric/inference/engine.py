@@ -7,8 +7,8 @@ changing the fold, the seed or the warm-up length reuses the compiled code. The 
 *inputs* are constants of the compiled code, not arguments: XLA then computes everything that
 depends on the inputs alone once, at compile time. With the inputs as arguments, the skf_2014
 bearing law re-solved its rigid-ring ball loads (60 Newton steps per observation) at every
-leapfrog step, 2.4 ms a step instead of 7 µs, and its fit ran past 30 minutes (found
-2026-11-23). The *response* is an argument: :meth:`NutsEngine.with_response` refits other
+leapfrog step, 2.4 ms a step instead of 7 µs, and its fit ran past 30 minutes. The *response*
+is an argument: :meth:`NutsEngine.with_response` refits other
 responses on the same inputs (simulation studies, calibration replicates) with the same
 compiled code. A repeated fit of the same data still loads its compiled program from disk.
 
@@ -79,97 +79,68 @@ METRICS = ("diag", "dense", "auto")
 class NutsEngine:
     """The compiled NUTS sampler of one :class:`~bayesfric.model.Program`, full fit and folds.
 
+    One compiled function serves the full fit (the all-true mask) and every fold refit (another
+    mask); seeds, masks and warm or cold starts change nothing compiled. Why it is built this
+    way, with the measurements behind each default: ``docs/inference.md``.
+
     Parameters
     ----------
     program : Program
         The law bound to the *full* dataset (its data scale fixes the priors of every fold).
     draws, tune, chains : int
-        Per fit or fold. ``tune`` is the length of the compiled warm-up: a full Stan warm-up
-        from the prior median (the full fit and folds that start cold), or the frame within
-        which a warm start's shorter warm-up runs. The gate's R-hat and ESS thresholds apply in
-        full; a fold that misses them is flagged. With 500 draws, R-hat of 1.011-1.013 flagged
-        about one fold in ten on simple laws, hence the full 1000.
+        Per fit or fold. ``tune`` is the length of the compiled warm-up: a full Stan warm-up for
+        the full fit and folds that start cold, or the frame of a warm start's shorter one.
+        1000 draws by default because 500 left R-hat just above the gate on about one fold in ten.
     target_accept, max_tree_depth
         Target acceptance of the step-size adaptation and the largest tree depth (doublings).
     metric : {"auto", "diag", "dense"}
-        The mass matrix the warm-up estimates (Stan's ``diag_e`` / ``dense_e``). ``auto`` (the
-        default) estimates a dense one in every slow window and keeps it dense only where the
-        condition number of its correlation matrix exceeds
-        :data:`~bayesfric.inference.adaptation.DENSE_ABOVE` (20), else its diagonal: per chain,
-        re-decided at each window, recorded in the fit's ``metric`` setting (and per draw in the
-        ``dense_metric`` statistic of :meth:`run`'s folds). Where no slow window goes dense it is
-        the diagonal metric, draw for draw; on the strongly correlated Stribeck posterior of
-        ``benchmarks/bench_scale_rows.py`` (κ ≈ 96 after diagonal preconditioning) it took 6.2 steps
-        per draw against 25.8 at 10⁴ rows, with 4.3× the worst bulk ESS. Dense for posteriors whose
-        coefficients are strongly correlated, which a diagonal metric crosses in many short leapfrog
-        steps. Measured on the unwinder's ``thermal_poly_surface`` (15 polynomial coefficients,
-        correlations up to |r| = 0.97): 540 leapfrog steps per draw on average, 19 % of the draws at
-        the tree-depth limit (1023 steps), with the diagonal metric (see ``studies/unwinder.toml``
-        for the dense figures). A dense matrix costs O(dim²) per step instead of O(dim): nothing at
-        these dimensions.
+        The mass matrix the warm-up estimates (Stan's ``diag_e`` / ``dense_e``). ``auto`` keeps
+        each slow window's dense estimate where the condition number of its correlation matrix
+        exceeds :data:`~bayesfric.inference.adaptation.DENSE_ABOVE`, else its diagonal: per chain,
+        re-decided at each window, recorded in the fit's ``metric`` setting (per draw in the
+        ``dense_metric`` statistic of :meth:`run`'s folds). A dense metric crosses strongly
+        correlated posteriors in far fewer leapfrog steps; where no window goes dense, ``auto``
+        draws exactly what ``diag`` draws.
     retry_target_accept : float or None
-        A fold (the full fit included) whose draws have divergent transitions is sampled once
-        more, same keys and starts, with this target acceptance (default 0.99: Stan's advice
-        for divergences, a smaller step size), and the second run is kept and gated; ``None``
-        or 0 switches the retry off (study key ``[sampler] retry_target_accept``). The target
-        is an argument of the compiled sampler, so a retry compiles nothing. Cost: one more
-        sampling of that fold only, at a smaller step size: 1.2-2.2× the sampling at 0.9 and
-        0.08-0.89× the whole warm-cache fit on robot_joint's six laws
-        (``benchmarks/bench_retry.py``); folds without divergences pay nothing. Before it, a
-        single divergent transition in 4000 draws flipped which robot_joint fits and claims
-        passed, with the chains' floating-point path. Under the ``auto`` metric a fold that
-        fails the gate after a chain chose the dense metric is first sampled again with the
-        diagonal metric at ``target_accept`` (the threshold is an argument of the compiled
-        sampler too), and only if that run fails as well at this raised target, diagonal again:
-        the single retry before issue 29, same keys, so the verdict is never worse and the cost
-        at most one more sampling of that fold. The fit records each run. A dense metric fails
-        on some curved posteriors where the diagonal one passes (the unwinder's
-        ``thermal_vogel_power``: tail ESS below the gate, dense in all four chains;
-        Maxwell-slip on Dahl loops, 360 rows: divergences with the dense metric, none with the
-        diagonal one at 0.9, 74 leapfrog steps per draw where the raised target took 360,
-        issue 29). A fold that was never dense and diverged goes straight to the raised
-        target, as before.
+        A fold (the full fit included) with divergent transitions is sampled once more, same keys
+        and starts, at this target acceptance (default 0.99, a smaller step), and the second run
+        is kept and gated; ``None`` or 0 switches it off. Under ``auto``, a fold that fails the
+        gate after a chain went dense is first sampled again with the diagonal metric at
+        ``target_accept`` (a dense metric fails on some curved posteriors where the diagonal one
+        passes), and only if that fails too at this target, diagonal again; so no verdict is
+        worse than the raised target alone would give. The targets are arguments of the compiled
+        sampler: a retry compiles nothing and costs one more sampling of that fold only.
     fold_batch : int
-        Number of folds sampled together in one vectorised call (``vmap`` over
-        ``fold_batch × chains`` NUTS chains). Fixed per engine so one compilation serves any K.
-        Default 1 (chains vectorised, folds in sequence): on the 2-core CPU a 10-fold refit of
-        the stribeck law took 17 s warm with ``fold_batch=1`` against 35 s with 10, because
-        vmapped NUTS steps wait for the longest trajectory of all ``fold_batch × chains``
-        chains (``benchmarks/bench_refit.py``).
+        Folds sampled together in one vectorised call. Fixed per engine so one compilation
+        serves any K. Default 1: vmapped NUTS steps wait for the longest trajectory of all
+        ``fold_batch × chains`` chains, so folds in sequence are faster on CPUs.
     gate : Gate
-        Diagnostics thresholds (default: the project gate, unchanged).
+        Diagnostics thresholds (default: the project gate).
     seed : int
-        Seed of the chains' initial points (prior median, as the full fit uses), or of the
-        draws picked as initial points under ``warm_start``.
+        Seed of the chains' initial points, or of the draws picked as initial points under
+        ``warm_start``.
     warm_start : xarray.DataTree, optional
-        Start every chain from this full fit (see :meth:`warm_started`); the engine's compiled
-        warm-up is then ``warm_tune`` steps long. A study instead builds one engine for its full
-        fit and takes ``engine.warm_started(fit)``, which shares the compiled sampler.
+        Start every chain from this full fit (see :meth:`warm_started`); the compiled warm-up is
+        then ``warm_tune`` steps long. A study instead takes ``engine.warm_started(fit)`` of the
+        engine that made the full fit, which shares its compiled sampler.
     warm_tune : int
         Warm-up steps per chain under ``warm_start`` (default 250; at least 120).
     init : {"median", "pathfinder"}
         Starting points of chains that start cold (:mod:`bayesfric.inference.init`): prior
-        medians (default), or draws of multi-path Pathfinder for posteriors with minor modes.
+        medians (default), or multi-path Pathfinder draws for posteriors with minor modes.
     threads : int, optional
         Calls of the compiled sampler (fold batches × chain groups) run at once, each from its
-        own thread (the compiled sampler releases the GIL, so XLA runs them on separate cores).
-        Default: the CPUs this process may use.
-        Draws do not depend on it (each fold's keys are fixed by the seed and its index).
+        own thread (XLA releases the GIL). Default: the CPUs this process may use. The draws do
+        not depend on it.
     chain_batch : int, optional
-        Chains vectorised in one call of the compiled sampler (a divisor of ``chains``); a
-        fold's chains are split over ``chains / chain_batch`` calls, which run on ``threads``
-        threads. Default on CPUs: 1, every chain its own call. Against two calls of two vmapped
-        chains (4 chains × 1000 + 1000, 2 cores, 2026-11-23) it traced 1.8-3.3× faster (the
-        batching rules of NUTS's nested while loops re-trace them to a fixed point), compiled
-        up to 1.7× faster, and sampled 1.1-2.4× faster, because a vmapped NUTS step waits for
-        the longest trajectory in the batch (skf_2014 4.6 → 1.9 s, joint_tribological
-        1.7 → 0.9 s). On an accelerator the default is all chains in one vectorised call.
-        Fixed per engine (it is the compiled shape) and independent of ``threads``, so the
-        draws do not depend on the number of threads.
+        Chains vectorised in one call (a divisor of ``chains``). Default on CPUs: 1, each chain
+        its own call, because a vmapped NUTS step waits for the longest trajectory in the batch
+        and vmapped nested while loops are slow to trace; on an accelerator, all chains in one
+        call. Fixed per engine (it is the compiled shape); the draws do not depend on it.
     chunk_steps : int
         Schedule rows per call of the compiled step function (default
         :data:`~bayesfric.inference.chunked.CHUNK_STEPS`): how often chains report progress.
-        The draws do not depend on it; each call costs about 0.3 ms.
+        The draws do not depend on it.
 
     Notes
     -----
@@ -372,7 +343,7 @@ class NutsEngine:
                       else np.zeros(folds.size, bool))
         # a dense metric that failed: first the diagonal one at the same target (its divergences
         # may say the metric was wrong, not that the step was too long), then, if that fails
-        # too, the raised target (the one retry before issue 29: never a worse verdict)
+        # too, the raised target (so never a worse verdict than the raised target alone)
         self._again(fits, masks, seed, [i for i, v in enumerate(fits.verdicts) if not v.passed and went_dense[i]],
                     self.target_accept)
         if raise_target:

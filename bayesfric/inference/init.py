@@ -23,7 +23,7 @@ R-hat, rests on the warm-up from there with different random keys.
 **Memory.** ``blackjax.vi.pathfinder.approximate`` evaluates the log density at every draw of
 every iterate at once (101 iterates × 200 draws, vmapped again over the paths: 161 600
 evaluations of every data row side by side); on 800 rows of tribometer loops a LuGre study
-peaked at 16.7 GB (issue 29). Here every stage evaluates the log density at no more than
+peaked at 16.7 GB. Here every stage evaluates the log density at no more than
 ``limits.INIT_NUMBERS // rows`` points at once (:func:`plan`): the paths' L-BFGS runs and the
 draws are mapped in batches (``jax.lax.map``), the iterates one after another, and iterates past a
 path's last step are skipped. The numbers are those of blackjax's approximation (same keys, same

@@ -1,4 +1,4 @@
-"""What a fit keeps per data row, computed in bounded memory (issue 30, item 2).
+"""What a fit keeps per data row, computed in bounded memory.
 
 A fit's pointwise groups -- ``log_likelihood`` and ``posterior_predictive`` (a number per kept
 posterior draw and data row) and ``prior_predictive`` (per prior draw and row) -- are the only
@@ -291,7 +291,7 @@ def trim_memory() -> bool:
 
     The compiled sampler's calls run on threads, and glibc keeps what they freed in each
     thread's own heap, where the main thread's next allocations do not reuse it: at 10⁶ rows
-    (2 chains × 60 draws, 2026-11-25) a fit held 1.00 GB resident after sampling, 0.65 GB after
+    (2 chains × 60 draws) a fit held 1.00 GB resident after sampling, 0.65 GB after
     the trim, and peaked at 1.16 GB instead of 1.69 GB while its tables were computed.
     """
     try:
@@ -338,7 +338,7 @@ def log_likelihood(fit: xr.DataTree, ds: xr.Dataset | None = None, *, program: P
     per block length. PSIS-LOO is pointwise, so a PSIS-LOO of a thinned fit over all its draws
     is ``az.loo`` over blocks of rows, each on ``xr.DataTree.from_dict({"posterior":
     fit["posterior"].to_dataset(), "log_likelihood": log_likelihood(fit, ds, obs=block).to_dataset()})``,
-    with the blocks' ``elpd_i`` concatenated (README, *Large data*).
+    with the blocks' ``elpd_i`` concatenated (``docs/data.md``, *Large data*).
     """
     if program is None:
         if ds is None:
