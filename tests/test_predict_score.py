@@ -274,3 +274,24 @@ def test_the_private_mean_draws_agree_with_the_one_in_use():
     program = program_on(fit, make_dataset({"velocity": np.array([1.0, 2.0])}, np.ones(2)), "the log")
     posterior = _thinned(fit["posterior"].to_dataset(), 50)
     np.testing.assert_allclose(_mean_function()(program, posterior, group="0"), _mean_draws(program, posterior, "0"))
+
+
+def test_a_results_file_alone_predicts_from_its_fits_nodes(tmp_path):
+    """A study's ``results.nc`` keeps each fit under ``/fits/<law>`` (:data:`bayesfric.study.tree.FIT_GROUPS`):
+    moved away from its report folder, it predicts the same as the folder."""
+    import shutil
+
+    fits = _study(tmp_path / "r", {"coulomb_viscous": 0.7, "coulomb": 0.3})
+    ds = make_dataset({"velocity": V}, Y)
+    expected = predict(tmp_path / "r", ds)
+    with xr.open_datatree(tmp_path / "r" / "results.nc", engine="h5netcdf") as opened:
+        tree = opened.load()
+    for name, fit in fits.items():
+        tree[f"fits/{name}"] = xr.DataTree.from_dict(
+            {"/": xr.Dataset(attrs=dict(fit.attrs))}
+            | {g: fit[g].to_dataset() for g in ("posterior", "observed_data", "constant_data")})
+    (tmp_path / "alone").mkdir()
+    tree.to_netcdf(tmp_path / "alone" / "results.nc", engine="h5netcdf")
+    shutil.rmtree(tmp_path / "r")
+    got = predict(tmp_path / "alone" / "results.nc", ds)
+    xr.testing.assert_allclose(got.drop_attrs(), expected.drop_attrs())
