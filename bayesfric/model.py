@@ -10,6 +10,8 @@ Every law becomes the same program shape, so fits compare across laws:
   pooling, non-centred): ``mu_i = law(x_i) * exp(b_g[i])``, ``b_g ~ Normal(0, group_sd)``. A
   multiplicative offset keeps odd symmetry and the sign of friction, and reads as "this series
   runs a few per cent high";
+* group terms of a law made with ``vary_by`` (:mod:`bayesfric.hierarchy`): per varying parameter
+  ``p`` a spread ``p_sd``, standard-normal levels ``p_z`` and the levels' values ``p_<column>``;
 * the observation site is always ``response`` over the plate/dimension ``obs``.
 
 Data with a standard error per row (a reduced data set: segment means of a raw log,
@@ -45,6 +47,7 @@ import xarray as xr
 from bayesfric.datasets.loader import OBS_DIM, DataError
 from bayesfric.datasets.views import data_scale, law_inputs, response_se, response_values, trajectory_starts
 from bayesfric.density import OBS_SITE, Density, build_density
+from bayesfric.hierarchy import NEW_LEVEL, Grouping, group_sites, groupings_of, hyperprior, law_mean, site_names
 from bayesfric.laws.base import TRAJECTORY_START, Law
 from bayesfric.laws.plugins import law_files
 from bayesfric.laws.variants import for_data, law_of_fit
@@ -130,6 +133,7 @@ class Program:
     group_labels: list[Any] = field(default_factory=list)
     chain_start: np.ndarray | None = None  # ar1 noise: True where a trajectory starts (data order)
     response_se: np.ndarray | None = None  # the response's measured standard error per row (reduced data)
+    groupings: Mapping[str, Grouping] = field(default_factory=dict)  # each vary_by column's levels per row
     # init=False: dataclasses.replace(program, response=...) starts a fresh cache, never the old data's density
     _densities: dict[int, Density] = field(default_factory=dict, init=False, repr=False, compare=False)
 
@@ -156,6 +160,10 @@ class Program:
         for name, p in self.law.params.items():
             if p.shape:
                 dims[name] = [f"{name}_dim_{k}" for k in range(len(p.shape))]
+        for name, (_, z_site, level_site) in site_names(self.law, self.groupings).items():
+            dims[z_site] = dims[level_site] = [self.law.varying[name]]
+        if self.noise.group is not None:
+            dims.update(group_z=["group"], group_offset=["group"])
         return dims
 
     def model(self, inputs, group_index=None, response=None, mask=None):
@@ -173,7 +181,9 @@ class Program:
         # law (e.g. ball-load equilibria) can be evaluated once at trace time, not every step.
         with jax.ensure_compile_time_eval():
             arrays = {k: jnp.asarray(v) for k, v in inputs.items()}
-        mu = law.mean(arrays, params, self.constants)
+        if law.varying:  # group terms: each row reads its level's values (bayesfric.hierarchy)
+            params = group_sites(law, self.resolved, self.groupings, params)
+        mu = law_mean(law, arrays, params, self.constants, {c: g.index for c, g in self.groupings.items()})
         if self.noise.group is not None:
             n_groups = len(self.group_labels)
             group_sd = numpyro.sample("group_sd", self.resolved["group_sd"].to_numpyro())
@@ -230,9 +240,9 @@ class Program:
     def at(self, points: Mapping[str, Any]) -> Program:
         """This program (law, priors, constants, noise model) at new operating points, without data.
 
-        The response is zeros; with partial-pooled groups every point belongs to one new group
-        (``"new unit"``); with ``ar1`` noise every point starts its own trajectory (the
-        stationary marginal). Sizing draws its predictions from it.
+        The response is zeros; with partial-pooled groups (``[noise] group``, ``vary_by``) every
+        point belongs to one new group (``"new unit"``, :data:`~bayesfric.hierarchy.NEW_LEVEL`);
+        with ``ar1`` noise every point starts its own trajectory (the stationary marginal).
 
         Parameters
         ----------
@@ -244,11 +254,13 @@ class Program:
         return dataclasses.replace(
             self, inputs={k: np.asarray(points[k], dtype=float) for k in self.law.inputs}, response=np.zeros(n),
             group_index=np.zeros(n, dtype=int) if grouped else None, group_labels=["new unit"] if grouped else [],
-            chain_start=np.ones(n, dtype=bool) if self.noise.kind == "ar1" else None, response_se=None)
+            chain_start=np.ones(n, dtype=bool) if self.noise.kind == "ar1" else None, response_se=None,
+            groupings={c: Grouping((NEW_LEVEL,), np.zeros(n, dtype=int), g.centred) for c, g in self.groupings.items()})
 
     def parameter_names(self) -> list[str]:
-        """Law parameters, derived quantities, then noise parameters (report order)."""
-        return list(self.law.params) + list(self.law.derived) + list(self.noise.sites())
+        """Law parameters, derived quantities, between-group spreads, then noise parameters (report order)."""
+        spreads = [f"{p}_sd" for p in self.law.varying]
+        return list(self.law.params) + list(self.law.derived) + spreads + list(self.noise.sites())
 
 
 def build_program(
@@ -292,7 +304,8 @@ def build_program(
     law = for_data(law, ds)  # the data's motion kind; optional inputs it lacks (laws.variants)
     inputs, response = law_inputs(ds, law), response_values(ds, law)  # a missing input, before priors
     noise = noise or Noise()
-    declared = law.default_priors() | {k: NOISE_PRIORS[k] for k in noise.sites()}
+    declared = law.default_priors() | _spread_priors(law, law.default_priors(), {}, strict=False) | {
+        k: NOISE_PRIORS[k] for k in noise.sites()}
     for name, spec in (priors or {}).items():
         if name not in declared:
             raise PriorError(
@@ -300,6 +313,7 @@ def build_program(
                 f"parameters: {', '.join(declared)}"
             )
         declared[name] = spec if isinstance(spec, Prior) else Prior.from_dict(spec)
+    declared |= _spread_priors(law, declared, priors or {})  # a spread follows its parameter's override
     scale = scale or data_scale(ds)
     resolved = resolve_all(declared, scale)  # an error names priors.<parameter>.<key>
     consts = {k: c.value for k, c in law.constants.items()}
@@ -335,7 +349,27 @@ def build_program(
         group_labels=labels,
         chain_start=chain_start,
         response_se=se,
+        groupings=groupings_of(law, ds),
     )
+
+
+def _spread_priors(law: Law, declared: Mapping[str, Prior], given: Mapping[str, Any],
+                   strict: bool = True) -> dict[str, Prior]:
+    """Default priors of the between-group spreads (:func:`bayesfric.hierarchy.hyperprior`) of the
+    parameters ``law`` varies by a column, except those ``given`` by name; ``strict=False`` skips
+    a spread that has no default (named as an override target before the overrides are read)."""
+    out = {}
+    for p in law.varying:
+        sd = f"{p}_sd"
+        if sd in given:
+            continue
+        try:
+            out[sd] = hyperprior(declared[p], p)
+        except PriorError:
+            if strict:
+                raise
+            out[sd] = Prior("HalfNormal", scale=1.0)  # a placeholder name only: replaced or refused below
+    return out
 
 
 def program_record(program: Program) -> dict[str, str]:
@@ -363,6 +397,7 @@ def program_data(program: Program) -> dict[str, np.ndarray]:
     its program can be rebuilt (:func:`program_of_fit`): ``chain_start`` (ar1 noise) and
     ``response_se`` (reduced data), where the program has them."""
     out = {"chain_start": program.chain_start, "response_se": program.response_se}
+    out |= {f"{c}_level": g.index for c, g in program.groupings.items()}
     return {k: np.asarray(v) for k, v in out.items() if v is not None}
 
 
@@ -411,7 +446,11 @@ def program_of_fit(fit: xr.DataTree) -> Program:
         group_index = np.asarray(data["group_index"].values, dtype=int)
         labels = [str(g) for g in fit["posterior"]["group"].values]
     kept = {k: np.asarray(data[k].values) for k in ("chain_start", "response_se") if k in data}
-    return Program(law=law, noise=noise, priors=declared, resolved=resolve_all(declared, scale),
+    groupings = {c: Grouping(tuple(str(v) for v in fit["posterior"][c].values),
+                             np.asarray(data[f"{c}_level"].values, dtype=int))
+                 for c in dict.fromkeys(law.varying.values()) if f"{c}_level" in data}
+    return Program(groupings=groupings,
+                   law=law, noise=noise, priors=declared, resolved=resolve_all(declared, scale),
                    constants={k: float(v) for k, v in json.loads(attrs["constants"]).items()}, scale=scale,
                    inputs=inputs, response=response, group_index=group_index, group_labels=labels,
                    chain_start=kept["chain_start"].astype(bool) if "chain_start" in kept else None,

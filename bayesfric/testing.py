@@ -12,6 +12,8 @@ torque data and, unless the law is rotary-only, translational force data at trib
   laws are non-negative, coast-down speeds are non-negative (a law declared not sign-definite
   must say why in its notes);
 - a steady velocity law is odd in velocity;
+- with its scalar parameters varying between levels of the rows (group terms), each row gets its
+  level's mean;
 - its translational form maps the units and the priors' data scaling as declared.
 
 ``tests/laws/test_contract.py`` runs the same functions over every registered law.
@@ -26,6 +28,8 @@ True
 
 from __future__ import annotations
 
+import dataclasses
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -39,7 +43,7 @@ from bayesfric.quantities import parse_unit
 
 __all__ = ["check_law", "LawContractError", "design", "contract_dataset", "prior_draws", "CHECKS",
            "check_declaration", "check_mean", "check_gradient", "check_broadcasting", "check_prior_sign",
-           "check_odd", "check_translational_form"]
+           "check_odd", "check_translational_form", "check_group_terms"]
 
 #: Tribometer scale of the translational design: rotary design values (rad, rad/s) times this.
 TRIBO = 5e-5
@@ -221,10 +225,34 @@ def check_translational_form(law: Law) -> str | None:
     return None
 
 
+def check_group_terms(program: Program, params) -> str | None:
+    """Group terms (:meth:`Law.vary_by <bayesfric.laws.base.Law.vary_by>`): every scalar parameter
+    varying between two levels of the rows gives, at each row, the law's mean with that row's
+    level's values -- checked against the law evaluated once per level (a steady law reads the
+    values per row, a trajectory law is evaluated per level: :func:`bayesfric.hierarchy.law_mean`)."""
+    from bayesfric.hierarchy import law_mean
+
+    law = program.law
+    scalar = [k for k, p in law.params.items() if not p.shape]
+    if not scalar:
+        return "no scalar parameter to vary"
+    level = (np.arange(program.n_obs) // max(1, program.n_obs // 4)) % 2  # blocks of rows alternate
+    first, drawn = ({k: v[i] for k, v in params.items()} for i in (0, 1))
+    second = first | {k: drawn[k] for k in scalar}  # the levels differ in the scalar parameters only
+    values = dict(first) | {k: jnp.stack([first[k], second[k]]) for k in scalar}
+    varying = dataclasses.replace(law, recipe={**law.recipe, "vary_by": {"level": scalar}})
+    mixed = np.asarray(law_mean(varying, program.inputs, values, program.constants, {"level": jnp.asarray(level)}))
+    each = [np.asarray(law.mean(program.inputs, p, program.constants)) for p in (first, second)]
+    expected = np.where(level == 0, np.broadcast_to(each[0], level.shape), np.broadcast_to(each[1], level.shape))
+    _require(np.allclose(mixed, expected, rtol=1e-9, atol=1e-12),
+             f"{law.name}: with parameters varying by level, a row's mean differs from its level's law")
+    return None
+
+
 #: The checks of one program (law on one data set), by name, in the order :func:`check_law` runs them.
 CHECKS = {"mean finite and jit-able": check_mean, "gradient finite": check_gradient,
           "broadcasting": check_broadcasting, "prior-predictive sign": check_prior_sign,
-          "odd in velocity": check_odd}
+          "odd in velocity": check_odd, "group terms": check_group_terms}
 
 
 def check_law(law: Law, draws: int = 64) -> list[str]:

@@ -289,7 +289,11 @@ def loo_pit_check(dt: xr.DataTree, *, ci_prob: float = 0.99, n_simulations: int 
 
 # -- prior sensitivity ----------------------------------------------------------------------------
 def _parameters(dt: xr.DataTree) -> list[str]:
-    return [v for v in dt["posterior"].data_vars if v not in ("group_z", "group_offset")]
+    """Posterior variables but the per-group ones (offsets, a varying parameter's levels), whose
+    extra dimension is a group column, not the parameter's own ``<name>_dim_<k>``."""
+    post = dt["posterior"]
+    return [v for v in post.data_vars
+            if set(post[v].dims) <= {"chain", "draw"} | {f"{v}_dim_{i}" for i in range(post[v].ndim)}]
 
 
 @releases_views

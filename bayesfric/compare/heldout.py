@@ -23,6 +23,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from bayesfric.hierarchy import law_mean, site_names
 from bayesfric.limits import CHUNK_NUMBERS
 from bayesfric.model import Program
 
@@ -72,6 +73,9 @@ def _fold_draws(program: Program, samples: dict[str, np.ndarray], k: int) -> tup
         return v.reshape((s,) + v.shape[2:])[pick]
 
     params = {name: flat(name) for name in program.law.params}
+    # group terms: each level's values (a level the fold held out whole was drawn from its prior:
+    # the new-level predictive)
+    params |= {name: flat(level) for name, (_, _, level) in site_names(program.law, program.groupings).items()}
     noise = {name: flat(name) for name in program.noise.sites() if name != "group_sd"}
     offsets = flat("group_offset") if program.noise.group is not None else None
     return params, noise, offsets
@@ -80,7 +84,8 @@ def _fold_draws(program: Program, samples: dict[str, np.ndarray], k: int) -> tup
 def _means_at(program: Program, inputs: dict, params: dict[str, np.ndarray], rows: np.ndarray) -> np.ndarray:
     """``(draws, rows)``: the law's mean function of each draw of ``params`` at ``rows``, computed
     over every row in chunks of draws (at most ``CHUNK_NUMBERS`` draws × rows each)."""
-    mean = jax.vmap(lambda p: program.law.mean(inputs, p, program.constants))
+    index = {c: jnp.asarray(g.index) for c, g in program.groupings.items()}
+    mean = jax.vmap(lambda p: law_mean(program.law, inputs, p, program.constants, index))
     n_draws = len(next(iter(params.values())))
     size = max(1, CHUNK_NUMBERS // max(1, program.n_obs))
     parts = []

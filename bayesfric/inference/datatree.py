@@ -146,8 +146,9 @@ def assemble(
     dims = {OBS_SITE: [OBS_DIM], **{k: [OBS_DIM] for k in constant}}
     dims.update(program.site_dims())
     coords: dict[str, Any] = {OBS_DIM: obs}
+    coords |= {c: list(g.labels) for c, g in program.groupings.items()}  # vary_by columns' levels
     if program.noise.group is not None:
-        dims.update(group_z=["group"], group_offset=["group"], group_index=[OBS_DIM])
+        dims.update(group_index=[OBS_DIM])
         coords["group"] = [str(g) for g in program.group_labels]
         constant["group_index"] = np.asarray(program.group_index)
     dt = arviz_base.from_dict(

@@ -414,10 +414,10 @@ class NutsEngine:
         """The gate of every fold, in one pass of arviz-stats over a ``fold`` dimension."""
         lead = ("fold", "chain", "draw")
 
+        site_dims = self.program.site_dims()
+
         def dims(name: str, value: np.ndarray) -> tuple[str, ...]:
-            rest = ["group"] if name in ("group_z", "group_offset") else [
-                f"{name}_dim_{i}" for i in range(value.ndim - 3)]
-            return lead + tuple(rest)
+            return lead + tuple(site_dims.get(name, [f"{name}_dim_{i}" for i in range(value.ndim - 3)]))
 
         posterior = xr.Dataset({k: (dims(k, v), np.asarray(v)) for k, v in samples.items()})
         sample_stats = xr.Dataset({k: (lead, np.asarray(stats[k])) for k in ("diverging", "energy")})

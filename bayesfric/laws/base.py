@@ -192,6 +192,28 @@ class Law:
         """This law with one value of each named parameter per direction of motion (``T_C_pos``, ``T_C_neg``)."""
         return self._vary(asymmetric=names)
 
+    def vary_by(self, group: str, *names: str) -> Law:
+        """This law with the named parameters varying between the levels of the data column ``group``
+        (a run, series or unit), partially pooled: ``law.vary_by("run", "T_C", "c_v")``.
+
+        Each named parameter keeps its prior as the prior of its *typical* value (the median over
+        groups); each level's value scatters about it on the parameter's unconstrained scale (log
+        for a positive parameter) with a between-group spread ``<p>_sd`` of its own prior
+        (:mod:`bayesfric.hierarchy`). Predictions then answer for a new level by default.
+
+        Examples
+        --------
+        >>> from bayesfric.laws import get_law
+        >>> get_law("coulomb_viscous").vary_by("run", "T_C").varying
+        {'T_C': 'run'}
+        """
+        return self._vary(vary_by={group: list(names)})
+
+    @property
+    def varying(self) -> dict[str, str]:
+        """Parameter -> the data column whose levels it varies between (:meth:`vary_by`); empty if none."""
+        return {p: col for col, names in self.recipe.get("vary_by", {}).items() for p in names}
+
     def __add__(self, other: Law | str) -> Law:
         """This law plus another law or a term (``"offset"``, ``"viscous"``), named ``a+b``."""
         part = other if isinstance(other, str) else other.name

@@ -26,6 +26,12 @@ beyond that declaration is a *variant*, built here from a small recipe and valid
 ``without``
     Optional inputs (:class:`bayesfric.laws.base.OptionalInput`) the data lack: the input is held
     at the declared reference constant and the parameters that then have no effect are fixed at 0.
+``vary_by``
+    Group terms: ``{column: [parameters]}``. Each named parameter varies between the levels of
+    the data column (runs, series, units) with partial pooling (:mod:`bayesfric.hierarchy`); a
+    parameter varies by one column; a trajectory (stateful) law, or one with vector parameters,
+    by one column at most (it is evaluated once per level). Applied
+    last, so it names the parameters as the variant has them (``T_C_pos``, ``offset``).
 ``motion``
     ``"translational"``: the law declared on rotary quantities runs on force data. Inputs map
     ``velocity → linear_velocity``, ``angle → displacement``, the response ``torque → force``;
@@ -35,7 +41,7 @@ beyond that declaration is a *variant*, built here from a small recipe and valid
     (time, preload, temperature) are unchanged. A law that cannot run translationally says why
     (:func:`translation_problem`).
 
-The order of application is fixed: add, asymmetric, fixed, without, motion. :func:`for_data`
+The order of application is fixed: add, asymmetric, fixed, without, motion, vary_by. :func:`for_data`
 adds the data-dependent steps (motion, missing optional inputs) to a law's recipe; the recipe is
 stored with every fit so the variant can be rebuilt (:func:`law_of_fit`).
 
@@ -87,11 +93,11 @@ def _part(name: str) -> Law:
 
 
 # -- recipes -------------------------------------------------------------------------------------
-_KEYS = ("base", "add", "asymmetric", "fixed", "without", "motion")
+_KEYS = ("base", "add", "asymmetric", "fixed", "without", "motion", "vary_by")
 
 
 def build(recipe: Mapping[str, Any], name: str | None = None) -> Law:
-    """The law a recipe describes (keys: base, add, asymmetric, fixed, without, motion).
+    """The law a recipe describes (keys: base, add, asymmetric, fixed, without, motion, vary_by).
 
     Raises
     ------
@@ -121,8 +127,37 @@ def build(recipe: Mapping[str, Any], name: str | None = None) -> Law:
         law = ops.translational(law)
     elif recipe.get("motion", "rotary") != "rotary":
         raise VariantError(f"motion {recipe['motion']!r}: not 'rotary' or 'translational'")
+    if recipe.get("vary_by"):
+        _check_vary_by(law, recipe["vary_by"])
     clean = {k: recipe[k] for k in _KEYS if recipe.get(k)}
     return dataclasses.replace(law, name=name or str(recipe["base"]), recipe=clean)
+
+
+def _check_vary_by(law: Law, vary_by: Mapping[str, Sequence[str]]) -> None:
+    """Every group term names scalar, sampled parameters of ``law``, each under one column."""
+    if not isinstance(vary_by, Mapping):
+        raise VariantError("vary_by must map a data column to a list of parameters", "vary_by")
+    seen: dict[str, str] = {}
+    for column, names in vary_by.items():
+        if not isinstance(column, str) or not column.isidentifier():
+            raise VariantError(f"group column {column!r} is not a plain name", "vary_by")
+        if isinstance(names, str) or not names:
+            raise VariantError(f"vary_by.{column} must be a non-empty list of parameter names", f"vary_by.{column}")
+        for name in names:
+            if name not in law.params:
+                raise VariantError(f"law {law.name!r} has no sampled parameter {name!r} to vary by {column!r}; "
+                                   f"parameters: {', '.join(law.params)}", f"vary_by.{column}")
+            if law.params[name].shape:
+                raise VariantError(f"parameter {name!r} of law {law.name!r} is a vector; only scalar parameters "
+                                   "can vary between groups", f"vary_by.{column}")
+            if name in seen:
+                raise VariantError(f"parameter {name!r} varies by both {seen[name]!r} and {column!r}",
+                                   f"vary_by.{column}")
+            seen[name] = column
+    per_level = law.trajectory or any(p.shape for p in law.params.values())  # bayesfric.hierarchy.elementwise
+    if per_level and len(vary_by) > 1:
+        raise VariantError(f"law {law.name!r} (a trajectory law or one with vector parameters) can vary by one "
+                           f"group column, not {len(vary_by)}", "vary_by")
 
 
 def _merge(first: Mapping[str, Any], then: Mapping[str, Any]) -> dict[str, Any]:
@@ -130,6 +165,10 @@ def _merge(first: Mapping[str, Any], then: Mapping[str, Any]) -> dict[str, Any]:
     for key in ("add", "asymmetric", "without"):
         out[key] = list(first.get(key, ())) + [v for v in then.get(key, ()) if v not in first.get(key, ())]
     out["fixed"] = dict(first.get("fixed", {})) | dict(then.get("fixed", {}))
+    groups = {c: list(v) for c, v in first.get("vary_by", {}).items()}
+    for column, names in then.get("vary_by", {}).items():
+        groups[column] = groups.get(column, []) + [n for n in names if n not in groups.get(column, [])]
+    out["vary_by"] = groups
     if "motion" in then:
         out["motion"] = then["motion"]
     return {k: v for k, v in out.items() if v}
@@ -137,7 +176,8 @@ def _merge(first: Mapping[str, Any], then: Mapping[str, Any]) -> dict[str, Any]:
 
 def vary(law: Law, *, name: str | None = None, add: Sequence[str] = (), offset: bool = False,
          asymmetric: Sequence[str] = (), fixed: Mapping[str, float] | None = None,
-         without: Sequence[str] = (), motion: str | None = None) -> Law:
+         without: Sequence[str] = (), motion: str | None = None,
+         vary_by: Mapping[str, Sequence[str]] | None = None) -> Law:
     """A variant of ``law`` (see the module docstring); ``law`` itself if nothing is asked.
 
     Parameters
@@ -146,11 +186,12 @@ def vary(law: Law, *, name: str | None = None, add: Sequence[str] = (), offset: 
         A registered law or a variant (its recipe is extended).
     name : str, optional
         The variant's name (the label of a study entry); default the law's name.
-    add, offset, asymmetric, fixed, without, motion
+    add, offset, asymmetric, fixed, without, motion, vary_by
         As in the module docstring.
     """
     asked = {"add": list(add) + (["offset"] if offset and "offset" not in add else []),
-             "asymmetric": list(asymmetric), "fixed": dict(fixed or {}), "without": list(without)}
+             "asymmetric": list(asymmetric), "fixed": dict(fixed or {}), "without": list(without),
+             "vary_by": {str(c): list(v) for c, v in (vary_by or {}).items()}}
     if motion is not None:
         asked["motion"] = motion
     asked = {k: v for k, v in asked.items() if v}
@@ -224,6 +265,8 @@ def describe(law: Law) -> str:
         parts.append("without input " + ", ".join(r["without"]))
     if r.get("motion") == "translational":
         parts.append("translational")
+    for column, names in r.get("vary_by", {}).items():
+        parts.append(f"{', '.join(names)} vary by {column} (partial pooling)")
     return "; ".join(parts)
 
 

@@ -62,7 +62,6 @@ import zlib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 import xarray as xr
@@ -277,14 +276,18 @@ def levels(confidence: float) -> tuple[float, ...]:
 
 
 # -- prediction ----------------------------------------------------------------------------------
-def predict(fit: xr.DataTree, grid: Mapping[str, np.ndarray], seed: int = 0) -> Draws:
+def predict(fit: xr.DataTree, grid: Mapping[str, np.ndarray], seed: int = 0, group: str | None = None) -> Draws:
     """Mean-function and noisy predictive draws of a fit at the points ``grid`` (input -> SI values).
+
+    With group terms (``vary_by``, ``[noise] group``) the answer is for a new run / unit unless
+    ``group`` names an existing level (:func:`bayesfric.hierarchy.mean_draws`).
 
     Raises
     ------
     SizingError
         The fit's law is a trajectory (stateful) law, or ``grid`` lacks an input it reads.
     """
+    from bayesfric.hierarchy import mean_draws
     from bayesfric.model import program_of_fit
 
     program = program_of_fit(fit)
@@ -306,14 +309,9 @@ def predict(fit: xr.DataTree, grid: Mapping[str, np.ndarray], seed: int = 0) -> 
         v = np.asarray(post[name].values, dtype=float)
         return v.reshape((s,) + v.shape[2:])
 
-    params = {k: jnp.asarray(flat(k)) for k in law.params}
-    inputs = {k: jnp.asarray(v) for k, v in program.inputs.items()}
-    mu = np.asarray(jax.vmap(lambda p: law.mean(inputs, p, program.constants))(params), dtype=float)
-    mu = np.broadcast_to(mu, (s, n)).copy()
+    mu = mean_draws(program, post, group=group, seed=zlib.crc32(law.name.encode()) + seed)
     _check_magnitude(law, grid, mu)
     rng = np.random.default_rng([seed, zlib.crc32(law.name.encode())])
-    if program.noise.group is not None:
-        mu *= np.exp(rng.normal(0.0, 1.0, (s, 1)) * flat("group_sd")[:, None])
     # The fit's own observation distribution (Program.observation: the likelihood's, ar1 at its
     # stationary marginal). One standardised noise draw per posterior draw, shared by the
     # question's points (common random numbers): each point's distribution is unchanged, and

@@ -41,11 +41,13 @@ sampler settings, comparison methods and extrapolation folds::
     offset = true                      # the same as add = ["offset"]
     asymmetric = ["T_C", "offset"]     # one value per direction: T_C_pos (velocity ≥ 0), T_C_neg (< 0)
     fixed = { delta = 1.0 }            # hold parameters (or constants) at a value, SI units
+    vary_by = { series = ["T_C"] }     # group terms: T_C varies between series, partially pooled
+                                       # (answers are then for a new series; bayesfric.hierarchy)
 
     [compare]
     loo = true
     kfold = 10                         # 0 disables; else 2 … number of points (or trajectories)
-    grouped = "series"                 # optional leave-one-group-out
+    grouped = "series"                 # leave-one-group-out (default: the column a law varies by)
     evidence = true                    # bridge sampling + Laplace-t importance sampling (two estimators)
     smc = false                        # also tempered SMC as a reference (opt-in: 3-13x the fit's cost)
     smc_particles = 300                # SMC particles per run (default 300, at least 20)
@@ -189,11 +191,17 @@ def _added(entry: dict[str, Any]) -> tuple[str, ...]:
     return add + (("offset",) if entry["offset"] and "offset" not in add else ())
 
 
+def _groups(entry: dict[str, Any]) -> dict[str, tuple[str, ...]]:
+    """The entry's group terms: column -> the parameters that vary between its levels."""
+    return {str(k): _listed(v) for k, v in entry.get("vary_by", {}).items()}
+
+
 def _variant(where: str, entry: dict[str, Any]) -> Law:
     """The entry's law with its options, each checked in turn so an error names its key."""
     law = get_law(entry["name"])
     for key, options in (("add", {"add": _added(entry)}), ("asymmetric", {"asymmetric": _listed(entry["asymmetric"])}),
-                         ("constants", {"fixed": entry["constants"]}), ("fixed", {"fixed": entry["fixed"]})):
+                         ("constants", {"fixed": entry["constants"]}), ("fixed", {"fixed": entry["fixed"]}),
+                         ("vary_by", {"vary_by": _groups(entry)})):
         if key == "constants" and (bad := [c for c in entry["constants"] if c not in law.constants]):
             raise StudyError(f"{where}.constants.{bad[0]}: law {law.name!r} has no constant {bad[0]!r} "
                              f"(constants: {', '.join(law.constants) or 'none'})")
@@ -209,7 +217,7 @@ def _law_spec(path: Path, i: int, entry: dict[str, Any], noise: Noise, modules: 
     """Law-specific checks of a parsed ``[[laws]]`` entry: options, parameter and constant names, priors."""
     where = f"{path}: laws[{i}]"
     law = _variant(where, entry)
-    known = list(law.params) + list(noise.sites())
+    known = list(law.params) + [f"{p}_sd" for p in law.varying] + list(noise.sites())
     priors = {}
     for pname, spec in entry["priors"].items():
         if pname not in known:
@@ -221,7 +229,7 @@ def _law_spec(path: Path, i: int, entry: dict[str, Any], noise: Noise, modules: 
             raise StudyError(f"{where}.{exc.within(f'priors.{pname}')}") from None
     return LawSpec(entry["label"] or entry["name"], priors, dict(entry["constants"]), law=entry["name"],
                    fixed=dict(entry["fixed"]), add=_added(entry), asymmetric=_listed(entry["asymmetric"]),
-                   metric=entry["metric"], modules=modules)
+                   vary_by=_groups(entry), metric=entry["metric"], modules=modules)
 
 
 def _sizing_question(path: Path, i: int, entry: dict[str, Any]) -> SizingQuestion:
@@ -296,6 +304,14 @@ def load_study(path: str | Path) -> Study:
     return study_from_raw(path, _read(path))
 
 
+def _group_column(laws: list[LawSpec], noise: Noise) -> str | None:
+    """The column leave-one-group-out folds by when ``[compare] grouped`` is not given: the first
+    column a law varies by (``vary_by``), else the noise model's group; None without groups. A
+    study with groups is so scored on new groups, the question its answers are for."""
+    columns = [c for w in laws for c in w.vary_by] + ([noise.group] if noise.group else [])
+    return columns[0] if columns else None
+
+
 def study_from_raw(path: Path, raw: dict[str, Any]) -> Study:
     """Validate a study given as the parsed TOML (``raw``; :func:`load_study` reads it from
     ``path``, :class:`bayesfric.Study` builds it from Python objects). ``path`` names the study
@@ -327,7 +343,7 @@ def study_from_raw(path: Path, raw: dict[str, Any]) -> Study:
         path=path, name=name, title=meta["title"] if meta["title"] is not None else name,
         question=meta["question"], dataset=dataset, select=data["select"], noise=noise,
         sampler=spec["sampler"], laws=laws, loo=compare["loo"], kfold=compare["kfold"],
-        grouped=compare["grouped"], evidence=compare["evidence"], smc=compare["smc"],
+        grouped=compare["grouped"] or _group_column(laws, noise), evidence=compare["evidence"], smc=compare["smc"],
         smc_particles=compare["smc_particles"],
         smc_runs=compare["smc_runs"], blocked=blocked, include_failed=compare["include_failed"],
         failed_fits=compare["failed_fits"], sizing=sizing, claims=claims, raw=raw,

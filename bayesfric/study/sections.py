@@ -103,6 +103,10 @@ LAW = Schema((
     Field("offset", "bool", False, doc='add a constant offset term (same as add = ["offset"])'),
     Field("asymmetric", "value", [], rule=_names,
           doc="parameters with one value per direction: <p>_pos (velocity ≥ 0), <p>_neg (velocity < 0)"),
+    Field("vary_by", "table", {}, items="value", rule=lambda t: next(
+              (f"{k}: {problem}" for k, v in t.items() if (problem := _names(v))), None),
+          doc="group terms: column -> parameters that vary between its levels, partially pooled "
+              '(e.g. { run = ["T_C", "c_v"] }); answers are then for a new level'),
     Field("metric", "str", None, choices=METRICS,
           doc="NUTS mass matrix of this law, over [sampler] metric (dense for strongly correlated coefficients)"),
 ))

@@ -43,6 +43,7 @@ class LawSpec:
     fixed: dict[str, float] = field(default_factory=dict)
     add: tuple[str, ...] = ()
     asymmetric: tuple[str, ...] = ()
+    vary_by: dict[str, tuple[str, ...]] = field(default_factory=dict)  # group terms (bayesfric.hierarchy)
     metric: str | None = None  # this law's NUTS mass matrix, over [sampler] metric
     modules: tuple[str, ...] = ()  # the study's law files (absolute): loaded before the name is resolved
 
@@ -64,7 +65,7 @@ class LawSpec:
         if built is None:
             load_modules(self.modules)
             built = vary(get_law(self.law or self.name), name=self.name, add=self.add,
-                         asymmetric=self.asymmetric, fixed=self.constants | self.fixed)
+                         asymmetric=self.asymmetric, fixed=self.constants | self.fixed, vary_by=self.vary_by)
             object.__setattr__(self, "_built", built)  # a cache, not a field: frozen otherwise
         return built
 

@@ -65,6 +65,10 @@ def test_odd_in_velocity(law_case):
     _run(testing.check_odd, law_case)
 
 
+def test_group_terms(law_case):
+    _run(testing.check_group_terms, law_case)
+
+
 def test_translational_form_follows_the_rotary_declaration():
     """Units map N·m → N and rad → m, the response to force, the inputs to their counterparts."""
     for law in LAWS:
