@@ -35,7 +35,7 @@ from bayesfric.model import program_from_fit  # re-exported: it lives below comp
 RefitEngine = NutsEngine
 
 __all__ = [
-    "RefitEngine", "FoldFits", "CVResult", "cross_validate", "pointwise_lpd", "program_from_fit",
+    "RefitEngine", "FoldFits", "CVResult", "cross_validate", "pointwise_lpd", "program_from_fit", "joint_lpd",
 ]
 
 
@@ -116,7 +116,30 @@ class CVResult:
                 f"on {self.n_heldout} held-out points{flag}")
 
 
-def cross_validate(engine: RefitEngine, folds: Folds, *, seed: int = 0, predictive: bool = False) -> CVResult:
+def joint_lpd(program, samples: dict[str, np.ndarray], rows: np.ndarray) -> float:
+    """``log mean_s Π_{i ∈ rows} p(y_i | θ_s)``: the rows scored *together*, as one new group.
+
+    ``samples`` are one fold's constrained draws ``(chain, draw, ...)``. Leaving a whole run out
+    and scoring its rows one by one (``Σ_i log mean_s p(y_i | θ_s)``) treats every row as if it
+    came from its own new run; a model whose runs differ then looks as good as one that folds the
+    runs' differences into its noise. The joint density is that of the new run's rows as a whole
+    (the held-out level's values are shared by its rows). Draws are evaluated in chunks of at
+    most ``limits.CHUNK_NUMBERS`` draws × rows.
+    """
+    from bayesfric.limits import CHUNK_NUMBERS
+
+    density = program.density()
+    s = int(np.prod(next(iter(samples.values())).shape[:2]))
+    flat = {k: np.asarray(v).reshape((s,) + np.shape(v)[2:]) for k, v in samples.items()}
+    pointwise = jax.jit(jax.vmap(density.pointwise))
+    size = max(1, CHUNK_NUMBERS // max(1, program.n_obs))
+    sums = np.concatenate([np.asarray(pointwise({k: v[a:a + size] for k, v in flat.items()}))[:, rows].sum(axis=1)
+                           for a in range(0, s, size)])
+    return float(jax.scipy.special.logsumexp(sums) - np.log(s))
+
+
+def cross_validate(engine: RefitEngine, folds: Folds, *, seed: int = 0, predictive: bool = False,
+                   joint: bool = False) -> CVResult:
     """Refit on every fold's training mask and score its held-out points.
 
     Parameters
@@ -129,6 +152,10 @@ def cross_validate(engine: RefitEngine, folds: Folds, *, seed: int = 0, predicti
         Seed of the fold fits.
     predictive : bool
         Also keep the held-out predictive draws (:attr:`CVResult.predictive`).
+    joint : bool
+        Score each fold's held-out rows together (:func:`joint_lpd`): leave-one-group-out, where
+        a fold holds out one run, series or unit. ``elpd`` is then the sum over folds of the
+        joint densities and ``se = sqrt(K · var)`` over the K folds; ``elpd_i`` stays pointwise.
 
     Returns
     -------
@@ -145,6 +172,9 @@ def cross_validate(engine: RefitEngine, folds: Folds, *, seed: int = 0, predicti
         elpd_i[folds.heldout[k]] = fits.lpd[k, folds.heldout[k]]
     heldout = counts == 1
     scored = elpd_i[heldout]
+    if joint:  # one value per fold: its held-out rows as one new group
+        scored = np.array([joint_lpd(engine.program, {n: v[k] for n, v in fits.samples.items()}, folds.heldout[k])
+                           for k in range(folds.n_folds) if folds.heldout[k].any()])
     return CVResult(
         law=engine.program.law.name,
         scheme=folds.scheme,
@@ -154,7 +184,8 @@ def cross_validate(engine: RefitEngine, folds: Folds, *, seed: int = 0, predicti
         heldout=heldout,
         verdicts=fits.verdicts,
         seconds=fits.seconds,
-        settings=engine.settings | {"fold_target_accept": [float(t) for t in fits.target_accept]},
+        settings=engine.settings | {"fold_target_accept": [float(t) for t in fits.target_accept],
+                                    "scored": "each held-out group's rows jointly" if joint else "pointwise"},
         predictive=heldout_predictive(engine.program, fits.samples, folds.heldout) if predictive else None,
     )
 

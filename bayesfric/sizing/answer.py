@@ -47,6 +47,21 @@ def _fan_axis(question: SizingQuestion, distance: Mapping[str, np.ndarray],
     return max(spans, key=lambda k: float(np.max(distance[k])))
 
 
+def answered_for(name: str, attrs: Mapping) -> str:
+    """Which run or unit a law's answer is for: a new one where the fit has group terms (``vary_by``,
+    ``[noise] group``); ``""`` without groups."""
+    import json
+
+    recipe = json.loads(attrs.get("law_recipe") or "{}")
+    columns = {c: ", ".join(p) for c, p in recipe.get("vary_by", {}).items()}
+    noise = json.loads(attrs.get("noise") or "{}").get("group")
+    if noise:
+        columns.setdefault(noise, "")
+        columns[noise] = ", ".join(filter(None, (columns[noise], "a multiplicative offset")))
+    return "; ".join(f"{name}: answers for a NEW {c} (its {what} drawn from the spread between the {c}s "
+                     f"fitted), not for a tested one" for c, what in columns.items())
+
+
 def _warnings(distance: Mapping[str, np.ndarray], sources: Sequence[LawSource], used: Sequence[LawAnswer]) -> list[str]:
     warnings = []
     for k, d in distance.items():
@@ -58,6 +73,7 @@ def _warnings(distance: Mapping[str, np.ndarray], sources: Sequence[LawSource], 
         problems = "; ".join(verdict_of(sources[0].fit).problems)
         warnings.append(f"the fit of {sources[0].name} FAILED the diagnostics gate ({problems}): "
                         "its answer is not reliable")
+    warnings += [note for source in sources if (note := answered_for(source.name, source.fit.attrs))]
     for a in used:
         if a.infinite_noise > 0:
             warnings.append(f"{a.name}: {a.infinite_noise:.1%} of draws have Student-t nu ≤ 2 (infinite noise "
