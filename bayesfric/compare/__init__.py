@@ -3,7 +3,8 @@ operating envelope), log evidence from two estimators, weights and averaging, ch
 
 Layering follows arviz-stats' ``loo/``: fold masks (:mod:`folds`) -> compiled refits
 (:mod:`refit`) -> elpd results (:mod:`loo`, :class:`CVResult`) -> weights (:mod:`weights`);
-evidence (:mod:`evidence`) and checks (:mod:`checks`) read a fit and its program.
+evidence (:mod:`evidence`), checks (:mod:`checks`) and the residual-structure tests
+(:mod:`structure`) read a fit and its program.
 """
 
 from bayesfric.compare.checks import (
@@ -30,6 +31,7 @@ from bayesfric.compare.loo import LooResult, Penalty, extrapolation_penalty, psi
 from bayesfric.compare.pit import PitShape, pit_shape
 from bayesfric.compare.recovery import RecoveryResult, model_recovery
 from bayesfric.compare.refit import CVResult, RefitEngine, cross_validate
+from bayesfric.compare.structure import StructureCheck, residual_structure, structure_dataset
 from bayesfric.compare.weights import BayesFactors, Weights, averaged_predictive, bayes_factors, model_weights
 from bayesfric.inference.diagnostics import verdict_of
 
@@ -40,5 +42,6 @@ __all__ = [
     "cross_validate", "extrapolation_penalty", "grouped_masks", "kfold_masks", "laplace_is_log_evidence",
     "loo_pit_check", "model_recovery", "pit_shape",
     "model_weights", "power_scaled_loo", "prior_predictive_check", "fit_prior_draws", "prior_sensitivity", "psis_loo",
-    "ranking_sensitivity", "smc_log_evidence", "verdict_of",
+    "ranking_sensitivity", "smc_log_evidence", "verdict_of", "StructureCheck", "residual_structure",
+    "structure_dataset",
 ]

@@ -26,6 +26,7 @@ if TYPE_CHECKING:
     from bayesfric.sizing import SizingResult
 
 __all__ = ["Finding", "Summary", "findings", "summary_block", "plain", "counted_winners", "RECOMMEND_WEIGHT",
+           "residual_structure",
            "sensitivity_sentence",
            "NO_CRITERION"]
 
@@ -134,7 +135,7 @@ def findings(t: TreeView) -> list[Finding]:
     """The study's findings: the best law per criterion and the problems that limit them."""
     table, crits = t.table, t.crits
     loo_winner = sc.best(table, "elpd_loo") if t.has_loo else None
-    lines = [a for c in crits if (a := _answer(table, c, loo_winner)) is not None]
+    lines = residual_structure(t) + [a for c in crits if (a := _answer(table, c, loo_winner)) is not None]
     if not crits:
         lines.append(plain(NO_CRITERION, warning=True))
     for name in t.laws:  # direction-dependent coefficients (laws.variants): is the asymmetry supported?
@@ -257,11 +258,31 @@ def no_law_extrapolates(blocked: list[str], table: pd.DataFrame) -> Finding | No
     return None
 
 
+def residual_structure(t: TreeView) -> list[Finding]:
+    """One finding per column in which some law's residuals differ between groups, or trend, at
+    the same operating point beyond the noise (:mod:`bayesfric.compare.structure`): which laws,
+    the largest effect with its test, and what would model it. The summary leads with them."""
+    hits: dict[str, list] = {}
+    for name in t.laws:
+        for c in t.structure(name):
+            if c.flagged:
+                hits.setdefault(c.column, []).append((name, c))
+    out = []
+    for column, found in hits.items():
+        name, worst = max(found, key=lambda h: h[1].effect_sd)
+        who = ("every law" if len(found) == len(t.laws) else
+               f"{len(found)} of {len(t.laws)} laws ({', '.join(n for n, _ in found)})")
+        out.append(_f(f"RESIDUAL STRUCTURE in '{column}' ({who}): {worst.sentence()} (largest under ", _law(name),
+                      "). Something the laws do not read moves the response: rankings, bands and sizing below "
+                      "assume it does not.", warning=True))
+    return out
+
+
 def summary_block(t: TreeView, sizing: SizingResult | None = None,
                   extra_warnings: list[Finding] | None = None) -> Summary:
-    """The top summary: question, one answer per criterion (after the verdict that no law
-    extrapolates, when that holds), recommendation (with the basis of each sizing question, when
-    ``sizing`` answers some), decision warnings."""
+    """The top summary: question, one answer per criterion (after the residual-structure findings
+    and the verdict that no law extrapolates, when those hold), recommendation (with the basis of
+    each sizing question, when ``sizing`` answers some), decision warnings."""
     table, crits = t.table, t.crits
     loo_winner = sc.best(table, "elpd_loo") if t.has_loo else None
     answers = [a for c in crits if (a := _answer(table, c, loo_winner)) is not None]
@@ -269,6 +290,7 @@ def summary_block(t: TreeView, sizing: SizingResult | None = None,
         answers.append(plain(NO_CRITERION, warning=True))
     if (verdict := no_law_extrapolates(t.blocked, table)) is not None:
         answers.insert(0, verdict)
+    answers[:0] = residual_structure(t)
     warnings = counted_winners(crits, table) + _warnings(t) + list(extra_warnings or [])
     blocked_winners = {sc.best(table, "elpd_cv", s) for s in t.blocked}
     if loo_winner and blocked_winners and loo_winner not in blocked_winners:

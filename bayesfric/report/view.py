@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from bayesfric.compare.pit import PitShape, pit_shape
+from bayesfric.compare.structure import StructureCheck, checks_of
 from bayesfric.laws.variants import law_of_fit
 from bayesfric.study import scores as sc
 from bayesfric.study.tree import data_attrs, weight_errors
@@ -108,6 +109,11 @@ class TreeView:
         band = np.asarray(c["pit_band"].values, dtype=float) if "pit_band" in c else np.zeros((3, 0))
         band = band[:, np.isfinite(band[0])]
         return pit, (band if band.shape[1] else None), (pit_shape(pit) if pit.size else None)
+
+    def structure(self, name: str) -> tuple[StructureCheck, ...]:
+        """The law's residual-structure tests (:mod:`bayesfric.compare.structure`; none in a tree
+        made before they existed)."""
+        return checks_of(self.checks.sel(law=name))
 
     @cached_property
     def data(self) -> dict[str, str]:

@@ -24,7 +24,8 @@ Variables (0-d unless a dimension is named; attrs ``law``, ``fit_file``, ``faile
 - weights over ``weighting``: ``weight``, ``weight_excluded`` (why the weighting left the law out);
 - checks (``checked``): ``prior_implausible``, ``loo_pit_pvalue``, ``loo_pit_ok``,
   ``loo_pit_direction``, ``psense``, ``ci_prob``; ``pit`` over ``pit_row``, ``pit_band`` over
-  ``(band_edge, band_point)``;
+  ``(band_edge, band_point)``; the residual-structure tests ``structure_*`` over
+  ``structure_column`` (:mod:`bayesfric.compare.structure`; a flagged column adds a flag line);
 - the measured misses over ``miss_scheme`` (:mod:`bayesfric.sizing.calibration`): ``miss_rate``,
   ``miss_beta``, ``miss_se``, ``miss_reach``, ``miss_n``;
 - ``timing`` over ``stage`` (seconds computed in this run) and their sum ``seconds``.
@@ -42,6 +43,7 @@ import numpy as np
 import xarray as xr
 
 from bayesfric.compare.pit import pit_shape
+from bayesfric.compare.structure import DIM, checks_of
 from bayesfric.sizing.store import MISS_FIELDS
 
 if TYPE_CHECKING:
@@ -127,6 +129,7 @@ def _checks(checks: xr.Dataset | None) -> dict:
         out["pit"] = ("pit_row", np.asarray(pit, dtype=float))
     if "pit_band" in checks:
         out["pit_band"] = (("band_edge", "band_point"), np.asarray(checks["pit_band"].values, dtype=float))
+    out |= {k: (DIM, checks[k].values) for k in checks.data_vars if str(k).startswith("structure_")}
     return out
 
 
@@ -211,9 +214,12 @@ def law_result(law: Law, fit_file: str, verdict: Verdict, *, loo: LooResult | No
     values["weight_excluded"] = ("weighting", np.array([w.excluded for w in weights.values()], dtype=str))
     values["timing"] = ("stage", [float(s) for s in timings.values()])
     values["seconds"] = float(sum(timings.values()))
-    values["flags"] = "\n".join(_flags(values, verdict, loo, cv, agreement, failed_fits))
+    structure = [f"residual structure: {c.sentence()}" for c in checks_of(checks) if c.flagged] if checks else []
+    values["flags"] = "\n".join(_flags(values, verdict, loo, cv, agreement, failed_fits) + structure)
     coords = {"scheme": list(cv), "estimator": list(evidence), "weighting": list(weights), "stage": list(timings),
               "miss_scheme": list(misses or {})}
+    if checks is not None and DIM in checks.dims:
+        coords[DIM] = [str(c) for c in checks[DIM].values]
     ds = xr.Dataset(values, coords={k: np.array(v, dtype=str) for k, v in coords.items()},
                     attrs={"law": law.name, "fit_file": fit_file, "failed_fits": failed_fits})
     if "pit_band" in ds:

@@ -32,8 +32,8 @@ Sizing, the claims and the report read this tree (the report adds its own nodes 
     it), the law's ``flags`` (one line each), ``p_loo``, ``n_high_k``, ``cv_reliable`` (every fold
     passed), ``seconds`` and ``timing`` over ``(law, stage)``; the checks unit's LOO-PIT (``pit``
     over ``(law, pit_row)``, its ECDF band ``pit_band``, p-value, band coverage ``ci_prob``,
-    direction) and prior checks
-    (``checked``: the unit ran).
+    direction), prior checks (``checked``: the unit ran) and the residual-structure tests
+    (``structure_*`` over ``(law, structure_column)``, :mod:`bayesfric.compare.structure`).
 ``/quick``
     only in a ``--quick`` run: the capped sampler settings and K-fold's folds asked and used.
 ``/sizing_basis``
@@ -64,6 +64,7 @@ import xarray as xr
 
 from bayesfric._version import __version__
 from bayesfric.compare.checks import PARETO_K_RELIABLE, RankingSensitivity
+from bayesfric.compare.structure import DIM, stack_structure
 from bayesfric.sizing.store import basis_node, schemes_of
 from bayesfric.study.scores import criteria, score_table
 
@@ -240,6 +241,8 @@ def _checks(laws: Sequence[xr.Dataset]) -> xr.Dataset:
     chk["pit_band"] = (("law", "band_edge", "band_point"), _padded(laws, "pit_band", "band_point", (3,)))
     chk = chk.assign_coords(band_edge=["point", "lower", "upper"])
     chk["pit_band"].attrs["description"] = "the LOO-PIT ECDF's simultaneous band the check tested (NaN-padded)"
+    if any(DIM in w.dims for w in laws):  # residual-structure tests over (law, structure_column), padded
+        chk = chk.merge(stack_structure([(_name(w), w) for w in laws]))
     return chk
 
 

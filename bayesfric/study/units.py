@@ -3,9 +3,9 @@
 Units of one law (:func:`plan_law`): ``fit`` (the full fit), then — all reading the fit —
 ``loo`` (PSIS-LOO with exact refits of high-k points), one ``cv`` unit per cross-validation scheme,
 ``bridge`` and ``importance`` evidence estimates, ``smc`` (opt-in) and ``checks`` (prior
-predictive, LOO-PIT, power-scaling sensitivity). Every unit runs through :func:`compute`, a pure
-function of a :class:`LawJob` (the law, its priors and constants, noise, selected data, sampler
-settings, seed), the :class:`Unit` and the fit; it returns the fit (a DataTree) or the unit's
+predictive, LOO-PIT, power-scaling sensitivity, residual structure). Every unit runs through
+:func:`compute`, a pure function of a :class:`LawJob` (the law, its priors and constants, noise,
+selected data, sampler settings, seed), the :class:`Unit` and the fit; it returns the fit (a DataTree) or the unit's
 ``xarray.Dataset`` (its scorer's result: :func:`loo_dataset`, :func:`cv_dataset`,
 :func:`evidence_dataset`, :func:`checks_dataset`), which the run store writes as NetCDF and reads
 back (:mod:`bayesfric.study.store`) and a Dask worker sends as it is; in one process the units hand
@@ -25,8 +25,9 @@ from __future__ import annotations
 
 import json
 import time
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 import xarray as xr
@@ -39,6 +40,9 @@ from bayesfric.inference import MAPPINGS_BUDGET, SAMPLERS, release_compiled_code
 from bayesfric.inference.diagnostics import Verdict
 from bayesfric.model import Noise, build_program
 from bayesfric.study.store import Result
+
+if TYPE_CHECKING:
+    from bayesfric.compare.structure import StructureCheck
 
 __all__ = ["LawJob", "Unit", "make_job", "plan_law", "compute", "compute_seconds", "rebuild", "Scored", "COSTLY",
            "loo_dataset", "cv_dataset", "evidence_dataset", "checks_dataset"]
@@ -193,10 +197,12 @@ def cv_dataset(cv: compare.CVResult) -> xr.Dataset:
 
 
 def checks_dataset(implausible: float, ks_pvalue: float, within_band: bool, ci_prob: float, psense: list[str],
-                   pit: np.ndarray | None = None, band: np.ndarray | None = None) -> xr.Dataset:
+                   pit: np.ndarray | None = None, band: np.ndarray | None = None,
+                   structure: Sequence[StructureCheck] = ()) -> xr.Dataset:
     """The checks unit's Dataset: the prior predictive's implausible fraction, the LOO-PIT test
     (p-value, inside its ``ci_prob`` band, the values ``pit`` and the band's ``(point, lower,
-    upper)``) and the parameters power-scaling flags (``psense``, JSON)."""
+    upper)``), the parameters power-scaling flags (``psense``, JSON) and the residual-structure
+    tests (``structure_*`` over ``structure_column``, :func:`bayesfric.compare.structure_dataset`)."""
     ds = xr.Dataset(attrs={"prior_implausible": float(implausible), "loo_pit_pvalue": float(ks_pvalue),
                            "loo_pit_ok": int(bool(within_band)), "ci_prob": float(ci_prob),
                            "psense": _text(list(psense))})
@@ -204,6 +210,8 @@ def checks_dataset(implausible: float, ks_pvalue: float, within_band: bool, ci_p
         ds["pit"] = ("pit_row", np.asarray(pit, dtype=float).ravel())
     if band is not None:
         ds["pit_band"] = (("band_edge", "band_point"), np.asarray(band, dtype=float).reshape(3, -1))
+    if structure:
+        ds = ds.assign(compare.structure_dataset(structure).data_vars)
     return ds
 
 
@@ -213,7 +221,12 @@ def _checks_unit(job: LawJob, fit: xr.DataTree, program) -> xr.Dataset:
     prior = compare.fit_prior_draws(fit, program.law.params)  # the fit's 500 prior draws
     implausible = compare.prior_predictive_check(program, seed=job.seed, prior=prior).implausible
     psense = [f"{i} ({d})" for i, d in zip(sens.index, sens["diagnosis"], strict=True) if d != "-"]
-    return checks_dataset(implausible, pit.ks_pvalue, pit.within_band, pit.ci_prob, psense, pit.pit, pit.band)
+    start = time.perf_counter()  # residuals against the data set's other columns (issue 47 item 4)
+    structure = compare.residual_structure(fit, job.ds, program=program)
+    out = checks_dataset(implausible, pit.ks_pvalue, pit.within_band, pit.ci_prob, psense, pit.pit, pit.band,
+                         structure)
+    out.attrs["structure_s"] = time.perf_counter() - start
+    return out
 
 
 def _compute_rest(job: LawJob, unit: Unit, fit: xr.DataTree) -> xr.Dataset:
