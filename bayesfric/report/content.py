@@ -77,6 +77,7 @@ class Report:
     figures: dict[str, list[FigureRef]]
     footer: str
     sections: list[tuple[str, str]] = field(default_factory=list)
+    structure: Table | None = None
 
 
 def _num(x: Any, digits: int = 2) -> str:
@@ -182,6 +183,28 @@ def _checks(t: TreeView) -> Table:
                  "LOO-PIT figure follows." + checks_note(t), header, rows, warn)
 
 
+def _structure(t: TreeView) -> Table | None:
+    """Every residual-structure test of every law (:mod:`bayesfric.compare.structure`); None
+    when none was run (a tree made before them, a data set with no other column)."""
+    rows, warn = [], []
+    for name in t.laws:
+        for c in t.structure(name):
+            p = "not testable (spanned by the law's inputs)" if not c.df else (
+                "< 1e-16" if c.p_value <= 0 else f"{c.p_value:.2g}")
+            if c.flagged:
+                warn.append(len(rows))
+            rows.append([name, c.column, c.kind, f"{fmt(c.effect)} {unit(c.unit)}".strip(), fmt(c.effect_sd, digits=2),
+                         p, f"{c.threshold:.2g}", "yes" if c.flagged else "no", c.suggestion if c.flagged else ""])
+    if not rows:
+        return None
+    header = ["law", "column", "kind", "effect", "effect (noise sd)", "F-test p", "flag below", "flagged",
+              "what would model it"]
+    return Table("Residual structure: each law's residuals against every group column and every recorded input it "
+                 "does not read, at the same operating point (F-test over a smooth basis of the law's inputs, "
+                 "AR(1)-prewhitened along trajectories; flagged below 5 % / columns tested). ⚠ = the response "
+                 "differs between the groups, or trends with the column, beyond the noise model.", header, rows, warn)
+
+
 def checks_note(t: TreeView) -> str:
     """The sample the checks read when it was a subsample of the rows ("" when every row)."""
     n = int(t.attrs.get("n_obs", 0))
@@ -256,7 +279,7 @@ def build(t: TreeView, parameters: list[dict], figures: list[FigureRef], sizing_
                        "5–95 % band with noise (excluded laws dotted), the model average and its required capacity "
                        "(dashed), the asked range or point. Read: how fast the laws' bands spread apart beyond the "
                        "tested range — that spread is the sizing risk.",
-        sizing=sections, figures=by_section, footer=_footer(t.attrs),
+        sizing=sections, figures=by_section, footer=_footer(t.attrs), structure=_structure(t),
     )
     present = {"claims": rep.claims is not None, "trajectories": bool(by_section.get("trajectories")),
                "sizing": bool(sections)}

@@ -167,7 +167,7 @@ def _from_json(d: dict):
                         _finding(s["recommendation"]) if s["recommendation"] else None,
                         [_finding(f) for f in s["warnings"]]),
         findings=[_finding(f) for f in d["findings"]], claims=_table(d["claims"]), ranking=_table(d["ranking"]),
-        extrapolation=_table(d["extrapolation"]), checks=_table(d["checks"]),
+        extrapolation=_table(d["extrapolation"]), checks=_table(d["checks"]), structure=_table(d.get("structure")),
         laws=[LawSection(**{**w, "table": _table(w["table"]), "figure": _figure(w["figure"])}) for w in d["laws"]],
         sizing=[Section(x["title"], list(x["lines"]), list(x["warnings"]),
                         [(c, list(h), [list(r) for r in rows]) for c, h, rows in x["tables"]], x["figure"])

@@ -241,3 +241,5 @@ def test_the_summary_leads_with_a_flagged_column(tmp_path):
     assert first.startswith("RESIDUAL STRUCTURE in 'run' (1 of 2 laws (coulomb))")
     assert "differs between the 3 groups of 'run'" in first and "vary\\_by" in first
     assert "residual structure: the response differs" in tree["diagnostics"]["flags"].sel(law="coulomb").item()
+    assert "*Residual structure: each law's residuals" in md and "Residual structure: each law" in (
+        folder / "report.html").read_text()
