@@ -232,5 +232,5 @@ def program_parts(program: Any, response: bool = True) -> dict[str, Any]:
                 # so the keys of programs without them stay as they were
                 **({} if getattr(program, "response_se", None) is None else {"response_se": program.response_se}),
                 # each vary_by column's levels per row (absent without group terms: other keys unchanged)
-                **({"groupings": {c: [list(g.labels), g.index] for c, g in program.groupings.items()}}
+                **({"groupings": {c: [list(g.labels), g.index, g.centred] for c, g in program.groupings.items()}}
                    if getattr(program, "groupings", None) else {}))
