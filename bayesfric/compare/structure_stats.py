@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import optimize, stats
 from scipy.interpolate import BSpline
+from threadpoolctl import threadpool_limits
 
 from bayesfric.laws.base import TRAJECTORY_START
 
@@ -149,13 +150,14 @@ def operating_basis(inputs: Mapping[str, np.ndarray]) -> np.ndarray:
 
 
 # -- the F-test --------------------------------------------------------------------------------
-def _projection(z: np.ndarray, x: np.ndarray) -> tuple[float, int, np.ndarray]:
-    """``(residual sum of squares, rank, coefficients)`` of least squares of ``z`` on ``x``."""
+def _projection(z: np.ndarray, x: np.ndarray) -> tuple[float, int, np.ndarray, float]:
+    """``(residual sum of squares, rank, coefficients, log pseudo-determinant of xᵀx)`` of least
+    squares of ``z`` on ``x``."""
     u, s, vt = np.linalg.svd(x, full_matrices=False)
     keep = s > s[0] * max(x.shape) * np.finfo(float).eps if s.size else s > 0
     u, s, vt = u[:, keep], s[keep], vt[keep]
     coef = u.T @ z
-    return float(z @ z - coef @ coef), int(keep.sum()), vt.T @ (coef / s)
+    return float(z @ z - coef @ coef), int(keep.sum()), vt.T @ (coef / s), 2.0 * float(np.log(s).sum())
 
 
 def _ar1(z: np.ndarray, x: np.ndarray, starts: np.ndarray) -> float:
@@ -166,15 +168,11 @@ def _ar1(z: np.ndarray, x: np.ndarray, starts: np.ndarray) -> float:
     n, trajectories = len(z), int(starts.sum())
 
     def restricted(rho: float) -> float:
-        zw, xw = _whiten(z, rho, starts), _whiten(x, rho, starts)
-        s = np.linalg.svd(xw, compute_uv=False)
-        keep = s > s[0] * max(xw.shape) * np.finfo(float).eps
-        rss, rank, _ = _projection(zw, xw)
-        return ((n - rank) * np.log(max(rss, 1e-300)) - trajectories * np.log(1.0 - rho**2)
-                + 2.0 * np.log(s[keep]).sum())
+        rss, rank, _, log_det = _projection(_whiten(z, rho, starts), _whiten(x, rho, starts))
+        return (n - rank) * np.log(max(rss, 1e-300)) - trajectories * np.log(1.0 - rho**2) + log_det
 
     return float(optimize.minimize_scalar(restricted, bounds=(-RHO_MAX, RHO_MAX), method="bounded",
-                                          options={"xatol": 1e-4}).x)
+                                          options={"xatol": 1e-3}).x)
 
 
 def _whiten(a: np.ndarray, rho: float, starts: np.ndarray) -> np.ndarray:
@@ -208,15 +206,14 @@ def _terms(column: Column, direction: np.ndarray | None) -> np.ndarray:
 
 def _effect(terms: np.ndarray, direction: np.ndarray | None, z0: np.ndarray, s: np.ndarray) -> tuple[float, float]:
     """(response units, noise sd) of the column's effect on the null model's residuals ``z0``
-    (standardised): the largest range, within one direction of motion, of their least-squares
-    fit on the column's terms (for a group: the range of the groups' mean residuals)."""
+    (standardised): the largest range, within one direction of motion, of their weighted
+    least-squares fit on the column's terms (for a group: the range of the groups' weighted mean
+    residuals), and that range over the noise sd the weights average to, ``1/√mean(1/s²)``."""
     sign = np.ones(len(s)) if direction is None else direction
     x = np.column_stack([np.ones(len(s)), sign, terms])
-    root = 1.0 / s
-    fitted_sd = x @ np.linalg.lstsq(x, z0, rcond=None)[0]
-    fitted = x @ np.linalg.lstsq(x * root[:, None], z0, rcond=None)[0]  # weighted fit of z0 * s
-    cells = [sign == d for d in np.unique(sign) if (sign == d).any()]
-    return (max(float(np.ptp(fitted[c])) for c in cells), max(float(np.ptp(fitted_sd[c])) for c in cells))
+    fitted = x @ np.linalg.lstsq(x / s[:, None], z0, rcond=None)[0]  # weighted fit of the residuals z0 · s
+    effect = max(float(np.ptp(fitted[sign == d])) for d in np.unique(sign))
+    return effect, effect * float(np.sqrt(np.mean(1.0 / s**2)))
 
 
 def _ftest(z: np.ndarray, x0: np.ndarray, terms: np.ndarray,
@@ -230,8 +227,8 @@ def _ftest(z: np.ndarray, x0: np.ndarray, terms: np.ndarray,
         zw, x0w, x1w = (_whiten(a, rho, starts) for a in (z, x0, x1))
     else:
         zw, x0w, x1w = z, x0, x1
-    rss0, k0, coef0 = _projection(zw, x0w)
-    rss1, k1, _ = _projection(zw, x1w)
+    rss0, k0, coef0, _ = _projection(zw, x0w)
+    rss1, k1, _, _ = _projection(zw, x1w)
     df, df2 = k1 - k0, len(z) - k1
     z0 = z - x0 @ coef0
     if df <= 0 or df2 < MIN_DF or rss1 <= 0:
@@ -286,10 +283,11 @@ def structure_tests(resid: np.ndarray, sd: np.ndarray, inputs: Mapping[str, np.n
         operating_basis(inputs) if set(inputs) - {TRAJECTORY_START} else np.ones((resid.size, 1)))
     z, x0, direction = resid / sd, x0 / sd[:, None], _direction(inputs)
     rows = []
-    for column in columns:
-        terms = _terms(column, direction)
-        p, df, rho, z0 = _ftest(z, x0, terms / sd[:, None], starts)
-        rows.append((column, p, df, rho, _effect(terms, direction, z0, sd)))
+    with threadpool_limits(limits=1, user_api="blas"):  # small algebra: one BLAS thread is faster
+        for column in columns:
+            terms = _terms(column, direction)
+            p, df, rho, z0 = _ftest(z, x0, terms / sd[:, None], starts)
+            rows.append((column, p, df, rho, _effect(terms, direction, z0, sd)))
     threshold = alpha / max(1, sum(np.isfinite(p) for _, p, *_ in rows))
     on = ", ".join(k for k in inputs if k != TRAJECTORY_START)
     return tuple(StructureCheck(c.name, c.kind, int(np.unique(np.asarray(c.values)).size), eff, eff_sd, p,

@@ -189,11 +189,13 @@ def _structure(t: TreeView) -> Table | None:
     rows, warn = [], []
     for name in t.laws:
         for c in t.structure(name):
-            p = "not testable (spanned by the law's inputs)" if not c.df else (
-                "< 1e-16" if c.p_value <= 0 else f"{c.p_value:.2g}")
+            tested = c.df > 0 and math.isfinite(c.p_value)
+            p = ("< 1e-16" if c.p_value <= 0 else f"{c.p_value:.2g}") if tested else (
+                "not testable: " + ("spanned by the law's inputs" if not c.df else "too few rows"))
             if c.flagged:
                 warn.append(len(rows))
-            rows.append([name, c.column, c.kind, f"{fmt(c.effect)} {unit(c.unit)}".strip(), fmt(c.effect_sd, digits=2),
+            size = (f"{fmt(c.effect)} {unit(c.unit)}".strip(), fmt(c.effect_sd, digits=2)) if tested else ("–", "–")
+            rows.append([name, c.column, c.kind, *size,
                          p, f"{c.threshold:.2g}", "yes" if c.flagged else "no", c.suggestion if c.flagged else ""])
     if not rows:
         return None

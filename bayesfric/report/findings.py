@@ -270,11 +270,14 @@ def residual_structure(t: TreeView) -> list[Finding]:
     out = []
     for column, found in hits.items():
         name, worst = max(found, key=lambda h: h[1].effect_sd)
-        who = ("every law" if len(found) == len(t.laws) else
-               f"{len(found)} of {len(t.laws)} laws ({', '.join(n for n, _ in found)})")
+        laws = [n for n, _ in found]
+        who = "every law" if len(found) == len(t.laws) else f"{len(found)} of {len(t.laws)} laws ({', '.join(laws)})"
+        same = [f"'{c}'" for c, f in hits.items() if c != column and [n for n, _ in f] == laws]
+        together = (f" Flagged for the same laws as {', '.join(same)}: possibly one effect seen through correlated "
+                    "columns." if same else "")
         out.append(_f(f"RESIDUAL STRUCTURE in '{column}' ({who}): {worst.sentence()} (largest under ", _law(name),
                       "). Something the laws do not read moves the response: rankings, bands and sizing below "
-                      "assume it does not.", warning=True))
+                      "assume it does not." + together, warning=True))
     return out
 
 
