@@ -161,3 +161,23 @@ def test_sizing_answers_for_a_new_run_wider_than_for_a_named_one(hier_fit):
     lo, hi = np.quantile(named.mu.reshape(-1, 2), [0.005, 0.995], axis=0)
     assert np.all((lo <= true_r2) & (true_r2 <= hi))
     assert float(jnp.abs(np.median(new.mu.reshape(-1, 2)[:, 0]) - 3.0)) < 0.5  # typical run: T_C + c_v ≈ 3
+
+
+@pytest.mark.slow
+def test_predict_and_score_a_new_run_log(hier_fit):
+    """A seventh SIMULATED run, never fitted: the new-run answer covers it; a named run's answer,
+    pinned to another run's levels, is sharper but (on that run's own data) only right for it."""
+    import bayesfric
+
+    ds, _, fit = hier_fit
+    new_log, truth = simulate_runs(get_law("coulomb_viscous"), {"velocity": np.linspace(0.1, 2.0, 20)}, TRUTH,
+                                   {"T_C": 0.15, "c_v": 0.15}, runs=7, sigma=0.05, seed=1)
+    seventh = new_log.isel(obs=np.asarray(new_log["run"].values) == "r6")
+    pred = bayesfric.predict(fit, seventh)
+    assert "new run" in pred.attrs["answer_for"]
+    lo, hi = (pred["curve"].sel(quantile=q).values.reshape(-1) for q in (0.05, 0.95))
+    curve = truth["T_C"][6] + truth["c_v"][6] * np.asarray(seventh["velocity"].values)
+    assert np.mean((lo <= curve) & (curve <= hi)) >= 0.9
+    scores = bayesfric.score(fit, ds, group="r2").set_index("metric")["value"]
+    own = bayesfric.score(fit, ds.isel(obs=np.asarray(ds["run"].values) == "r2"), group="r2")
+    assert own.set_index("metric")["value"]["coverage_90"] >= 0.8 > scores["coverage_90"]

@@ -58,8 +58,8 @@ def answered_for(name: str, attrs: Mapping) -> str:
     if noise:
         columns.setdefault(noise, "")
         columns[noise] = ", ".join(filter(None, (columns[noise], "a multiplicative offset")))
-    return "; ".join(f"{name}: answers for a NEW {c} (its {what} drawn from the spread between the {c}s "
-                     f"fitted), not for a tested one" for c, what in columns.items())
+    return "; ".join(f"{name}: answers for a NEW {c} (its {what} drawn from the spread between the fitted "
+                     f"levels of {c!r}), not for a tested one" for c, what in columns.items())
 
 
 def _warnings(distance: Mapping[str, np.ndarray], sources: Sequence[LawSource], used: Sequence[LawAnswer]) -> list[str]:

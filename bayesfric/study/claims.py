@@ -46,6 +46,7 @@ state no uncertainty); the study file says how it was chosen.
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Mapping
 from typing import TYPE_CHECKING
@@ -184,7 +185,20 @@ def _evaluate(claim: Claim, tree: xr.DataTree, table: pd.DataFrame) -> ClaimResu
     winner = sc.best(table, claim.metric, claim.scheme)
     if winner is None:
         return ClaimResult(claim, "not testable", why="no law could be ranked under this criterion")
+    if winner != claim.law and _form(tree, winner) == _form(tree, claim.law):
+        return ClaimResult(claim, "reproduced", winner=winner,
+                           why=f"by {winner}, the same law with coefficients varying between groups (vary_by)")
     return ClaimResult(claim, "reproduced" if winner == claim.law else "not reproduced", winner=winner)
+
+
+def _form(tree: xr.DataTree, label: str) -> dict:
+    """A fitted law's functional form: its recipe without group terms (a law's claim is about its
+    curve; ``vary_by`` only lets its coefficients differ between runs or units)."""
+    if "fits" not in tree.children or label not in tree["fits"].children:
+        return {"label": label}
+    attrs = tree[f"fits/{label}"].attrs
+    recipe = json.loads(attrs.get("law_recipe") or "{}") or {"base": str(attrs.get("law", label))}
+    return {k: v for k, v in recipe.items() if k != "vary_by"}
 
 
 def evaluate_claims(claims: list[Claim], tree: xr.DataTree) -> list[ClaimResult]:
