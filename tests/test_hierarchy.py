@@ -181,3 +181,18 @@ def test_predict_and_score_a_new_run_log(hier_fit):
     scores = bayesfric.score(fit, ds, group="r2").set_index("metric")["value"]
     own = bayesfric.score(fit, ds.isel(obs=np.asarray(ds["run"].values) == "r2"), group="r2")
     assert own.set_index("metric")["value"]["coverage_90"] >= 0.8 > scores["coverage_90"]
+
+
+def test_a_best_claim_counts_the_claimed_law_with_group_terms_as_the_same_form():
+    import xarray as xr
+
+    from bayesfric.study.claims import _form
+
+    fits = {"cv": {"law": "coulomb_viscous", "law_recipe": ""},
+            "cv_run": {"law": "cv_run",
+                       "law_recipe": json.dumps({"base": "coulomb_viscous", "vary_by": {"run": ["T_C"]}})},
+            "cv_off": {"law": "cv_off", "law_recipe": json.dumps({"base": "coulomb_viscous", "add": ["offset"]})}}
+    tree = xr.DataTree.from_dict({f"fits/{k}": xr.Dataset(attrs=v) for k, v in fits.items()})
+    assert _form(tree, "cv_run") == _form(tree, "cv") == {"base": "coulomb_viscous"}
+    assert _form(tree, "cv_off") != _form(tree, "cv")
+    assert _form(tree, "absent") == {"label": "absent"}
