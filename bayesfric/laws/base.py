@@ -199,7 +199,8 @@ class Law:
         Each named parameter keeps its prior as the prior of its *typical* value (the median over
         groups); each level's value scatters about it on the parameter's unconstrained scale (log
         for a positive parameter) with a between-group spread ``<p>_sd`` of its own prior
-        (:mod:`bayesfric.hierarchy`). Predictions then answer for a new level by default.
+        (:mod:`bayesfric.hierarchy`). Predictions then answer for a new level by default. The
+        variant is named ``<law>_by_<group>``.
 
         Examples
         --------
@@ -207,7 +208,8 @@ class Law:
         >>> get_law("coulomb_viscous").vary_by("run", "T_C").varying
         {'T_C': 'run'}
         """
-        return self._vary(vary_by={group: list(names)})
+        name = self.name if self.name.endswith(f"_by_{group}") else f"{self.name}_by_{group}"
+        return self._vary(vary_by={group: list(names)}, name=name)
 
     @property
     def varying(self) -> dict[str, str]:
