@@ -295,3 +295,23 @@ def test_a_results_file_alone_predicts_from_its_fits_nodes(tmp_path):
     shutil.rmtree(tmp_path / "r")
     got = predict(tmp_path / "alone" / "results.nc", ds)
     xr.testing.assert_allclose(got.drop_attrs(), expected.drop_attrs())
+
+
+def test_a_planned_log_without_a_response_is_predicted_and_refused_for_scoring(tmp_path):
+    """A log of inputs only (a planned trajectory): predict reads it; score says it needs the
+    response; a sidecar with two responses is still refused."""
+    save_fit(hand_fit("coulomb_viscous", CV, TESTED), tmp_path / "fit.nc")
+    _log(tmp_path, "plan", {"speed": ("input", "velocity", "rad/s")}, [[v] for v in V])
+    code, out, err = run_cli(["predict", "fit.nc", "plan.csv", "--out", "pred.csv"], tmp_path)
+    assert code == 0, err
+    import pandas as pd
+
+    table = pd.read_csv(tmp_path / "pred.csv")
+    assert "response" not in table.columns and len(table) == len(V)
+    expected = predictions_table(predict(tmp_path / "fit.nc", tmp_path / "plan.csv"))
+    np.testing.assert_allclose(table["mean"], expected["mean"], rtol=1e-12)
+    assert_user_error(["score", "fit.nc", "plan.csv"], tmp_path, ["plan.csv", "no response column"])
+    _log(tmp_path, "two", {"speed": ("input", "velocity", "rad/s"), "a": ("response", "torque", "N*m"),
+                           "b": ("response", "torque", "N*m")}, [[0.5, 1.0, 1.0]])
+    assert_user_error(["predict", "fit.nc", "two.csv", "--out", "p.csv"], tmp_path,
+                      ["two.toml", "at most one column must have role 'response' (found 2)"])

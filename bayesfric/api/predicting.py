@@ -106,7 +106,12 @@ def _log(data: Any, key: str) -> tuple[xr.Dataset, str]:
     if not isinstance(data, str | Path | xr.Dataset):
         raise UserError(f"expected a CSV file (with its TOML sidecar), a built-in name or an xarray.Dataset, "
                         f"got {type(data).__name__}", key)
-    ds = load_data(data)
+    if isinstance(data, str | Path) and str(data).endswith(".csv"):  # a log may lack the response
+        from bayesfric.datasets import load_dataset
+
+        ds = load_dataset(data, response=False)
+    else:
+        ds = load_data(data)
     return ds, str(ds.attrs.get("csv_file") or (data if isinstance(data, str | Path) else ds.attrs.get("name", key)))
 
 

@@ -99,7 +99,7 @@ MAX_CELL = 131_072
 
 
 def load_dataset(csv_path: str | Path, meta_path: str | Path | None = None, *,
-                 max_rows: int | None = None) -> xr.Dataset:
+                 max_rows: int | None = None, response: bool = True) -> xr.Dataset:
     """Load ``csv_path`` with its TOML sidecar into an SI-unit :class:`xarray.Dataset`.
 
     Parameters
@@ -110,6 +110,9 @@ def load_dataset(csv_path: str | Path, meta_path: str | Path | None = None, *,
         The sidecar; default ``csv_path`` with suffix ``.toml``.
     max_rows : int, optional
         Most data rows read (default: no limit but the memory the file's text needs to load).
+    response : bool
+        Whether the sidecar must declare a response column; ``False`` reads a log without one
+        (``attrs["response"]`` is then ``""``), which only predictions can use.
 
     Returns
     -------
@@ -125,13 +128,13 @@ def load_dataset(csv_path: str | Path, meta_path: str | Path | None = None, *,
     """
     csv_path = Path(csv_path)
     meta_path = Path(meta_path) if meta_path is not None else csv_path.with_suffix(".toml")
-    meta = read_sidecar(meta_path)
+    meta = read_sidecar(meta_path, response=response)
     ds_meta, columns = meta["dataset"], meta["columns"]
     data = _read_bytes(csv_path)
     header, rows = _parse_table(csv_path, _decode(csv_path, meta_path, data, ds_meta.get("encoding")), max_rows)
     index = _column_index(csv_path, meta_path, header, columns)
     coords, data_vars = _variables(csv_path, meta_path, columns, {c: [r[i] for r in rows] for c, i in index.items()})
-    response = next(c for c, s in columns.items() if s["role"] == "response")
+    response = next((c for c, s in columns.items() if s["role"] == "response"), None)
     _check_scales(csv_path, coords, data_vars)
 
     attrs = {
@@ -140,7 +143,7 @@ def load_dataset(csv_path: str | Path, meta_path: str | Path | None = None, *,
         "provenance": ds_meta["provenance"],
         "source": ds_meta["source"],
         "description": ds_meta.get("description", ""),
-        "response": columns[response]["quantity"],
+        "response": columns[response]["quantity"] if response is not None else "",
         "data_hash": hashlib.sha256(data + meta_path.read_bytes()).hexdigest()[:16],
         "csv_file": str(csv_path),
     }

@@ -36,13 +36,16 @@ REDUCTION_KEYS = ("source_file", "source_sha256", "sidecar_sha256", "on", "rtol"
                   "bayesfric")
 
 
-def read_sidecar(path: Path) -> dict[str, Any]:
+def read_sidecar(path: Path, *, response: bool = True) -> dict[str, Any]:
     """Parse and validate the sidecar at ``path``.
 
     Parameters
     ----------
     path : Path
         The TOML sidecar.
+    response : bool
+        Whether a response column is required; ``False`` lets a log without one through (a planned
+        trajectory to predict on: ``bayesfric predict``), with at most one response column.
 
     Returns
     -------
@@ -76,7 +79,7 @@ def read_sidecar(path: Path) -> dict[str, Any]:
         raise DataError(f"{path}: unknown top-level key {unknown[0]!r}; a sidecar has [dataset], [columns.<name>], "
                         f"[derive.<quantity>] and (written by bayesfric data reduce) [reduction]")
     _check_dataset(path, meta["dataset"])
-    _check_columns(path, meta["columns"])
+    _check_columns(path, meta["columns"], response)
     _check_reduction(path, meta.get("reduction", {}))
     check_derive(path, meta.get("derive", {}))
     return meta
@@ -126,7 +129,7 @@ def _is_text_encoding(name: str) -> bool:
     return True
 
 
-def _check_columns(path: Path, columns: dict) -> None:
+def _check_columns(path: Path, columns: dict, response: bool = True) -> None:
     n_response = n_se = 0
     for col, spec in columns.items():
         where = f"{path}: column {col!r}"
@@ -153,8 +156,9 @@ def _check_columns(path: Path, columns: dict) -> None:
             if spec["quantity"] not in RESPONSES:
                 raise DataError(f"{where}: a response must be one of {RESPONSES}")
         n_se += role == "se"
-    if n_response != 1:
-        raise DataError(f"{path}: exactly one column must have role 'response' (found {n_response})")
+    if n_response != 1 and (response or n_response > 1 or n_se):
+        which = "exactly one column" if response or n_se else "at most one column"
+        raise DataError(f"{path}: {which} must have role 'response' (found {n_response})")
     if n_se:
         _check_se(path, columns, n_se)
 
