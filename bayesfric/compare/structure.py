@@ -42,7 +42,7 @@ the thinned draws plus a few least-squares fits per column (milliseconds on the 
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import fields
 
 import jax
@@ -51,7 +51,14 @@ import numpy as np
 import xarray as xr
 from numpyro.handlers import seed, substitute, trace
 
-from bayesfric.compare.structure_stats import ALPHA, Column, StructureCheck, operating_basis, structure_tests
+from bayesfric.compare.structure_stats import (
+    ALPHA,
+    DIRECTION,
+    Column,
+    StructureCheck,
+    operating_basis,
+    structure_tests,
+)
 from bayesfric.datasets.views import trajectory_starts
 from bayesfric.laws.base import Law
 from bayesfric.limits import CHUNK_NUMBERS
@@ -229,9 +236,31 @@ def residual_structure(fit: xr.DataTree, data: xr.Dataset, *, alpha: float = ALP
     law = program.law
     columns = columns_to_test(data, law)
     starts = trajectory_starts(data) if data.attrs.get("trajectory") else None
-    return structure_tests(resid, sd, program.inputs, columns, starts=starts, alpha=alpha,
+    point = _operating_point(program.inputs, law, data, starts)
+    return structure_tests(resid, sd, point, columns, starts=starts, alpha=alpha,
                            unit=QUANTITIES[law.response].unit if law.response in QUANTITIES else "",
                            suggestions={c.name: _suggestion(c, law) for c in columns})
+
+
+def _operating_point(inputs: Mapping[str, np.ndarray], law: Law, data: xr.Dataset,
+                     starts: np.ndarray | None) -> dict:
+    """The law's inputs, plus the direction of motion for a stateful law that reads no velocity
+    (its state depends on it: a hysteresis loop has two branches per angle): the sign of the
+    data set's velocity where it records one, else of the position's step along each trajectory."""
+    out = dict(inputs)
+    position = next((k for k in ("angle", "displacement") if k in inputs), None)
+    if not law.trajectory or position is None or any(k.endswith("velocity") for k in inputs):
+        return out
+    recorded = next((k for k in ("velocity", "linear_velocity") if k in data.coords), None)
+    if recorded is not None:
+        out[DIRECTION] = np.sign(np.asarray(data[recorded].values, dtype=float))
+        return out
+    x = np.asarray(inputs[position], dtype=float)
+    step = np.sign(np.diff(x, append=x[-1:]))
+    ends = np.r_[starts[1:], True] if starts is not None else np.zeros(x.size, dtype=bool)
+    step[ends] = np.sign(x - np.r_[x[:1], x[:-1]])[ends]  # a trajectory's last row: its own last step
+    out[DIRECTION] = step
+    return out
 
 
 # -- as a Dataset (a study's checks unit, its result tree) -------------------------------------

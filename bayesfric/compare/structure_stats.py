@@ -17,7 +17,8 @@ from threadpoolctl import threadpool_limits
 
 from bayesfric.laws.base import TRAJECTORY_START
 
-__all__ = ["ALPHA", "CATEGORICAL", "KNOTS", "Column", "StructureCheck", "operating_basis", "structure_tests"]
+__all__ = ["ALPHA", "CATEGORICAL", "DIRECTION", "KNOTS", "Column", "StructureCheck", "operating_basis",
+           "structure_tests"]
 
 #: Per-fit false-alarm rate (Bonferroni over the columns tested).
 ALPHA = 0.05
@@ -29,6 +30,8 @@ KNOTS = 3
 MIN_DF = 5
 #: Largest |ρ| the prewhitening uses.
 RHO_MAX = 0.995
+#: The name of the direction of motion a stateful law's basis adds when it reads no velocity.
+DIRECTION = "direction of motion"
 
 
 @dataclass(frozen=True)
@@ -87,6 +90,11 @@ def _bspline(x: np.ndarray, knots: int) -> np.ndarray:
     return BSpline.design_matrix(np.clip(x, lo, hi), t, 3).toarray()
 
 
+def _signed(name: str, x: np.ndarray) -> bool:
+    """A velocity (or the direction of motion) that changes sign: friction is odd in it."""
+    return (name.endswith("velocity") or name == DIRECTION) and bool((x > 0).any() and (x < 0).any())
+
+
 def _block(name: str, x: np.ndarray, knots: int) -> np.ndarray:
     """One input's columns: factor levels, a B-spline, or one per direction of motion."""
     levels = np.unique(x)
@@ -94,7 +102,7 @@ def _block(name: str, x: np.ndarray, knots: int) -> np.ndarray:
         return np.zeros((x.size, 0))
     if levels.size <= CATEGORICAL:
         return (x[:, None] == levels[None, 1:]).astype(float)
-    if name.endswith("velocity") and (x > 0).any() and (x < 0).any():
+    if _signed(name, x):
         s = _bspline(np.abs(x), knots)
         out = np.hstack([s * (x > 0)[:, None], s * (x < 0)[:, None], (x == 0)[:, None].astype(float)])
         return out[:, np.any(out != 0, axis=0)]
@@ -111,7 +119,8 @@ def operating_basis(inputs: Mapping[str, np.ndarray]) -> np.ndarray:
 
     Per input a cubic B-spline with :data:`KNOTS` interior knots at quantiles (per direction of
     motion for a velocity that changes sign), or factor levels for an input with at most
-    :data:`CATEGORICAL` values; pairwise products of the inputs' columns while the basis stays
+    :data:`CATEGORICAL` values; every other input's columns also times the direction of motion
+    (a velocity's sign, or :data:`DIRECTION`); pairwise products of the inputs' columns while the basis stays
     within n/4 columns (else products of their standardised values), fewer knots when the main
     effects alone would not. Why: it absorbs the law's misfit along its own inputs, so only what
     differs *at the same operating point* is left to the tested column.
@@ -134,12 +143,15 @@ def operating_basis(inputs: Mapping[str, np.ndarray]) -> np.ndarray:
     """
     arrays = {k: np.asarray(v, dtype=float).ravel() for k, v in inputs.items() if k != TRAJECTORY_START}
     n = len(next(iter(arrays.values()))) if arrays else 0
-    budget = max(4, n // 4)
+    budget, sign = max(4, n // 4), _direction(arrays)
     for knots in range(KNOTS, -1, -1):
-        blocks = [b for k, x in arrays.items() if (b := _block(k, x, knots)).shape[1]]
-        if 1 + sum(b.shape[1] for b in blocks) <= budget:
+        named = {k: b for k, x in arrays.items() if (b := _block(k, x, knots)).shape[1]}
+        # every other input per direction of motion (a load or temperature acts on |friction|)
+        signed = [b * sign[:, None] for k, b in named.items() if sign is not None and not _signed(k, arrays[k])]
+        blocks = list(named.values())
+        if 1 + sum(b.shape[1] for b in blocks + signed) <= budget:
             break
-    cols = [np.ones((n, 1)), *blocks]
+    cols = [np.ones((n, 1)), *blocks, *signed]
     products = [(a[:, :, None] * b[:, None, :]).reshape(n, -1) for i, a in enumerate(blocks) for b in blocks[i + 1:]]
     if sum(c.shape[1] for c in cols + products) <= budget:
         cols += products
@@ -187,7 +199,7 @@ def _direction(inputs: Mapping[str, np.ndarray]) -> np.ndarray | None:
     """The sign of the first velocity input that changes sign (friction is odd in it), else None."""
     for name, x in inputs.items():
         x = np.asarray(x, dtype=float).ravel()
-        if name.endswith("velocity") and (x > 0).any() and (x < 0).any():
+        if _signed(name, x):
             return np.sign(x)
     return None
 

@@ -243,3 +243,26 @@ def test_the_summary_leads_with_a_flagged_column(tmp_path):
     assert "residual structure: the response differs" in tree["diagnostics"]["flags"].sel(law="coulomb").item()
     assert "*Residual structure: each law's residuals" in md and "Residual structure: each law" in (
         folder / "report.html").read_text()
+
+
+def test_a_hysteresis_law_is_conditioned_on_its_direction_of_motion():
+    """Dahl reads the angle, not the velocity: its two branches per angle differ by direction,
+    which the basis takes from the recorded velocity, else from the angle's steps."""
+    from bayesfric.compare.structure import DIRECTION, _operating_point
+    from bayesfric.datasets.synthetic import make_dataset
+
+    angle = np.r_[np.linspace(0, 1, 10), np.linspace(1, 0, 10)]
+    run = np.repeat([0, 1], 10)
+    starts = np.r_[True, run[1:] != run[:-1]]
+    law = get_law("dahl")
+    bare = make_dataset({"angle": angle}, np.zeros(20), groups={"run": run}, trajectory="run")
+    point = _operating_point({"angle": angle}, law, bare, starts)
+    np.testing.assert_array_equal(point[DIRECTION], np.repeat([1.0, -1.0], 10))
+    rate = np.r_[np.full(10, 0.5), np.full(10, -0.5)]
+    recorded = make_dataset({"angle": angle, "velocity": rate}, np.zeros(20), groups={"run": run}, trajectory="run")
+    np.testing.assert_array_equal(_operating_point({"angle": angle}, law, recorded, starts)[DIRECTION], np.sign(rate))
+    # the recorded velocity is then spanned by the operating point: not testable, not flagged
+    c, = structure_tests(np.random.default_rng(12).normal(size=20), np.ones(20),
+                         _operating_point({"angle": angle}, law, recorded, starts),
+                         [Column("velocity", "trend", rate, "velocity")])
+    assert c.df == 0 and not c.flagged
