@@ -224,4 +224,5 @@ def test_a_study_of_runs_ranks_the_hierarchical_law_first_by_leave_one_run_out(t
     hier = next(i for i in logo.index if i != "coulomb_viscous")
     assert logo.loc[hier, "estimate"] - logo.loc["coulomb_viscous", "estimate"] > 3 * logo.loc[hier, "se"]
     summary = (tmp_path / "reports" / "runs" / "summary.md").read_text()
-    assert "answers for a NEW run" in summary
+    recommendation = next(line for line in summary.splitlines() if line.startswith("**Recommended"))
+    assert "answers for a NEW run" in recommendation  # said where the decision is, not only under Sizing

@@ -237,7 +237,10 @@ def sizing_basis(crits: list[sc.Criterion], result: SizingResult | None, rec: Fi
         parts.append(f"'{answer.question.label}' by {basis.key} ({used}), {why}")
     if not parts:
         return rec
-    return Finding(rec.parts + ((" Sizing uses, per question: " + "; ".join(parts) + ".", False),), rec.warning)
+    # group terms: say in the recommendation itself which run or unit the answers are for
+    new = list(dict.fromkeys(w for a in result.answers for w in a.warnings if "answers for a NEW" in w))
+    text = " Sizing uses, per question: " + "; ".join(parts) + "." + "".join(f" {w}." for w in new)
+    return Finding(rec.parts + ((text, False),), rec.warning)
 
 
 def no_law_extrapolates(blocked: list[str], table: pd.DataFrame) -> Finding | None:
