@@ -6,6 +6,14 @@ pseudo-BMA+ with Bayesian-bootstrap stabilisation). From a blocked cross-validat
 same optimisation runs on the held-out pointwise elpd, so the stacking weights say which mixture
 of laws *extrapolates* best (the held-out points are the outer part of the envelope).
 
+Stacking on a cross-validation scheme is **Bayesian-bootstrap stacking** (:func:`bootstrap_stacking`):
+a blocked fold often holds out a few points, and a weight of 1.0 solved on them is not certain.
+The held-out points get Dirichlet(1, …, 1) weights (Rubin 1981), the stacking is solved again for
+each of :data:`BOOTSTRAP` draws, and the laws are mixed over the draws. For the marginal predictive
+at any point (every quantile sizing reports) a mixture over draws of weights ``w_b`` is the
+mixture with their mean ``mean_b w_b``, which is what the weights hold; the point estimate is kept
+in ``Weights.point``. PSIS-LOO stacking (every point scored) is the plain optimum.
+
 Unreliable results -- a fit that failed the diagnostics gate, a high-k refit or a CV fold that
 failed it -- are excluded from the weights unless ``include_failed=True``; the result lists
 what was excluded and why.
@@ -27,7 +35,11 @@ from bayesfric.compare.loo import LooResult
 from bayesfric.compare.refit import CVResult
 from bayesfric.datasets.loader import OBS_DIM
 
-__all__ = ["Weights", "model_weights", "BayesFactors", "bayes_factors", "averaged_predictive"]
+__all__ = ["BOOTSTRAP", "Weights", "bootstrap_stacking", "model_weights", "BayesFactors", "bayes_factors",
+           "averaged_predictive"]
+
+#: Bayesian-bootstrap draws of the stacking weights on a cross-validation scheme.
+BOOTSTRAP = 400
 
 _METHODS = {
     "stacking": "stacking", "pseudo-bma+": "BB-pseudo-BMA", "bb-pseudo-bma": "BB-pseudo-BMA",
@@ -50,6 +62,9 @@ class Weights:
         Law -> reason, for unreliable results left out.
     table : pandas.DataFrame
         arviz-stats' comparison table of the included laws.
+    point : dict of str to float
+        Stacking on a CV scheme: the plain (point) stacking weights, before the Bayesian
+        bootstrap (empty otherwise).
     """
 
     weights: dict[str, float]
@@ -57,6 +72,7 @@ class Weights:
     basis: str
     excluded: dict[str, str] = field(default_factory=dict)
     table: pd.DataFrame | None = None
+    point: dict[str, float] = field(default_factory=dict)
 
     def __str__(self) -> str:
         ranked = sorted(self.weights.items(), key=lambda x: -x[1])
@@ -152,7 +168,64 @@ def model_weights(
     weights = {str(k): float(w) for k, w in table["weight"].items()}
     total = sum(weights.values())
     weights = {k: w / total for k, w in weights.items()}  # remove optimiser round-off
-    return Weights(weights, arviz_method, basis, excluded, table)
+    if arviz_method != "stacking" or CVResult not in kinds:
+        return Weights(weights, arviz_method, basis, excluded, table)
+    names = list(kept)
+    lpd = np.column_stack([np.asarray(kept[k].elpd_i.values, dtype=float) for k in names])
+    mean = bootstrap_stacking(lpd).mean(axis=0)
+    return Weights(dict(zip(names, map(float, mean / mean.sum()), strict=True)), "Bayesian-bootstrap stacking",
+                   basis, excluded, table, point=weights)
+
+
+def bootstrap_stacking(lpd: np.ndarray, draws: int = BOOTSTRAP, seed: int = 0, iterations: int = 2000,
+                       tol: float = 1e-6) -> np.ndarray:
+    """Stacking weights under Bayesian-bootstrap weights of the scored points.
+
+    Each draw ``b`` maximises ``Σ_i α_bi log Σ_k w_k exp(lpd_ik)`` over the simplex, ``α_b ~
+    Dirichlet(1, …, 1)`` over the points (Yao et al. 2018, §3 with the Bayesian bootstrap of
+    Rubin 1981), by the EM fixed point of mixture weights (the objective is concave),
+    all draws at once (SQUAREM-accelerated, Varadhan & Roland 2008), until no weight of a draw moves
+    more than ``tol``.
+
+    Parameters
+    ----------
+    lpd : ndarray, shape (n, K)
+        Pointwise log predictive density of each of ``K`` laws at ``n`` scored points.
+    draws, seed : int
+        Bootstrap draws and the generator's seed (fixed: the same data give the same weights).
+
+    Returns
+    -------
+    ndarray, shape (draws, K)
+    """
+    lpd = np.asarray(lpd, dtype=float)
+    n, k = lpd.shape
+    dens = np.exp(lpd - lpd.max(axis=1, keepdims=True))  # rows rescaled: the weights do not change
+    alpha = np.random.default_rng(seed).dirichlet(np.ones(n), size=draws)
+
+    def step(w, rows):  # one EM step of the draws ``rows``
+        new = w * ((alpha[rows] / (w @ dens.T)) @ dens)
+        return new / new.sum(axis=1, keepdims=True)
+
+    def objective(w, rows):
+        return np.sum(alpha[rows] * np.log(np.maximum(w @ dens.T, 1e-300)), axis=1)
+
+    w = np.full((draws, k), 1.0 / k)
+    live = np.arange(draws)
+    for _ in range(iterations):  # SQUAREM-accelerated EM (Varadhan & Roland 2008), kept monotone
+        w0 = w[live]
+        w1 = step(w0, live)
+        w2 = step(w1, live)
+        r, v = w1 - w0, w2 - 2 * w1 + w0
+        a = np.minimum(-np.sqrt(np.sum(r**2, axis=1) / np.maximum(np.sum(v**2, axis=1), 1e-300)), -1.0)[:, None]
+        jump = np.clip(w0 - 2 * a * r + a**2 * v, 0.0, None)
+        jump = step(jump / jump.sum(axis=1, keepdims=True), live)
+        new = np.where((objective(jump, live) >= objective(w2, live))[:, None], jump, w2)
+        w[live] = new
+        live = live[np.max(np.abs(new - w0), axis=1) >= tol]
+        if live.size == 0:
+            break
+    return w
 
 
 @dataclass(frozen=True)

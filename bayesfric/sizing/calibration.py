@@ -82,8 +82,8 @@ from dataclasses import dataclass
 import numpy as np
 import xarray as xr
 
-__all__ = ["OFFSET", "GROWTH", "LAMBDA", "Scheme", "Miss", "measure_miss", "natural", "matching", "relative_sd",
-           "per_range", "widen"]
+__all__ = ["OFFSET", "GROWTH", "LAMBDA", "Scheme", "Miss", "Pieces", "pieces", "measure_miss", "natural", "matching",
+           "relative_sd", "discrepancy", "per_range", "widen"]
 
 #: Extrapolation distance (tested ranges) the miss is taken to have at the envelope's edge (0.2
 #: under-covered points near the edge on simulated data: 68 % at 0.26 tested ranges).
@@ -95,9 +95,10 @@ LAMBDA = 0.5
 
 
 
-def _reach(d, width: float):
-    """The miss's scale at distance ``d`` (tested ranges) beyond a tested range ``width`` wide."""
-    return (width * (np.asarray(d, dtype=float) + OFFSET)) ** GROWTH
+def _scale(d, width: float) -> np.ndarray:
+    """The scale ``u = width (d + OFFSET)`` of a point at distance ``d`` (tested ranges) beyond a
+    tested range ``width`` wide."""
+    return width * (np.asarray(d, dtype=float) + OFFSET)
 
 
 @dataclass(frozen=True)
@@ -134,9 +135,13 @@ class Scheme:
 class Miss:
     """How far one law's mean curve missed beyond the envelope of one blocked fold.
 
-    ``rate`` (κ ≥ 0): relative miss per (input unit)^GROWTH; ``beta``, ``se``: the GLS slope and
+    ``rate`` (κ ≥ 0): relative miss per (input unit)^growth; ``beta``, ``se``: the GLS slope and
     its standard error; ``n``: held-out points used; ``reach``: the largest held-out distance
-    (tested ranges of the fold's training data).
+    (tested ranges of the fold's training data). ``growth``: the power of distance the miss
+    grows with (GROWTH, fixed, from one cut; estimated from nested cuts by
+    :mod:`bayesfric.sizing.growth`), ``growth_se`` its standard error (0: fixed), ``pivot``
+    the scale (input units) at which the rate was measured best, ``cuts`` how many blocked
+    folds along the axis measured it.
     """
 
     scheme: str
@@ -145,23 +150,97 @@ class Miss:
     se: float
     n: int
     reach: float
+    growth: float = GROWTH
+    growth_se: float = 0.0
+    pivot: float = 1.0
+    cuts: int = 1
+    width_power: float = math.nan
+    width_power_se: float = 0.0
+    width_pivot: float = 1.0
+    growth_cov: float = 0.0
+
+    def _powers(self, u, width: float) -> tuple[np.ndarray, np.ndarray]:
+        """Mean and variance of ``ln((L/w_0)^q ((d + OFFSET)/t_0)^p)`` (nested cuts)."""
+        a, b = math.log(width / self.width_pivot), np.log(np.asarray(u, dtype=float) / width / self.pivot)
+        loc = self.width_power * a + self.growth * b
+        return loc, self.width_power_se**2 * a**2 + self.growth_se**2 * b**2 + 2 * self.growth_cov * a * b
+
+    def scale(self, u, width: float | None = None) -> np.ndarray:
+        """The root mean square of the growth factor at scale ``u = L (d + OFFSET)`` (input units;
+        ``width``: the full data's tested width ``L``): one cut, ``u^GROWTH``; nested cuts,
+        ``(L/w_0)^q ((d + OFFSET)/t_0)^p`` over the powers' posterior."""
+        u = np.asarray(u, dtype=float)
+        if self.cuts < 2 or width is None:
+            return u**self.growth * np.exp(self.growth_se**2 * np.log(u / self.pivot) ** 2)
+        loc, var = self._powers(u, width)
+        return np.exp(loc + var)
+
+    def relative(self, u, rate: float | None = None, width: float | None = None) -> np.ndarray:
+        """Root mean square of the relative discrepancy at scale ``u`` (:meth:`band`); with
+        ``rate``, that rate times :meth:`scale` (a miss of that size)."""
+        if rate is not None:
+            return rate * self.scale(u, width)
+        mean, sd = self.band(u, width)
+        return np.sqrt(mean**2 + sd**2)
+
+    def band(self, u, width: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Signed relative mean and relative sd of the law's discrepancy at scale ``u`` (``width``:
+        the full data's tested width ``L``, ``u = L (d + OFFSET)``).
+
+        One cut (growth fixed): mean 0, sd ``κ · scale(u)``. Nested cuts
+        (:mod:`bayesfric.sizing.growth`): the rate's empirical-Bayes posterior (prior ``N(0, κ²)``,
+        measured ``β̂ ± se``: mean ``f β̂``, variance ``f se²``, ``f = κ² / (κ² + se²)``; 0 when
+        κ = 0) times ``(L/w_0)^q ((d + OFFSET)/t_0)^p`` over the powers' Gaussian posterior
+        (log-normal moments).
+        """
+        u = np.asarray(u, dtype=float)
+        if self.cuts < 2 or width is None:
+            return np.zeros_like(u), self.rate * self.scale(u)
+        f = self.rate**2 / (self.rate**2 + self.se**2) if self.rate > 0 else 0.0
+        loc, var = self._powers(u, width)
+        mean = f * self.beta * np.exp(loc + 0.5 * var)
+        second = (f**2 * self.beta**2 + f * self.se**2) * np.exp(2 * loc + 2 * var)
+        return mean, np.sqrt(np.maximum(second - mean**2, 0.0))
 
     def to_json(self) -> dict:
         return {"scheme": self.scheme, "rate": self.rate, "beta": self.beta, "se": self.se, "n": self.n,
-                "reach": self.reach}
+                "reach": self.reach, "growth": self.growth, "growth_se": self.growth_se, "pivot": self.pivot,
+                "cuts": self.cuts}
 
     @classmethod
     def from_json(cls, record: Mapping) -> Miss:
+        extra = {k: float(record[k]) for k in ("growth", "growth_se", "pivot") if k in record}
         return cls(str(record["scheme"]), float(record["rate"]), float(record["beta"]), float(record["se"]),
-                   int(record["n"]), float(record["reach"]))
+                   int(record["n"]), float(record["reach"]), cuts=int(record.get("cuts", 1)), **extra)
 
 
-def measure_miss(cv, ds: xr.Dataset, scheme: Scheme) -> Miss | None:
-    """The miss of a law on a blocked scheme (see the module), or None when nothing was kept.
+@dataclass(frozen=True)
+class Pieces:
+    """What one blocked fold measured of one law: per kept held-out point the miss ``e``, the
+    magnitude of the fold's mean ``m``, the scale ``u = w (d + OFFSET)`` (input units, ``w`` the
+    fold's training width) and distance ``d``, and the misses' covariance ``cov``."""
 
-    ``cv`` is the law's :class:`bayesfric.compare.CVResult` of the scheme (with its held-out
-    predictive), ``ds`` the study's data.
-    """
+    e: np.ndarray
+    m: np.ndarray
+    u: np.ndarray
+    d: np.ndarray
+    cov: np.ndarray
+    w: float = 1.0
+
+    def gls(self, growth: float) -> tuple[float, float, float]:
+        """``(β̂, se, residual quadratic form)`` of ``e = β · m u^growth + η``, ``η ~ N(0, cov)``."""
+        g = self.m * self.u**growth
+        solve_g = np.linalg.solve(self.cov, g)
+        info = float(g @ solve_g)
+        if not info > 0:
+            return math.nan, math.nan, math.nan
+        beta = float(self.e @ solve_g) / info
+        r = self.e - beta * g
+        return beta, 1.0 / math.sqrt(info), float(r @ np.linalg.solve(self.cov, r))
+
+
+def pieces(cv, ds: xr.Dataset, scheme: Scheme) -> Pieces | None:
+    """The misses of a law on one blocked fold (see the module), or None when nothing was kept."""
     kept = getattr(cv, "predictive", None)
     if kept is None or kept.mu.size == 0 or not cv.reliable:
         return None
@@ -174,20 +253,26 @@ def measure_miss(cv, ds: xr.Dataset, scheme: Scheme) -> Miss | None:
         return None
     d = scheme.distance(x[index], lo, hi)
     m = mu.mean(axis=0)
-    e = y[index] - m
-    g = np.abs(m) * _reach(d, hi - lo)
     same_fold = kept.fold[finite][:, None] == kept.fold[finite][None, :]
     cov = np.where(same_fold, np.cov(mu, rowvar=False).reshape(index.size, index.size), 0.0)
     cov += np.diag(kept.noise_var[finite])
     cov += np.eye(index.size) * 1e-12 * float(np.trace(cov)) / index.size
-    solve_g = np.linalg.solve(cov, g)
-    info = float(g @ solve_g)
-    if not info > 0:
+    return Pieces(y[index] - m, np.abs(m), (hi - lo) * (d + OFFSET), d, cov, hi - lo)
+
+
+def measure_miss(cv, ds: xr.Dataset, scheme: Scheme) -> Miss | None:
+    """The miss of a law on one blocked scheme, growing with the fixed power GROWTH (see the
+    module), or None when nothing was kept. ``cv`` is the law's
+    :class:`bayesfric.compare.CVResult` of the scheme (with its held-out predictive), ``ds`` the
+    study's data. Nested cuts along one axis: :func:`bayesfric.sizing.growth.measure_misses`."""
+    p = pieces(cv, ds, scheme)
+    if p is None:
         return None
-    beta = float(e @ solve_g) / info
-    se = 1.0 / math.sqrt(info)
-    return Miss(scheme.label, math.sqrt(max(0.0, beta**2 - LAMBDA * se**2)), beta, se, int(index.size),
-                float(np.max(d)) if d.size else 0.0)
+    beta, se, _ = p.gls(GROWTH)
+    if not math.isfinite(beta):
+        return None
+    return Miss(scheme.label, math.sqrt(max(0.0, beta**2 - LAMBDA * se**2)), beta, se, int(p.e.size),
+                float(np.max(p.d)) if p.d.size else 0.0)
 
 
 def natural(axis: str, data_values, direction: str = "upper") -> Scheme:
@@ -220,38 +305,66 @@ def matching(grid: Mapping[str, np.ndarray], data: Mapping[str, np.ndarray],
 
 
 def per_range(miss: Miss, scheme: Scheme, data: Mapping[str, np.ndarray]) -> float:
-    """A miss rate in unit-free terms, per (tested range of the full data)^GROWTH along the
-    scheme's axis: comparable across laws, schemes and inputs (the fallback is their maximum)."""
+    """A miss in unit-free terms: its relative sd one tested range of the full data beyond it
+    along the scheme's axis, over ``(1 + OFFSET)^GROWTH`` (with the fixed growth, the rate per
+    (tested range)^GROWTH): comparable across laws, schemes and inputs (the fallback is their
+    maximum)."""
     lo, hi = scheme.tested(data[scheme.axis])
-    return miss.rate * float(hi - lo) ** GROWTH
+    return float(miss.relative((hi - lo) * (1.0 + OFFSET), width=hi - lo)) / (1.0 + OFFSET) ** GROWTH
+
+
+def _family(s: Scheme) -> tuple:
+    return s.axis, s.direction, s.use_abs
 
 
 def relative_sd(grid: Mapping[str, np.ndarray], data: Mapping[str, np.ndarray], misses: Mapping[str, Miss],
                 schemes: Sequence[Scheme], matched: Sequence[Scheme], fallback: float,
                 uncovered: Sequence[Scheme]) -> np.ndarray:
-    """Relative sd of a law's discrepancy at every point (see the module).
+    """Relative sd of a law's discrepancy at every point (:func:`discrepancy`, its sd)."""
+    return discrepancy(grid, data, misses, schemes, matched, fallback, uncovered)[0]
 
-    Along the matched schemes the miss grows as ``κ_j (L_j (d_j + OFFSET))^GROWTH`` (their
-    variances add); a matched scheme without a measured miss for this law (its fold failed the
-    gate) and every uncovered side (:func:`matching`, where a point lies beyond it) take the
-    unit-free ``fallback`` (:func:`per_range`: the largest miss any law showed on any scheme)
-    as ``fallback · (d + OFFSET)^GROWTH``. No point, inside the envelope included, gets less
-    than the largest miss the law showed at the edge of any scheme's envelope
-    (``κ_j (L_j OFFSET)^GROWTH``): a form error seen at the edge is there inside too.
+
+def discrepancy(grid: Mapping[str, np.ndarray], data: Mapping[str, np.ndarray], misses: Mapping[str, Miss],
+                schemes: Sequence[Scheme], matched: Sequence[Scheme], fallback: float,
+                uncovered: Sequence[Scheme]) -> tuple[np.ndarray, np.ndarray]:
+    """Relative sd and signed relative mean of a law's discrepancy at every point (see the module).
+
+    Along the matched schemes the miss is ``Miss.band(L_j (d_j + OFFSET))`` (mean 0 and sd
+    ``κ_j (L_j (d_j + OFFSET))^GROWTH`` from one cut); schemes along different axes or directions
+    add their means and variances, nested cuts along one axis and direction (one error, measured
+    more than once) give the one of largest mean square. A matched scheme without a measured miss
+    for this law (its fold failed the gate) and every uncovered side (:func:`matching`, where a
+    point lies beyond it) take the unit-free ``fallback`` (:func:`per_range`: the largest miss
+    any law showed on any scheme) as ``fallback · (d + OFFSET)^GROWTH``. No point, inside the
+    envelope included, gets a root mean square less than the largest the law showed at the edge
+    of any scheme's envelope (``Miss.relative(L_j OFFSET)``): a form error seen at the edge is
+    there inside too.
     """
     n = len(next(iter(grid.values())))
-    edge = max([per_range(misses[s.label], s, data) * OFFSET**GROWTH for s in schemes
-                if s.label in misses and s.axis in data], default=0.0)
-    var = np.zeros(n)
+    edge = 0.0
+    for s in schemes:
+        if s.label in misses and s.axis in data:
+            lo, hi = s.tested(data[s.axis])
+            mean, sd = misses[s.label].band((hi - lo) * OFFSET, hi - lo)
+            edge = max(edge, float(np.hypot(mean, sd)))
+    family: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
     for s in matched:
         lo, hi = s.tested(data[s.axis])
         d = s.distance(grid[s.axis], lo, hi)
-        rate = misses[s.label].rate * _reach(d, hi - lo) if s.label in misses else fallback * _reach(d, 1.0)
-        var += rate**2
+        if s.label in misses:
+            mean, sd = misses[s.label].band(_scale(d, hi - lo), hi - lo)
+        else:
+            mean, sd = np.zeros(n), fallback * _scale(d, 1.0) ** GROWTH
+        old_mean, old_sd = family.get(_family(s), (np.zeros(n), np.zeros(n)))
+        larger = mean**2 + sd**2 >= old_mean**2 + old_sd**2
+        family[_family(s)] = (np.where(larger, mean, old_mean), np.where(larger, sd, old_sd))
+    shift = sum((m for m, _ in family.values()), np.zeros(n))
+    var = sum((sd**2 for _, sd in family.values()), np.zeros(n))
     for s in uncovered:
         d = s.distance(grid[s.axis], *s.tested(data[s.axis]))
-        var += np.where(d > 0, (fallback * _reach(d, 1.0)) ** 2, 0.0)
-    return np.sqrt(np.maximum(var, edge**2))
+        var += np.where(d > 0, (fallback * _scale(d, 1.0) ** GROWTH) ** 2, 0.0)
+    floor = np.maximum(edge**2 - shift**2, 0.0)  # the edge's miss, as a root mean square
+    return np.sqrt(np.maximum(var, floor)), shift
 
 
 def widen(mu: np.ndarray, y: np.ndarray, rel_sd: np.ndarray, rng: np.random.Generator,

@@ -207,6 +207,7 @@ class Answer:
     warnings: list[str] = field(default_factory=list)
     fan: Fan | None = None
     basis: Basis | None = None  # which weights and measured misses answer it (None: a single fit)
+    undetected: str = ""  # laws the blocked folds cannot tell from the truth here, and by how much ("": none)
 
     @property
     def n_points(self) -> int:
