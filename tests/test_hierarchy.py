@@ -111,6 +111,16 @@ def test_answers_for_a_new_level_scatter_by_the_spread_and_a_named_level_is_its_
         hierarchy.level_values(law, program.resolved, post, "c", {"run": ("a", "b")}, np.random.default_rng(0))
 
 
+def test_group_coverage_counts_rows_inside_the_central_bands_by_hand():
+    from bayesfric.compare.heldout import HeldOut
+    from bayesfric.compare.refit import group_coverage
+
+    # one draw, unit noise: PIT = Φ(y − μ); rows at z = 0, 0.5, 1.0, 2.0 -> PIT 0.5, 0.69, 0.84, 0.977
+    kept = HeldOut(np.arange(4), np.zeros(4, dtype=int), np.zeros((1, 4)), np.ones(4))
+    shares = group_coverage(None, kept, np.array([0.0, 0.5, 1.0, 2.0]))
+    assert shares == {"50": 0.5, "90": 0.75}
+
+
 def test_joint_score_of_a_group_is_the_log_mean_of_the_product_by_hand():
     ds, _ = _runs(rows=3, runs=2)
     program = build_program(get_law("coulomb_viscous"), ds)
@@ -226,3 +236,7 @@ def test_a_study_of_runs_ranks_the_hierarchical_law_first_by_leave_one_run_out(t
     summary = (tmp_path / "reports" / "runs" / "summary.md").read_text()
     recommendation = next(line for line in summary.splitlines() if line.startswith("**Recommended"))
     assert "answers for a NEW run" in recommendation  # said where the decision is, not only under Sizing
+    checked = next(line for line in summary.splitlines() if "Answers for a new group" in line)
+    diag = result.tree["diagnostics"].to_dataset()
+    assert 0.75 <= float(diag["group_coverage_90"].sel(law=hier)) <= 1.0
+    assert f"{hier.replace('_', chr(92) + '_')} {float(diag['group_coverage_90'].sel(law=hier)):.0%}" in checked

@@ -36,6 +36,7 @@ RefitEngine = NutsEngine
 
 __all__ = [
     "RefitEngine", "FoldFits", "CVResult", "cross_validate", "pointwise_lpd", "program_from_fit", "joint_lpd",
+    "group_coverage",
 ]
 
 
@@ -70,6 +71,10 @@ class CVResult:
         Thinned fold-posterior mean-function draws and noise variance at the held-out points
         (:mod:`bayesfric.compare.heldout`), kept when asked (blocked schemes: sizing measures
         the model-form error from them).
+    coverage : dict or None
+        Grouped schemes scored jointly: the share of held-out rows inside the central 50 % and
+        90 % bands of their fold's predictive (``{"50": …, "90": …}``) -- how well the answers
+        for a *new* group held on the groups left out (:func:`group_coverage`).
     """
 
     law: str
@@ -82,6 +87,7 @@ class CVResult:
     seconds: float
     settings: dict = field(default_factory=dict)
     predictive: HeldOut | None = None
+    coverage: dict[str, float] | None = None  # joint (grouped) schemes: central 50/90 % bands' share of rows
 
     @property
     def failed_folds(self) -> list[int]:
@@ -138,6 +144,24 @@ def joint_lpd(program, samples: dict[str, np.ndarray], rows: np.ndarray) -> floa
     return float(jax.scipy.special.logsumexp(sums) - np.log(s))
 
 
+def group_coverage(program, kept: HeldOut, response: np.ndarray) -> dict[str, float]:
+    """Share of held-out rows inside the central 50 % and 90 % bands of their fold's predictive.
+
+    Each row's PIT is ``mean_s Φ((y − μ_s) / sqrt(v))`` over the kept mean-function draws ``μ_s``
+    (a held-out group's levels drawn from the group distribution: a new group) with ``v`` the
+    fold's mean noise variance at the row -- a normal approximation of the noise (exact for normal
+    noise up to the spread of its variance over draws). Rows of one group are correlated, so the
+    shares scatter more between studies than a binomial count of rows would.
+    """
+    from scipy.stats import norm
+
+    if kept.mu.size == 0:
+        return {"50": float("nan"), "90": float("nan")}
+    y = np.asarray(response, dtype=float)[kept.index]
+    pit = norm.cdf((y[None, :] - kept.mu) / np.sqrt(kept.noise_var)[None, :]).mean(axis=0)
+    return {"50": float(np.mean(np.abs(pit - 0.5) <= 0.25)), "90": float(np.mean(np.abs(pit - 0.5) <= 0.45))}
+
+
 def cross_validate(engine: RefitEngine, folds: Folds, *, seed: int = 0, predictive: bool = False,
                    joint: bool = False) -> CVResult:
     """Refit on every fold's training mask and score its held-out points.
@@ -175,6 +199,7 @@ def cross_validate(engine: RefitEngine, folds: Folds, *, seed: int = 0, predicti
     if joint:  # one value per fold: its held-out rows as one new group
         scored = np.array([joint_lpd(engine.program, {n: v[k] for n, v in fits.samples.items()}, folds.heldout[k])
                            for k in range(folds.n_folds) if folds.heldout[k].any()])
+    kept = heldout_predictive(engine.program, fits.samples, folds.heldout) if predictive or joint else None
     return CVResult(
         law=engine.program.law.name,
         scheme=folds.scheme,
@@ -186,6 +211,7 @@ def cross_validate(engine: RefitEngine, folds: Folds, *, seed: int = 0, predicti
         seconds=fits.seconds,
         settings=engine.settings | {"fold_target_accept": [float(t) for t in fits.target_accept],
                                     "scored": "each held-out group's rows jointly" if joint else "pointwise"},
-        predictive=heldout_predictive(engine.program, fits.samples, folds.heldout) if predictive else None,
+        predictive=kept if predictive else None,
+        coverage=group_coverage(engine.program, kept, engine.program.response) if joint else None,
     )
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
+import numpy as np
 import pandas as pd
 
 from bayesfric.compare.asymmetry import asymmetry
@@ -26,7 +27,7 @@ if TYPE_CHECKING:
     from bayesfric.sizing import SizingResult
 
 __all__ = ["Finding", "Summary", "findings", "summary_block", "plain", "counted_winners", "RECOMMEND_WEIGHT",
-           "residual_structure",
+           "residual_structure", "group_coverage",
            "sensitivity_sentence",
            "NO_CRITERION"]
 
@@ -136,6 +137,7 @@ def findings(t: TreeView) -> list[Finding]:
     table, crits = t.table, t.crits
     loo_winner = sc.best(table, "elpd_loo") if t.has_loo else None
     lines = residual_structure(t) + [a for c in crits if (a := _answer(table, c, loo_winner)) is not None]
+    lines += group_coverage(t)
     if not crits:
         lines.append(plain(NO_CRITERION, warning=True))
     for name in t.laws:  # direction-dependent coefficients (laws.variants): is the asymmetry supported?
@@ -152,6 +154,25 @@ def findings(t: TreeView) -> list[Finding]:
         lines.append(plain(f"QUICK MODE: sampler {used}{kfold} — a pipeline smoke test, not a basis for decisions.",
                            warning=True))
     return lines
+
+
+def group_coverage(t: TreeView) -> list[Finding]:
+    """How the answers for a new group held where a whole group was left out: per law, the share
+    of the held-out groups' rows inside the central 90 % (and 50 %) band of its fold's predictive
+    (:func:`bayesfric.compare.refit.group_coverage`), a warning where a law's is below 80 %; none in
+    a tree made before it was kept."""
+    if "group_coverage_90" not in t.diag:
+        return []
+    shares = [(name, float(t.law(name)["group_coverage_90"]), float(t.law(name)["group_coverage_50"]))
+              for name in t.laws]
+    shares = [s for s in shares if np.isfinite(s[1])]
+    if not shares:
+        return []
+    text = "; ".join(f"{name} {c90:.0%} (50 % band: {c50:.0%})" for name, c90, c50 in shares)
+    return [plain("Answers for a new group, checked by leaving whole groups out: the 90 % predictive band "
+                  f"held this share of the left-out groups' rows — {text}. Rows of a group move together, "
+                  "so these shares scatter more than a count of independent rows would.",
+                  warning=any(c90 < 0.8 for _, c90, _ in shares))]
 
 
 def _warnings(t: TreeView) -> list[Finding]:

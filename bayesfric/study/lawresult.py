@@ -93,6 +93,7 @@ def _loo(loo: LooResult | None) -> dict:
 
 def _cv(cv: Mapping[str, CVResult], penalty: Mapping[str, Penalty], n: int) -> dict:
     labels = list(cv)
+    covered = next((r.coverage for r in cv.values() if r.coverage), None)
     return {
         "cv_elpd": ("scheme", [float(r.elpd) for r in cv.values()]),
         "cv_se": ("scheme", [float(r.se) for r in cv.values()]),
@@ -104,6 +105,8 @@ def _cv(cv: Mapping[str, CVResult], penalty: Mapping[str, Penalty], n: int) -> d
         "penalty_se": ("scheme", [float(penalty[k].se) if k in penalty else math.nan for k in labels]),
         "penalty_computed": ("scheme", np.array([k in penalty for k in labels], dtype=bool)),
         "cv_reliable": all(r.reliable for r in cv.values()),
+        # leave-one-group-out: how the answers for a new group held on the groups left out
+        **{f"group_coverage_{k}": float(covered[k]) if covered else math.nan for k in ("50", "90")},
     }
 
 

@@ -195,7 +195,7 @@ def weight_errors(tree: xr.DataTree) -> list[tuple[str, str]]:
 DIAGNOSTICS = ("passed", "problems", "evidence_agree", "cv_reliable", "skipped", "seconds", "verdict", "flags",
                "p_loo", "n_high_k", "rhat_max", "ess_bulk_min", "n_params", "evidence_compared",
                "evidence_disagreement", "pareto_k_max", "loo_rows_scored", "loo_rows", "loo_subsampling_se",
-               "loo_subsampled")
+               "loo_subsampled", "group_coverage_50", "group_coverage_90")
 #: ``/checks`` variables besides the LOO-PIT values and band.
 CHECKS = ("prior_implausible", "loo_pit_pvalue", "loo_pit_ok", "loo_pit_direction", "psense", "ci_prob", "checked")
 

@@ -189,6 +189,7 @@ def cv_dataset(cv: compare.CVResult) -> xr.Dataset:
                      "heldout": ("obs", np.asarray(cv.heldout, dtype=bool))},
                     attrs={"elpd": float(cv.elpd), "se": float(cv.se), "seconds": float(cv.seconds), "law": cv.law,
                            "scheme": cv.scheme, "verdicts": _text([asdict(v) for v in cv.verdicts]),
+                           "coverage": _text(cv.coverage),
                            "settings": _text(cv.settings)})
     if kept is not None:
         ds = ds.assign(heldout_index=("kept", kept.index), heldout_fold=("kept", kept.fold),
@@ -332,4 +333,5 @@ def _cv(ds: xr.Dataset) -> compare.CVResult:
     return compare.CVResult(law=str(a["law"]), scheme=str(a["scheme"]), elpd=float(a["elpd"]), se=float(a["se"]),
                             elpd_i=ds["elpd_i"].values.astype(float), heldout=ds["heldout"].values.astype(bool),
                             verdicts=[Verdict(**v) for v in json.loads(a["verdicts"])], seconds=float(a["seconds"]),
-                            settings=json.loads(a["settings"]), predictive=kept)
+                            settings=json.loads(a["settings"]), predictive=kept,
+                            coverage=json.loads(a["coverage"]) if "coverage" in a else None)
