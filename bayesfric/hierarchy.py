@@ -55,7 +55,7 @@ from bayesfric.laws.base import Law
 from bayesfric.priors import Prior, PriorError
 
 __all__ = ["Grouping", "NEW_LEVEL", "SPREAD", "CENTRED_ROWS", "REAL_SPREAD", "hyperprior", "site_names",
-           "group_sites", "law_mean", "elementwise", "level_values", "mean_draws", "groupings_of"]
+           "group_sites", "law_mean", "elementwise", "spread_of", "level_values", "mean_draws", "groupings_of"]
 
 #: Label of the one level of a program moved to new points (:meth:`bayesfric.model.Program.at`).
 NEW_LEVEL = "new"
@@ -105,6 +105,21 @@ def groupings_of(law: Law, ds) -> dict[str, Grouping]:
         labels, index = np.unique(np.asarray(ds[column].values).astype(str), return_inverse=True)
         out[column] = Grouping(tuple(str(v) for v in labels), np.asarray(index, dtype=int).reshape(-1))
     return out
+
+
+def spread_of(law: Law, name: str) -> tuple[str, str] | None:
+    """(unit, meaning) of a between-group spread site ``<p>_sd`` of ``law``; None for another name.
+
+    On the log (or logit) scale for a positive (or bounded) parameter, so dimensionless; in the
+    parameter's own unit for a real-valued one.
+    """
+    p = name.removesuffix("_sd")
+    if not name.endswith("_sd") or p not in law.varying:
+        return None
+    real = _support(law.params[p].prior) is dist.constraints.real
+    scale = "" if real else (" (log scale)" if _support(law.params[p].prior) is dist.constraints.positive
+                             else " (logit scale)")
+    return (law.params[p].unit if real else "1"), f"spread of {p} between the levels of {law.varying[p]!r}{scale}"
 
 
 def site_names(law: Law, groupings: Mapping[str, Grouping]) -> dict[str, tuple[str, str, str]]:

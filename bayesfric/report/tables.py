@@ -11,6 +11,7 @@ import numpy as np
 import xarray as xr
 
 from bayesfric.inference.diagnostics import verdict_of
+from bayesfric.hierarchy import spread_of
 from bayesfric.laws.base import Law
 from bayesfric.quantities import QUANTITIES
 from bayesfric.report.typeset import fmt, unit
@@ -51,6 +52,8 @@ def unit_of(name: str, law: Law, response: str) -> str:
         return law.params[name].unit
     if name in law.derived:
         return law.derived[name].unit
+    if (spread := spread_of(law, name)) is not None:
+        return spread[0]
     unit = _NOISE_UNITS.get(name, "?")
     return QUANTITIES[response].unit if unit == "response" and response in QUANTITIES else unit
 
@@ -60,6 +63,8 @@ def _meaning(name: str, law: Law) -> str:
         return law.params[name].meaning
     if name in law.derived:
         return law.derived[name].meaning
+    if (spread := spread_of(law, name)) is not None:
+        return spread[1]
     return _NOISE_MEANING.get(name, "")
 
 
