@@ -10,8 +10,8 @@ import arviz_stats
 import numpy as np
 import xarray as xr
 
-from bayesfric.inference.diagnostics import verdict_of
 from bayesfric.hierarchy import spread_of
+from bayesfric.inference.diagnostics import verdict_of
 from bayesfric.laws.base import Law
 from bayesfric.quantities import QUANTITIES
 from bayesfric.report.typeset import fmt, unit
