@@ -3,10 +3,15 @@
 #   make test   -> runs the test suite (what CI runs)
 SHELL := /bin/bash
 
-.PHONY: main test test-fast lint bench venv
+.PHONY: main test test-fast lint bench venv browser
 
 venv:
 	@scripts/bootstrap.sh >/dev/null
+
+# The venv and a headless Chromium for the report's browser test: a test-only need (apt-get, a
+# few hundred MB), so `make main` never installs it.
+browser:
+	@scripts/bootstrap.sh --browser >/dev/null
 
 main: venv
 	.venv/bin/python -m bayesfric main
@@ -15,7 +20,7 @@ main: venv
 # file's module-scoped fixtures and compiled programs are built once; workers share the compile cache.
 PYTEST_PARALLEL := -n auto --maxprocesses 4 --dist loadfile
 
-test: venv
+test: browser
 	.venv/bin/python -m ruff check bayesfric tests benchmarks data examples
 	.venv/bin/python -m pytest -q $(PYTEST_PARALLEL)
 

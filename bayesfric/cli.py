@@ -9,17 +9,30 @@ table (:data:`bayesfric.study.config.SAMPLER`), the memory they imply (:mod:`bay
 This module defines the options (:func:`build_parser`, one ``_add_<command>`` each) and turns
 errors into exit statuses (:func:`main`); what each command does with its options is in
 :mod:`bayesfric.commands`, which calls the library.
+
+The light commands (``--version``, ``--help``, ``laws``, ``data list|check|reduce``) import
+neither JAX nor numpyro: this module and :mod:`bayesfric.commands` import only the standard
+library and base modules at start-up, JAX's process settings (:func:`bayesfric.runtime.configure`)
+are applied only before a computing command, and ``laws`` reads the stored catalogue
+(:mod:`bayesfric.lawcatalogue`). ``tests/test_cli_start.py`` checks the import list,
+``benchmarks/bench_cli_start.py`` measures the time.
+
+SIGINT and SIGTERM stop a command through :class:`bayesfric.fsutil.Interrupted` (set up by
+:func:`run`): what the command was writing is removed on the way out (a study's work folder),
+one line is printed and the exit status is 130 (SIGINT) or 143 (SIGTERM).
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import signal
 import sys
 from typing import NoReturn
 
 from bayesfric import commands
-from bayesfric.datasets.reduce import add_arguments as reduce_arguments
+from bayesfric._version import __version__
+from bayesfric.datasets.reduce_options import add_arguments as reduce_arguments
 from bayesfric.errors import UserError
 
 __all__ = ["main", "UserError", "UsageError", "build_parser"]
@@ -52,6 +65,7 @@ def _run_options(q: argparse.ArgumentParser) -> None:
 def build_parser() -> argparse.ArgumentParser:
     """The parser of every command; each sets ``func``, the :mod:`bayesfric.commands` function that runs it."""
     p = _Parser(prog="bayesfric", description="Bayesian model comparison of friction laws.")
+    p.add_argument("--version", action="version", version=f"bayesfric {__version__}")
     sub = p.add_subparsers(dest="command", required=True)
     for add in (_add_laws, _add_fit, _add_data, _add_study, _add_report, _add_size, _add_predict, _add_score,
                 _add_main):
@@ -65,7 +79,7 @@ def _add_laws(sub) -> None:
     q.add_argument("--family", help="only this family")
     q.add_argument("--markdown", action="store_true", help="Markdown tables")
     q.add_argument("--names", action="store_true", help="names only")
-    q.set_defaults(func=commands.cmd_laws)
+    q.set_defaults(func=commands.cmd_laws, light=True)
 
 
 def _add_fit(sub) -> None:
@@ -100,15 +114,15 @@ def _add_data(sub) -> None:
     q = sub.add_parser("data", help="list built-in data sets, check a user's file, or reduce a raw log")
     dsub = q.add_subparsers(dest="data_cmd", required=True, metavar="{list,check,reduce}")
     d = dsub.add_parser("list", help="built-in data sets with provenance")
-    d.set_defaults(func=commands.cmd_data)
+    d.set_defaults(func=commands.cmd_data, light=True)
     d = dsub.add_parser("check", help="validate CSV + TOML metadata and print what was understood")
     d.add_argument("file", help="CSV file")
     d.add_argument("--meta", help="metadata TOML (default: FILE with .toml suffix)")
-    d.set_defaults(func=commands.cmd_data)
+    d.set_defaults(func=commands.cmd_data, light=True)
     d = dsub.add_parser("reduce", help="steady-state reduction of a raw log: segment means with standard errors "
                                        "and counts (bayesfric.datasets.reduce)")
     reduce_arguments(d)
-    d.set_defaults(func=commands.cmd_data)
+    d.set_defaults(func=commands.cmd_data, light=True)
 
 
 def _add_study(sub) -> None:
@@ -186,21 +200,33 @@ def _add_main(sub) -> None:
     q.set_defaults(func=commands.cmd_main)
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Entry point of the ``bayesfric`` command; returns the exit status (2 on a user error)."""
-    from bayesfric.runtime import configure
+#: Exit status of a command stopped by a signal: 128 + the signal's number, as a shell reports it.
+INTERRUPTED = {signal.SIGINT: 130, signal.SIGTERM: 143}
 
-    configure()  # x64 and the persistent compilation cache
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``bayesfric`` command; returns the exit status (2 on a user error,
+    130/143 when stopped by SIGINT/SIGTERM).
+
+    A command marked ``light`` (the listings and data commands) runs without JAX; every other
+    command first applies JAX's process settings (:func:`bayesfric.runtime.configure`: x64 and
+    the persistent compilation cache), after its options parsed.
+    """
     try:
         args = build_parser().parse_args(argv)
+        if not getattr(args, "light", False):
+            from bayesfric.runtime import configure
+
+            configure()
         args.func(args)
     except USER_ERRORS as exc:
         msg = exc.args[0] if exc.args else str(exc)
         print(f"bayesfric: error: {' '.join(str(msg).splitlines())}", file=sys.stderr)  # always one line
         return 2
-    except KeyboardInterrupt:
-        print("bayesfric: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:
+        signum = getattr(exc, "signum", signal.SIGINT)
+        print(f"bayesfric: interrupted ({signal.Signals(signum).name})", file=sys.stderr)
+        return INTERRUPTED.get(signum, 130)
     return 0
 
 
@@ -213,12 +239,18 @@ def run() -> NoReturn:
     stribeck`` took 4.05 s with it and 3.48 s without (three pairs, 2026-11-24). So this waits
     for compilations still running in the background (their results belong in the persistent
     cache), flushes the standard streams, and leaves with :func:`os._exit`. Code that calls
-    :func:`main` in-process (tests, notebooks) keeps the normal exit.
+    :func:`main` in-process (tests, notebooks) keeps the normal exit, and its own signal handlers:
+    only here do SIGINT and SIGTERM become :class:`bayesfric.fsutil.Interrupted`
+    (:func:`bayesfric.fsutil.handle_stop_signals`). A stopped command does not wait for
+    background compilations; a light one never started any.
     """
-    code = main()
-    from bayesfric.exported import finish_compilations
+    from bayesfric.fsutil import handle_stop_signals
 
-    finish_compilations()
+    handle_stop_signals()
+    code = main()
+    exported = sys.modules.get("bayesfric.exported")  # loaded only by a computing command
+    if exported is not None and code not in INTERRUPTED.values():
+        exported.finish_compilations()
     sys.stdout.flush()
     sys.stderr.flush()
     os._exit(code)

@@ -11,18 +11,31 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from bayesfric.datasets.loader import DataError
-from bayesfric.errors import UserError
-from bayesfric.priors import Prior, PriorError
+from bayesfric.errors import DataError, UserError
+
+if TYPE_CHECKING:
+    from bayesfric.priors import Prior
 
 __all__ = ["cmd_laws", "cmd_fit", "cmd_data", "cmd_study", "cmd_report", "cmd_size", "cmd_predict", "cmd_score",
            "cmd_main", "parse_priors", "parse_fix", "parse_select"]
 
 
 def cmd_laws(args: argparse.Namespace) -> None:
+    """``bayesfric laws``: from the stored catalogue while it is current (no JAX import:
+    :mod:`bayesfric.lawcatalogue`), else from the registry itself; the same text either way."""
+    from bayesfric.lawcatalogue import listing
+
+    try:
+        text = listing(args.family, markdown=args.markdown, names=args.names)
+    except KeyError:
+        raise UserError(f"no laws in family {args.family!r}") from None
+    if text is not None:
+        print(text)
+        return
     from bayesfric.laws import all_laws
-    from bayesfric.report.tables import laws_listing
+    from bayesfric.listing import laws_listing
 
     laws = [w for w in all_laws() if args.family in (None, w.family)]
     if not laws:
@@ -32,6 +45,8 @@ def cmd_laws(args: argparse.Namespace) -> None:
 
 def parse_priors(items: list[str] | None, known: list[str], law: str) -> dict[str, Prior]:
     """``--prior NAME=JSON`` options: NAME a parameter of the law or noise model, JSON an object."""
+    from bayesfric.priors import Prior, PriorError
+
     out = {}
     for item in items or []:
         if "=" not in item:
@@ -153,17 +168,20 @@ def cmd_fit(args: argparse.Namespace) -> None:
 
 
 def cmd_data(args: argparse.Namespace) -> None:
-    from bayesfric.datasets import builtin_names, describe, load_builtin, load_dataset
-
+    """``bayesfric data list | check | reduce``: data files only (no JAX, numpyro or report import)."""
     if args.data_cmd == "reduce":
         from bayesfric.datasets.reduce import run_command
 
         run_command(args)
     elif args.data_cmd == "list":
-        from bayesfric.report.tables import datasets_listing
+        from bayesfric.datasets.registry import builtin_names, load_builtin
+        from bayesfric.listing import datasets_listing
 
         print(datasets_listing({name: load_builtin(name) for name in builtin_names()}))
     else:
+        from bayesfric.datasets.loader import load_dataset
+        from bayesfric.datasets.registry import describe
+
         ds = load_dataset(args.file, args.meta)
         print(describe(ds))
         print("OK: the file is valid")

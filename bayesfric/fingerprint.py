@@ -25,7 +25,7 @@ import xarray as xr
 from bayesfric.codegraph import roots_of, source_files
 
 __all__ = ["code_fingerprint", "computing_files", "COMPUTING_ROOTS", "package_fingerprint", "law_fingerprint",
-           "data_fingerprint", "canonical", "unit_key", "program_parts"]
+           "data_fingerprint", "canonical", "unit_key", "program_parts", "PLACE_ATTRS"]
 
 _PACKAGE = Path(__file__).resolve().parent
 #: Where a unit's computation starts: :mod:`bayesfric.study.units` computes every unit (fits,
@@ -174,8 +174,15 @@ def _label(path: Path, roots: tuple[Path, ...]) -> str:
     return path.name
 
 
+#: Data set attributes that name a place or a display text, not content: a project folder moved
+#: or cloned with its reports keeps every unit key (the values and the file's bytes,
+#: ``data_hash``, stay in the key).
+PLACE_ATTRS = ("title", "csv_file")
+
+
 def data_fingerprint(ds: xr.Dataset) -> str:
-    """SHA-256 of a data set's content: every variable and coordinate (values, dtype, units)."""
+    """SHA-256 of a data set's content: every variable and coordinate (values, dtype, units) and
+    the attributes but :data:`PLACE_ATTRS` (where the file lies is no input of a result)."""
     digest = hashlib.sha256()
     for name in sorted(map(str, list(ds.coords) + list(ds.data_vars))):
         var = ds[name]
@@ -183,7 +190,7 @@ def data_fingerprint(ds: xr.Dataset) -> str:
         digest.update(json.dumps([name, str(values.dtype), list(values.shape), list(var.dims),
                                   {k: str(v) for k, v in sorted(var.attrs.items())}]).encode())
         digest.update(values.tobytes() if values.dtype != object else repr(values.tolist()).encode())
-    digest.update(json.dumps({k: str(v) for k, v in sorted(ds.attrs.items()) if k != "title"}).encode())
+    digest.update(json.dumps({k: str(v) for k, v in sorted(ds.attrs.items()) if k not in PLACE_ATTRS}).encode())
     return digest.hexdigest()
 
 

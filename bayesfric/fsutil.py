@@ -15,9 +15,15 @@ Every path bayesfric writes goes through this module:
   atomically (:func:`install_folder`: the old report is renamed aside, the new one renamed in,
   the old one removed). An existing ``<root>/<name>`` is replaced only when it carries the marker
   of the same study: bayesfric never removes a folder it did not create;
-* work folders left behind by killed runs are removed by the next run of the same study
-  (:func:`clean_stale_work`) when their marker names a dead process (or, for another host, is
-  older than :data:`STALE_AGE_S`); work folders of live concurrent runs are left alone;
+* a run stopped by SIGINT or SIGTERM removes its own work folder before it exits: the command
+  line turns both signals into :class:`Interrupted` (:func:`handle_stop_signals`), which unwinds
+  through the runner's clean-up, and the few steps that must not be cut in two (creating and
+  marking a work folder, the swap of :func:`install_folder`) hold a signal back until they are
+  done (:func:`signals_deferred`);
+* work folders left behind by killed runs (SIGKILL, a power cut) are removed by the next run of
+  the same study (:func:`clean_stale_work`) when their marker names a dead process (or, for
+  another host, is older than :data:`STALE_AGE_S`); work folders of live concurrent runs are left
+  alone;
 * files and folders get the permissions an ordinary ``open``/``mkdir`` gives them: ``0o666`` and
   ``0o777`` less the process umask (:func:`apply_umask`), never ``tempfile``'s private ``0o600``.
 
@@ -27,13 +33,16 @@ that starts with the path; callers prefix the option or study key.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import re
 import secrets
 import shutil
+import signal
 import socket
 import stat
+import threading
 import time
 from pathlib import Path
 
@@ -43,6 +52,7 @@ __all__ = [
     "PathError", "MARKER", "NAME_MAX", "STALE_AGE_S", "name_problem", "current_umask", "apply_umask",
     "check_output_file", "check_output_folder", "report_folder", "create_work_folder", "install_folder",
     "remove_work_folder", "clean_stale_work", "is_marked", "real_folders", "lexically_inside",
+    "Interrupted", "handle_stop_signals", "signals_deferred",
 ]
 
 #: Marker file of every folder bayesfric creates under a reports root.
@@ -56,6 +66,56 @@ _SLUG = re.compile(r"[A-Za-z0-9_-][A-Za-z0-9._-]*")
 
 class PathError(UserError):
     """An unusable output path: one line starting with the path."""
+
+
+class Interrupted(KeyboardInterrupt):
+    """The process received SIGINT or SIGTERM (``signum``).
+
+    A :class:`KeyboardInterrupt`, so every clean-up written for Ctrl-C (a work folder removed, a
+    temporary file unlinked, a Dask cluster closed) runs for SIGTERM too.
+    """
+
+    def __init__(self, signum: int):
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+#: Signals held back by :func:`signals_deferred` (depth of nesting, the first signal received).
+_DEFERRED: dict = {"depth": 0, "pending": None}
+
+
+def _stop(signum: int, frame) -> None:
+    """The handler of SIGINT and SIGTERM: raise :class:`Interrupted`, or hold it back."""
+    if _DEFERRED["depth"]:
+        _DEFERRED["pending"] = _DEFERRED["pending"] or signum
+        return
+    raise Interrupted(signum)
+
+
+def handle_stop_signals() -> None:
+    """Turn SIGINT and SIGTERM into :class:`Interrupted` in this process (the command line's main
+    thread only), so a stopped run unwinds and removes what it created instead of dying with its
+    work folder left behind. A handler someone else installed is kept."""
+    if threading.current_thread() is not threading.main_thread():
+        return
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        if signal.getsignal(signum) in (signal.SIG_DFL, signal.default_int_handler):
+            signal.signal(signum, _stop)
+
+
+@contextlib.contextmanager
+def signals_deferred():
+    """Hold SIGINT and SIGTERM back inside the block and raise :class:`Interrupted` after it, so
+    a step that must not be cut in two (a folder created and marked, two renames) completes.
+    Without :func:`handle_stop_signals` (a library caller) nothing is held back."""
+    _DEFERRED["depth"] += 1
+    try:
+        yield
+    finally:
+        _DEFERRED["depth"] -= 1
+        if _DEFERRED["depth"] == 0 and _DEFERRED["pending"] is not None:
+            signum, _DEFERRED["pending"] = _DEFERRED["pending"], None
+            raise Interrupted(signum)
 
 
 def name_problem(name: object) -> str | None:
@@ -253,18 +313,29 @@ def report_folder(root: str | Path, name: str) -> Path:
 
 
 def create_work_folder(root: Path, name: str) -> Path:
-    """Create the marked hidden work folder ``<root>/.<name>.<token>`` (``root`` is created too)."""
+    """Create the marked hidden work folder ``<root>/.<name>.<token>`` (``root`` is created too).
+
+    Created and marked with SIGINT/SIGTERM held back (:func:`signals_deferred`): a folder
+    without its marker is one that nobody may remove. A signal that arrived meanwhile removes
+    the new folder and is raised here, so the caller never holds a folder it does not know of.
+    """
     root.mkdir(parents=True, exist_ok=True)
-    while True:
-        work = root / f".{name}.{secrets.token_hex(4)}"
-        try:
-            work.mkdir()
-        except FileExistsError:
-            continue
-        break
-    marker = {"tool": "bayesfric", "study": name, "pid": os.getpid(), "host": socket.gethostname(),
-              "created": time.time(), "proc_start": _proc_start(os.getpid())}
-    (work / MARKER).write_text(json.dumps(marker) + "\n")
+    work = None
+    try:
+        with signals_deferred():
+            while work is None:
+                candidate = root / f".{name}.{secrets.token_hex(4)}"
+                with contextlib.suppress(FileExistsError):
+                    candidate.mkdir()
+                    work = candidate
+            marker = {"tool": "bayesfric", "study": name, "pid": os.getpid(), "host": socket.gethostname(),
+                      "created": time.time(), "proc_start": _proc_start(os.getpid())}
+            (work / MARKER).write_text(json.dumps(marker) + "\n")
+    except BaseException:
+        if work is not None:  # created here: removed, marked or not (only its marker can be inside)
+            (work / MARKER).unlink(missing_ok=True)
+            work.rmdir()
+        raise
     return work
 
 

@@ -17,9 +17,6 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-import jax
-from jax.experimental.compilation_cache import compilation_cache
-
 __all__ = ["configure", "cache_dir", "CACHE_MAX_BYTES"]
 
 #: Upper bound of the on-disk compilation cache (JAX evicts least recently used entries).
@@ -44,6 +41,9 @@ def configure() -> None:
     global _configured
     if _configured:
         return
+    import jax  # here: cache_dir() serves light commands (pint's cache) that import no JAX
+    from jax.experimental.compilation_cache import compilation_cache
+
     jax.config.update("jax_enable_x64", True)
     folder = cache_dir()
     if folder is not None and jax.config.jax_compilation_cache_dir is None:

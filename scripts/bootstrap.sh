@@ -1,7 +1,17 @@
 #!/usr/bin/env bash
 # Find a Python >= 3.12, create .venv, install bayesfric (+ test extras) into it.
 # Idempotent: reinstalls only when pyproject.toml changed. Prints the venv's python path last.
+#   scripts/bootstrap.sh            the venv (what `make main` needs)
+#   scripts/bootstrap.sh --browser  the venv, and a headless Chromium for the report's browser
+#                                   test when missing (what `make test` needs; apt-get as root)
 set -euo pipefail
+browser=0
+for arg in "$@"; do
+  case "$arg" in
+    --browser) browser=1 ;;
+    *) echo "bootstrap: unknown option $arg (known: --browser)" >&2; exit 2 ;;
+  esac
+done
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 venv="$here/.venv"
 
@@ -63,8 +73,9 @@ if [ ! -x "$venv/bin/python" ] || ! works "$venv/bin/python" || [ "$(cat "$venv/
   echo "$stamp" > "$venv/.stamp"
 fi
 # The report's browser test (tests/report/test_browser.py) needs a headless Chromium from the
-# distribution. Installed here when missing and possible (root with apt-get); otherwise a hint.
-if ! command -v chromium >/dev/null 2>&1 && ! command -v chromium-browser >/dev/null 2>&1; then
+# distribution: a test-only need, so only with --browser (`make test`), never for `make main`.
+# Installed when missing and possible (root with apt-get); otherwise a hint.
+if [ "$browser" = 1 ] && ! command -v chromium >/dev/null 2>&1 && ! command -v chromium-browser >/dev/null 2>&1; then
   if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
     echo "bootstrap: installing chromium (apt-get) for the report's browser test" >&2
     { apt-get update -q && DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends chromium; } \

@@ -283,3 +283,135 @@ def test_a_stored_fit_reads_back_identical_to_the_computed_one(tmp_path):
             assert isinstance(var.values, np.ndarray) and var.dtype == other[name].dtype, (node.path, name)
     store.path(key, "nc").unlink()  # fully loaded: nothing of it is read from the file any more
     xr.testing.assert_identical(opened, dt)
+
+
+# -- a store keyed by content, not by place (issue 48 item 4) ----------------------------------------
+def _law_file_study(folder: Path) -> Path:
+    """The run-store study with a law of the user's own (a law file and the helper it imports)."""
+    write_bench_data(folder)
+    for name in ("my_laws.py", "shapes.py"):
+        shutil.copyfile(REPO / "examples" / "own_law" / name, folder / name)
+    path = folder / "s.toml"
+    path.write_text(study_text('[[laws]]\nname = "coulomb"\n[[laws]]\nname = "smooth_stribeck"\n')
+                    .replace('name = "tiny"\n', 'name = "tiny"\nmodules = ["my_laws.py"]\n'))
+    return path
+
+
+def test_unit_keys_hold_no_absolute_path_and_do_not_move(tmp_path, monkeypatch):
+    """Every part of every unit key of a study with a data file and a law file is free of the
+    folder it lies in, so the same study in another folder has the same keys (that one keyed in
+    another process: one process declares a law file's laws once)."""
+    import json
+
+    from bayesfric import fingerprint
+    from bayesfric.study import units
+
+    parts: list[str] = []
+
+    def spy(**given):
+        parts.append(json.dumps(fingerprint.canonical(given), sort_keys=True, default=str))
+        return fingerprint.unit_key(**given)
+
+    monkeypatch.setattr(units, "unit_key", spy)
+    here, there = tmp_path / "here", tmp_path / "elsewhere" / "there"
+    for folder in (here, there):
+        folder.mkdir(parents=True)
+        _law_file_study(folder)
+    keys = _all_keys(here / "s.toml")
+    assert parts and all(str(tmp_path) not in p for p in parts), next(p for p in parts if str(tmp_path) in p)
+    assert not any(v.startswith(os.sep) for p in parts for v in _strings(json.loads(p)))
+    assert load_study_data(load_study(here / "s.toml")).attrs["csv_file"].startswith(str(here))  # kept out
+    script = f"from tests.test_runstore import _all_keys; print(_all_keys({str(there / 's.toml')!r}))"
+    done = subprocess.run([sys.executable, "-c", script], cwd=REPO, capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.strip().splitlines()[-1] == str(keys)
+
+
+def _all_keys(path: Path) -> list[str]:
+    """The key of every unit of every law of the study at ``path`` (quick settings), in order."""
+    study = load_study(path)
+    ds = load_study_data(study)
+    settings, kfold = _run_settings(study, quick=True)
+    out = []
+    for spec in study.laws:
+        job = make_job(spec, study.noise, ds, study.sampler["name"], settings, study.sampler["seed"])
+        fit, rest = plan_law(job, study, _fold_schemes(study, ds, study.sampler["seed"], kfold))
+        out += [fit.key, *(u.key for u in rest)]
+    return out
+
+
+def _strings(value) -> list[str]:
+    """Every string inside a JSON value."""
+    if isinstance(value, str):
+        return [value]
+    if isinstance(value, dict):
+        return [s for k, v in value.items() for s in (k, *_strings(v))]
+    if isinstance(value, list):
+        return [s for v in value for s in _strings(v)]
+    return []
+
+
+@pytest.mark.slow
+def test_a_project_moved_with_its_reports_reuses_every_unit(tmp_path, serial_run):
+    """The study's folder (study file, data, reports with the run store) copied to another absolute
+    path: its report is current there, and rebuilt without it every unit is reused."""
+    path, reference = serial_run
+    moved = tmp_path / "clone" / "project"
+    shutil.copytree(path.parent, moved, symlinks=True)
+    assert "unchanged" in _finish(_run(moved / path.name, moved / "ref"))
+    shutil.rmtree(moved / "ref" / "tiny")
+    out = _finish(_run(moved / path.name, moved / "ref"))
+    assert set(_statuses(moved / "ref" / "tiny")) == {"reused"}, out[-2000:]
+    assert (moved / "ref" / "tiny" / "ranking.csv").read_text() == (reference / "ranking.csv").read_text()
+
+
+@pytest.mark.slow
+def test_a_moved_project_with_a_law_file_reuses_every_unit(tmp_path):
+    """A law file's fits record where it was; moved, the project's own copy stands for it."""
+    first = tmp_path / "first"
+    first.mkdir()
+    path = _law_file_study(first)
+    _finish(_run(path, first / "reports"))
+    moved = tmp_path / "moved"
+    first.rename(moved)  # the old place is gone
+    shutil.rmtree(moved / "reports" / "tiny")
+    out = _finish(_run(moved / "s.toml", moved / "reports"))
+    assert set(_statuses(moved / "reports" / "tiny")) == {"reused"}, out[-2000:]
+
+
+def _tree(root: Path) -> set[str]:
+    """Every path below ``root`` but the run store's finished entries (a stopped run keeps those
+    for the next one; new ones appear where the code changed since the earlier run)."""
+    return {p.relative_to(root).as_posix() for p in root.rglob("*")
+            if not (".store" in p.parts and not p.name.startswith(".") and p.name.endswith((".nc", ".nc.json")))}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("signum", "status"), [(signal.SIGTERM, 143), (signal.SIGINT, 130)])
+def test_a_signal_mid_run_leaves_nothing_behind(tmp_path, serial_run, signum, status):
+    """SIGTERM or SIGINT while units are computed: the run removes its work folder and temporary
+    files, exits with 128 + the signal's number in one line (no traceback), and leaves alone what
+    it did not create (the earlier report, the store, a folder that looks like a work folder)."""
+    path, _ = serial_run
+    project = tmp_path / "project"
+    shutil.copytree(path.parent, project, symlinks=True)
+    decoy = project / "ref" / ".tiny.0badc0de"  # named like a work folder, not made by bayesfric
+    decoy.mkdir()
+    (decoy / "keep.txt").write_text("not bayesfric's")
+    before = _tree(project)
+    start = time.time()
+    proc = _run(project / path.name, project / "ref", "--fresh")
+    store = project / "ref" / ".store" / "tiny"
+    deadline = time.monotonic() + 300
+    while proc.poll() is None and time.monotonic() < deadline and not any(
+            p.stat().st_mtime > start for p in _entries(store)):
+        time.sleep(0.05)  # signal right after the first unit of this run landed: mid-run
+    assert proc.poll() is None, "the run ended before the signal"
+    assert any(p.name.startswith(".tiny.") and p != decoy for p in (project / "ref").iterdir())  # its work folder
+    os.kill(proc.pid, signum)
+    out, _ = proc.communicate(timeout=120)
+    assert proc.returncode == status, out[-2000:]
+    assert "Traceback" not in out and out.strip().splitlines()[-1].startswith("bayesfric: interrupted")
+    assert _tree(project) == before  # its work folder and temporary files removed, nothing else
+    assert not list(store.glob(".*.tmp"))
+    assert (decoy / "keep.txt").read_text() == "not bayesfric's"

@@ -60,7 +60,6 @@ from __future__ import annotations
 
 import argparse
 from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -68,6 +67,7 @@ import xarray as xr
 
 from bayesfric.datasets.errors import DataError
 from bayesfric.datasets.loader import OBS_DIM, load_dataset
+from bayesfric.datasets.reduce_options import ReduceOptions, add_arguments
 from bayesfric.datasets.reduced_file import Reduction, Segment, write_reduction
 from bayesfric.errors import UserError
 from bayesfric.fsutil import check_output_file
@@ -82,34 +82,6 @@ MAX_RAW_ROWS = 2_000_000
 #: How the standard error of a segment mean is computed (module docstring).
 SE_METHOD = "sd / sqrt(n_eff), n_eff by Geyer's initial monotone sequence (autocorrelation), n_eff <= count"
 _VELOCITIES = ("velocity", "linear_velocity")
-
-
-@dataclass(frozen=True)
-class ReduceOptions:
-    """Settings of a reduction (module docstring, *Algorithm*).
-
-    Parameters
-    ----------
-    on : str
-        Input quantity (or its column name) that is constant within a segment.
-    rtol : float
-        Relative tolerance on ``on``.
-    atol : str, optional
-        Absolute tolerance with its unit (``"0.005 rad/s"``); default from the noise of ``on``.
-    settle : str
-        Transient dropped at each segment start: ``"10%"``, ``"25"`` (rows) or ``"0.5 s"``.
-    min_samples : int
-        Fewest rows a kept segment averages (after settling).
-    keep_standstill : bool
-        Keep velocity segments at rest.
-    """
-
-    on: str = "velocity"
-    rtol: float = 0.02
-    atol: str | None = None
-    settle: str = "10%"
-    min_samples: int = 20
-    keep_standstill: bool = False
 
 
 def mean_se(y: np.ndarray) -> tuple[float, float, float]:
@@ -302,23 +274,6 @@ def _settler(ds: xr.Dataset, text: str) -> Callable[[int, int], int]:
 
 
 # -- command line --------------------------------------------------------------------------------
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """The options of ``bayesfric data reduce`` (defaults: :class:`ReduceOptions`)."""
-    d = ReduceOptions()
-    parser.add_argument("file", help="raw log CSV (sidecar FILE.toml next to it)")
-    parser.add_argument("--meta", help="metadata TOML of the log (default: FILE with .toml suffix)")
-    parser.add_argument("--out", help="reduced CSV to write, its sidecar beside it (default: FILE_reduced.csv)")
-    parser.add_argument("--on", default=d.on, help=f"input held constant in a segment: quantity or column (default "
-                                                   f"{d.on})")
-    parser.add_argument("--rtol", type=float, default=d.rtol, help=f"relative tolerance (default {d.rtol})")
-    parser.add_argument("--atol", help="absolute tolerance with unit, e.g. '0.005 rad/s' (default: 5 noise sds)")
-    parser.add_argument("--settle", default=d.settle, help="dropped at each segment start: '10%%' of it (default), "
-                                                           "'25' rows or '0.5 s' (needs a time input)")
-    parser.add_argument("--min-samples", type=int, default=d.min_samples,
-                        help=f"fewest rows a kept segment averages (default {d.min_samples})")
-    parser.add_argument("--keep-standstill", action="store_true", help="keep velocity segments at rest")
-
-
 def run_command(args: argparse.Namespace) -> None:
     """``bayesfric data reduce``: check the output path, reduce, write, print what was done."""
     src = Path(args.file)

@@ -216,14 +216,34 @@ def load_recorded(attrs: Mapping[str, object]) -> None:
     """Load the law files a fit records (``attrs["law_files"]``, :func:`law_files`) that this
     process has neither loaded nor imported, so its law can be rebuilt by name.
 
+    A recorded file of another place that this process has loaded from here (:func:`_loaded_twin`:
+    the project folder was moved or copied with its reports) is not loaded again.
+
     Raises
     ------
     LawModuleError
         A recorded file that is gone or no longer loads (the fit's law cannot be rebuilt).
     """
     for path in json.loads(str(attrs.get("law_files") or "[]")):
-        if Path(path) not in _LOADED:  # a file imported by name is taken as it is (load_module)
+        if Path(path) not in _LOADED and _loaded_twin(Path(path)) is None:  # an imported one is taken as it is
             load_module(path, label=f"law file of the fit ({path})")
+
+
+def _loaded_twin(path: Path) -> Path | None:
+    """The law file loaded in this process that stands for ``path``, recorded elsewhere: the same
+    file name and, where ``path`` still exists (a copied project), the same bytes; where it is
+    gone (a moved project), the loaded file of that name. A study's reused fits need no more: a
+    unit's key holds its law file's bytes, so a fit reused under it was computed from the file
+    loaded here."""
+    for loaded in _LOADED:
+        if loaded.name != path.name:
+            continue
+        try:
+            if not path.exists() or path.read_bytes() == loaded.read_bytes():
+                return loaded
+        except OSError:
+            continue
+    return None
 
 
 def load_entry_points() -> bool:

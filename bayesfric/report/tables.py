@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-from collections.abc import Mapping
 from dataclasses import dataclass
 
 import arviz_stats
@@ -13,6 +12,7 @@ import xarray as xr
 from bayesfric.hierarchy import spread_of
 from bayesfric.inference.diagnostics import verdict_of
 from bayesfric.laws.base import Law
+from bayesfric.listing import datasets_listing, format_table, law_rows, laws_listing  # noqa: F401 - re-exported
 from bayesfric.quantities import QUANTITIES
 from bayesfric.report.typeset import fmt, unit
 
@@ -95,18 +95,6 @@ def parameter_rows(dt: xr.DataTree, law: Law) -> list[ParameterRow]:
                 float(r[k]), float(e[k]),
             ))
     return rows
-
-
-def format_table(header: list[str], rows: list[list[str]], markdown: bool = False) -> str:
-    """Plain-text (aligned) or Markdown table."""
-    if markdown:
-        lines = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
-        lines += ["| " + " | ".join(r) + " |" for r in rows]
-        return "\n".join(lines)
-    widths = [max(len(str(x)) for x in col) for col in zip(header, *rows, strict=True)]
-    fmt = "  ".join(f"{{:<{w}}}" for w in widths)
-    return "\n".join([fmt.format(*header), fmt.format(*("-" * w for w in widths))]
-                     + [fmt.format(*r) for r in rows])
 
 
 _NOISE_FORM = {
@@ -205,37 +193,3 @@ def retry_note(dt: xr.DataTree) -> str:
     except (TypeError, ValueError):
         return ""
     return f" (sampled again: {retried})" if retried else ""
-
-
-def law_rows(law: Law) -> list[list[str]]:
-    """Rows (law, inputs, parameter, unit, prior, source) describing a declaration."""
-    rows = []
-    for i, (name, p) in enumerate(law.params.items()):
-        shape = f"{name}{list(p.shape)}" if p.shape else name
-        rows.append([law.name if i == 0 else "", ", ".join(law.operating_inputs) if i == 0 else "",
-                     shape, p.unit, str(p.prior), p.source])
-    return rows
-
-
-def laws_listing(laws: list[Law], markdown: bool = False) -> str:
-    """``bayesfric laws``: per family, a table of the laws' parameters (:func:`law_rows`), then one
-    line per law: its summary, source, response and whether it also runs on force data."""
-    from bayesfric.laws.variants import translation_problem
-
-    header = ["law", "inputs", "parameter", "unit", "prior", "source"]
-    out = []
-    for family in sorted({w.family for w in laws}):
-        members = [w for w in laws if w.family == family]
-        out += [f"\n== family {family} ==", format_table(header, [r for w in members for r in law_rows(w)], markdown)]
-        for w in members:
-            problem = translation_problem(w)
-            motion = "also force data (translational)" if problem is None else f"rotary only: {problem}"
-            out.append(f"  {w.name}: {w.summary}  [{w.source}; response {w.response}; {motion}]")
-    return "\n".join(out)
-
-
-def datasets_listing(datasets: Mapping[str, xr.Dataset]) -> str:
-    """``bayesfric data list``: one row per data set (by name): provenance, rows, response, source."""
-    rows = [[name, ds.attrs["provenance"], str(ds.sizes["obs"]), ds.attrs.get("response", ""),
-             ds.attrs.get("source", "")[:90]] for name, ds in datasets.items()]
-    return format_table(["data set", "provenance", "rows", "response", "source"], rows)

@@ -4,8 +4,9 @@ Output goes to ``<out_root>/<study>/`` atomically: everything is written into a 
 work folder ``<out_root>/.<study>.<token>`` that replaces the old report folder only when the
 whole study succeeded, so a failed or interrupted run never leaves a half-written report. Every
 check of the study, its paths and its data runs before anything is written; an existing
-``<out_root>/<study>`` is replaced only if bayesfric created it for this study; work folders of
-killed runs are removed by the next run of the study (:mod:`bayesfric.fsutil`).
+``<out_root>/<study>`` is replaced only if bayesfric created it for this study. A run stopped
+by SIGINT or SIGTERM removes its work folder on the way out; work folders of runs killed outright
+(SIGKILL) are removed by the next run of the study (:mod:`bayesfric.fsutil`).
 
 The work itself is split into units (:mod:`bayesfric.study.units`) that are read back from the run
 store when their key matches and computed otherwise, serially or on Dask
@@ -65,11 +66,36 @@ INPUTS_FILE = ".bayesfric-inputs"
 
 
 
+def _portable(raw: dict) -> dict:
+    """A study's tables without the places they name (:func:`_inputs_key` of a study built in
+    Python): each law file as the SHA-256 of its bytes, the data set as its file name (its
+    content is in every unit key)."""
+    out = json.loads(json.dumps(raw, default=str))
+    section = out.get("study") if isinstance(out.get("study"), dict) else {}
+    files = []
+    for name in section.get("modules") or []:
+        try:
+            files.append(hashlib.sha256(Path(str(name)).read_bytes()).hexdigest())
+        except OSError:
+            files.append(Path(str(name)).name)
+    if files:
+        section["modules"] = files
+    data = out.get("data") if isinstance(out.get("data"), dict) else {}
+    if isinstance(data.get("dataset"), str):
+        data["dataset"] = Path(data["dataset"]).name
+    return out
+
+
 def _inputs_key(study: Study, plans: list, quick: bool) -> str:
-    """SHA-256 of everything a report is rendered from: the study file, every unit key (data,
-    laws, priors, settings, seed, computing code) and every source file and template."""
-    text = study.path.read_bytes() if study.path.is_file() else json.dumps(study.raw, sort_keys=True).encode()
-    digest = hashlib.sha256(text)  # a study built in Python (bayesfric.Study) has no file: its keys
+    """SHA-256 of everything a report is rendered from: the study file's bytes, every unit key
+    (data, laws, priors, settings, seed, computing code) and every source file and template.
+
+    No absolute path enters it (nor a unit key: :func:`bayesfric.fingerprint.data_fingerprint`),
+    so a project folder moved or copied with its ``reports/`` finds its report current.
+    """
+    text = (study.path.read_bytes() if study.path.is_file()
+            else json.dumps(_portable(study.raw), sort_keys=True).encode())
+    digest = hashlib.sha256(text)  # a study built in Python (bayesfric.Study) has no file: its tables
     digest.update(json.dumps({"quick": quick, "units": [[u.key for u in (fit, *rest)] for _, fit, rest in plans]},
                              sort_keys=True).encode())
     digest.update(package_fingerprint().encode())

@@ -19,7 +19,7 @@ from bayesfric.study.runner import run_study
 from tests.report.browser import PHONE, WIDTH, find_chromium, inspect_page
 from tests.report.fakes import outcome, write_bench_study, write_outcome
 
-INSTALL = "apt-get install -y chromium (scripts/bootstrap.sh does it when missing)"
+INSTALL = "apt-get install -y chromium (`make test` does it when missing: scripts/bootstrap.sh --browser)"
 
 
 def chromium() -> str:
