@@ -184,7 +184,7 @@ def _estimate(program: Program, seed: int, draws: int, df: float, inflation: flo
     for _ in range(adapt_rounds):  # population Monte Carlo: refit the proposal to weighted draws
         _, x, log_w = _importance_round(log_joint, loc, scale, df, draws, rng)
         loc, cov = _weighted_moments(x, log_w)
-        scale = inflation * cov
+        scale = _proper(inflation * cov)
     proposal, x, log_w = _importance_round(log_joint, loc, scale, df, draws, rng)
     log_z = float(logsumexp(log_w) - np.log(draws))
     w = np.exp(log_w - np.max(log_w))
@@ -203,6 +203,17 @@ def _estimate(program: Program, seed: int, draws: int, df: float, inflation: flo
                     "finite-difference Hessian, in numpyro's unconstrained space",
     }
     return log_z, rel_se, diagnostics
+
+
+def _proper(cov: np.ndarray) -> np.ndarray:
+    """``cov`` itself, or with its eigenvalues floored at 1e-8 × the largest where a few dominant
+    weights left it (near-)singular: a short run's proposal must stay a proper distribution (a
+    singular one raised LinAlgError in a ``--quick`` study)."""
+    vals, vecs = np.linalg.eigh(cov)
+    floor = 1e-8 * max(float(np.max(np.abs(vals))), 1e-12)
+    if vals.min() >= floor:
+        return cov
+    return (vecs * np.maximum(vals, floor)) @ vecs.T
 
 
 def _importance_round(log_joint, loc, scale, df, draws, rng):

@@ -146,3 +146,17 @@ def test_mode_search_stops_once_two_starts_agree_and_keeps_the_better_mode():
     mode, f, _, used = _mode(neg_and_grad, np.array([[-2.5], [2.5], [-1.5], [1.5], [3.0]]))
     # -2.5 and -1.5 agree, but only on a worse optimum than +2.5's: the fourth start confirms +2
     assert used == 4 and mode[0] == pytest.approx(2, abs=1e-4) and f == pytest.approx(0.0, abs=1e-6)
+
+
+def test_a_singular_adapted_proposal_is_made_proper_and_a_proper_one_is_left_alone():
+    """Population Monte Carlo refits the proposal's scale to weighted draws; a few dominant weights
+    leave it singular, which the multivariate t refuses: its eigenvalues are floored instead."""
+    import numpy as np
+
+    from bayesfric.compare.importance import _proper
+
+    singular = np.array([[1.0, 1.0], [1.0, 1.0]])
+    fixed = _proper(singular)
+    np.testing.assert_allclose(np.linalg.eigvalsh(fixed), [2e-8, 2.0], rtol=1e-6)
+    proper = np.diag([1.0, 1e-3])
+    assert _proper(proper) is proper
