@@ -302,6 +302,9 @@ def build_program(
     """
     configure()  # x64 and the persistent compilation cache, on first use
     law = for_data(law, ds)  # the data's motion kind; optional inputs it lacks (laws.variants)
+    if law.trajectory and (ds.attrs.get("reduced_from") or response_se(ds) is not None):
+        raise DataError(f"law {law.name!r} is a trajectory (stateful) law, but data set {ds.attrs.get('name', '?')!r} "
+                        "holds segment means of a steady-state reduction, not a trajectory: fit it on the raw log")
     inputs, response = law_inputs(ds, law), response_values(ds, law)  # a missing input, before priors
     noise = noise or Noise()
     declared = law.default_priors() | _spread_priors(law, law.default_priors(), {}, strict=False) | {

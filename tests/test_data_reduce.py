@@ -21,6 +21,7 @@ import pytest
 from bayesfric.cli import main
 from bayesfric.datasets import load_dataset
 from bayesfric.datasets.reduce import ReduceOptions, find_segments, mean_se, reduce_log, write_reduction
+from bayesfric.errors import DataError
 from bayesfric.laws import get_law
 from bayesfric.model import Noise, build_program
 
@@ -126,6 +127,9 @@ def test_written_files_load_and_carry_the_reduction(tmp_path):
     assert ds.attrs["reduced_from"].startswith("raw.csv (sha256 ")
     unsettled = reduce_log(csv, options=ReduceOptions(settle="0", min_samples=30))
     assert [s.first - u.first for s, u in zip(red.segments, unsettled.segments, strict=True)] == [20, 20]  # 200 Hz
+    # segment means are no trajectory: a stateful law is refused in one line, naming the data set
+    with pytest.raises(DataError, match="trajectory .stateful. law, but data set .* segment means"):
+        build_program(get_law("dahl"), ds)
 
 
 def test_reduced_likelihood_by_hand(dataset_factory):
