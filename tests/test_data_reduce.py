@@ -252,3 +252,41 @@ def test_study_on_reduction_ranks_laws_as_on_raw_log(tmp_path, monkeypatch):
     assert elpd["armstrong_helouvry"][0] - max(elpd["coulomb"][0], elpd["coulomb_viscous"][0]) > 5, elpd
     (viscous, se_v), (coulomb, se_c) = elpd["coulomb_viscous"], elpd["coulomb"]
     assert viscous > coulomb - max(se_v, se_c), elpd  # not reversed beyond one standard error
+
+
+def _sweep_log(folder: Path, seconds: float = 120.0) -> Path:
+    """A raw log whose speed sweeps without holding (a trajectory, no plateaus): AR(1) noise as raw_log."""
+    rng = np.random.default_rng(3)
+    t = np.arange(0.0, seconds, 1 / 200.0)
+    v = 1.0 + 0.8 * np.sin(2 * np.pi * t / 30.0)
+    noise = np.zeros(t.size)
+    for k in range(1, t.size):
+        noise[k] = 0.8 * noise[k - 1] + rng.normal(0.0, 0.3)
+    rpm = v * 60.0 / (2.0 * np.pi)
+    folder.mkdir(parents=True, exist_ok=True)
+    csv = folder / "raw.csv"
+    csv.write_text("t_s,speed,torque\n" + "\n".join(f"{a:.6g},{b:.7g},{c:.6g}" for a, b, c in
+                                                     zip(t, rpm, truth(v, 2.0) + noise, strict=True)) + "\n")
+    csv.with_suffix(".toml").write_text(SIDECAR)
+    return csv
+
+
+def test_the_command_states_the_plateau_share_and_warns_on_a_log_without_plateaus(tmp_path, capsys):
+    """Plateaus: the share of the log averaged and the segments' sizes, no warning. A sweep: a
+    warning naming the low effective sample size; with --strict exit 2 and nothing written."""
+    csv, _ = raw_log(tmp_path / "steps", speeds=(0.1, 1.0), signs=(1,), plateau=250)
+    assert main(["data", "reduce", str(csv)]) == 0
+    out = capsys.readouterr().out
+    assert re.search(r"\d+ rows averaged, \d+% of the log", out) and "median effective sample size" in out
+    assert "WARNING" not in out
+    sweep = _sweep_log(tmp_path / "sweep")
+    assert main(["data", "reduce", str(sweep)]) == 0
+    out = capsys.readouterr().out
+    assert "WARNING: the" in out and "not plateaus" in out
+    (sweep.parent / "raw_reduced.csv").unlink()
+    (sweep.parent / "raw_reduced.toml").unlink()
+    before = sorted(p.name for p in sweep.parent.iterdir())
+    assert main(["data", "reduce", str(sweep), "--strict"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--strict: nothing written" in err
+    assert sorted(p.name for p in sweep.parent.iterdir()) == before

@@ -74,7 +74,7 @@ from bayesfric.fsutil import check_output_file
 from bayesfric.quantities import QUANTITIES, UnitError, conversion
 
 __all__ = ["ReduceOptions", "Segment", "Reduction", "MAX_RAW_ROWS", "SE_METHOD", "find_segments", "mean_se",
-           "reduce_log", "write_reduction", "add_arguments", "run_command"]
+           "reduce_log", "write_reduction", "add_arguments", "run_command", "plateau_warning", "PLATEAU_N_EFF"]
 
 #: Largest --min-samples accepted. A raw log itself has no row limit but the memory its text needs
 #: to load (:func:`bayesfric.limits.load_problem`).
@@ -287,8 +287,38 @@ def run_command(args: argparse.Namespace) -> None:
         check_output_file(target)
     options = ReduceOptions(args.on, args.rtol, args.atol, args.settle, args.min_samples, args.keep_standstill)
     red = reduce_log(src, meta, options)
+    warning = plateau_warning(red)
+    if warning and getattr(args, "strict", False):
+        raise UserError(f"{src}: {warning} (--strict: nothing written)")
     csv_out, sidecar = write_reduction(red, out, meta)
     r = red.record
+    share = r["rows_used"] / max(1, r["rows_total"])
     print(f"{src}: {r['rows_total']} rows -> {r['segments']} segments of constant {r['on']} ({r['rows_used']} rows "
-          f"averaged; tolerance max({r['rtol']:g} * |level|, {r['atol']}), settle {r['settle']})")
+          f"averaged, {share:.0%} of the log; tolerance max({r['rtol']:g} * |level|, {r['atol']}), "
+          f"settle {r['settle']})")
+    if red.segments:
+        rows = np.median([s.stop - s.first for s in red.segments])
+        n_eff = np.median([s.n_eff for s in red.segments])
+        print(f"segments: median {rows:.0f} rows, median effective sample size {n_eff:.1f}")
+    if warning:
+        print(f"WARNING: {warning}")
     print(f"written {csv_out} and {sidecar}")
+
+
+#: Median effective sample size of a reduction's segments below which they are not read as
+#: plateaus: standard errors from so few effectively independent rows run ~20 % low (module docstring).
+PLATEAU_N_EFF = 20.0
+
+
+def plateau_warning(red: Reduction) -> str:
+    """Why a reduction's segments do not look like constant-input plateaus (``""`` when they do):
+    none kept, or a median effective sample size below :data:`PLATEAU_N_EFF` (a trajectory that
+    only passes through each level, cut into many short pieces)."""
+    if not red.segments:
+        return f"no segment of constant {red.on} was found: the log has no plateaus to average"
+    n_eff = float(np.median([s.n_eff for s in red.segments]))
+    if n_eff >= PLATEAU_N_EFF:
+        return ""
+    return (f"the {len(red.segments)} segments have a median effective sample size of {n_eff:.1f} (< "
+            f"{PLATEAU_N_EFF:g}): the log passes through {red.on} levels rather than holding them, so these "
+            "are not plateaus and their standard errors run low; fit the raw log (a trajectory study) instead")

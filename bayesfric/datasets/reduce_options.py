@@ -56,3 +56,5 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--min-samples", type=int, default=d.min_samples,
                         help=f"fewest rows a kept segment averages (default {d.min_samples})")
     parser.add_argument("--keep-standstill", action="store_true", help="keep velocity segments at rest")
+    parser.add_argument("--strict", action="store_true",
+                        help="refuse (exit 2, nothing written) a log whose segments are too short to be plateaus")
