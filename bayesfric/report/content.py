@@ -178,9 +178,15 @@ def _checks(t: TreeView) -> Table:
             warn.append(i)
     header = ["law", "diagnostics", "p_loo", "Pareto k > thr", "LOO-PIT p", "unphysical prior draws",
               "prior sensitivity", "flags", "fit file"]
-    return Table("Checks per law. ⚠ = LOO-PIT outside its simultaneous band (miscalibrated), with the direction read "
-                 "from the PIT values (bayesfric.compare.pit: too narrow, too wide, biased); each flagged law's "
-                 "LOO-PIT figure follows." + checks_note(t), header, rows, warn)
+    return Table("Checks per law. LOO-PIT: two tests of whether each point's leave-one-out predictive is calibrated; "
+                 "⚠ = the PIT values' ECDF leaves its simultaneous 99 % band (the test that decides, sensitive to a "
+                 "local departure), with the direction read from the PIT values (bayesfric.compare.pit: too narrow, "
+                 "too wide, biased); 'LOO-PIT p' is the Kolmogorov–Smirnov p-value of the same values, for reference "
+                 "(a whole-curve test: a ⚠ beside p > 0.05 means the band caught what KS averaged out). Each flagged "
+                 "law's LOO-PIT figure follows. Unphysical prior draws: the share of draws from the priors whose "
+                 "friction has the wrong sign or is not finite somewhere on the data or the tested envelope (a "
+                 "weakly informative prior allows some; a large share means the priors, not the data, may shape "
+                 "extrapolation)." + checks_note(t), header, rows, warn)
 
 
 def _structure(t: TreeView) -> Table | None:
