@@ -138,6 +138,8 @@ class Study(config.Study):
         Report title and the question the study answers.
     select : mapping, optional
         ``[data] select``: rows to keep.
+    every : int
+        ``[data] every``: keep one row in ``every`` (of each trajectory, its first row kept).
     noise : str, mapping or Noise, optional
         ``[noise]``: ``"proportional"``, ``{"kind": "normal", "group": "series"}``.
     sampler, compare : mapping, optional
@@ -170,6 +172,7 @@ class Study(config.Study):
 
     def __init__(self, name: str, data: str | Path, *, laws: Sequence[str | Law | Mapping[str, Any]],
                  title: str | None = None, question: str | None = None, select: Mapping[str, Any] | None = None,
+                 every: int = 1,
                  noise: Any = None, sampler: Mapping[str, Any] | None = None,
                  compare: Mapping[str, Any] | None = None, sizing: Sequence[Mapping[str, Any]] = (),
                  claims: Sequence[Mapping[str, Any]] = (), modules: Sequence[str | Path] = ()) -> None:
@@ -186,7 +189,8 @@ class Study(config.Study):
         meta = {"name": name, "title": title, "question": question,
                 "modules": _plain(list(modules)) + [f for f in files if f not in _plain(list(modules))] or None}
         raw = {"study": {k: v for k, v in meta.items() if v is not None},
-               "data": {"dataset": str(data)} | ({"select": _plain(select)} if select else {}),
+               "data": {"dataset": str(data)} | ({"select": _plain(select)} if select else {})
+                       | ({"every": every} if every != 1 else {}),
                "laws": entries,
                "sizing": [_sizing_entry(where, i, x) for i, x in enumerate(sizing)],
                "claims": _plain(list(claims))}

@@ -13,7 +13,8 @@ from bayesfric.laws.base import TRAJECTORY_START, Law
 from bayesfric.priors import DataScale
 from bayesfric.quantities import DERIVED_POSITIONS, QUANTITIES
 
-__all__ = ["law_inputs", "response_values", "response_se", "data_scale", "select", "trajectory_starts", "travel"]
+__all__ = ["law_inputs", "response_values", "response_se", "data_scale", "select", "thin", "trajectory_starts",
+           "travel"]
 
 
 def trajectory_starts(ds: xr.Dataset) -> np.ndarray:
@@ -103,6 +104,30 @@ def travel(speed: np.ndarray, time: np.ndarray, starts: np.ndarray) -> np.ndarra
     total = np.cumsum(np.where(np.isfinite(steps), steps, 0.0))
     first = np.maximum.accumulate(np.where(starts, np.arange(v.size), 0))
     return total - total[first]
+
+
+def thin(ds: xr.Dataset, every: int = 1) -> xr.Dataset:
+    """Every ``every``-th row, counted within each trajectory from its first row (which is kept, so
+    a stateful law still starts each trajectory where it starts); ``ds`` itself for 1.
+
+    A large log's neighbouring rows carry little information each (autocorrelated noise); thinning
+    keeps its span and shape at a fraction of the cost. Derived inputs (an acceleration) were
+    computed on the full log when it was loaded.
+
+    Examples
+    --------
+    >>> from bayesfric.datasets.synthetic import make_dataset
+    >>> ds = make_dataset({"velocity": np.arange(10.0)}, np.ones(10))
+    >>> thin(ds, 3)["velocity"].values.tolist()
+    [0.0, 3.0, 6.0, 9.0]
+    """
+    if every == 1:
+        return ds
+    starts = trajectory_starts(ds) if ds.attrs.get("trajectory") else np.eye(1, ds.sizes[OBS_DIM], dtype=bool)[0]
+    position = np.arange(ds.sizes[OBS_DIM]) - np.maximum.accumulate(np.where(starts, np.arange(starts.size), 0))
+    out = ds.isel({OBS_DIM: np.flatnonzero(position % every == 0)})
+    out.attrs = dict(ds.attrs, selection=f"{ds.attrs.get('selection', 'all rows')}; one row in {every}")
+    return out
 
 
 def select(ds: xr.Dataset, where: Mapping[str, Any] | None = None) -> xr.Dataset:

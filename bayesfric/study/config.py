@@ -346,5 +346,5 @@ def study_from_raw(path: Path, raw: dict[str, Any]) -> Study:
         grouped=compare["grouped"] or _group_column(laws, noise), evidence=compare["evidence"], smc=compare["smc"],
         smc_particles=compare["smc_particles"],
         smc_runs=compare["smc_runs"], blocked=blocked, include_failed=compare["include_failed"],
-        failed_fits=compare["failed_fits"], sizing=sizing, claims=claims, raw=raw,
+        failed_fits=compare["failed_fits"], sizing=sizing, claims=claims, raw=raw, every=data["every"],
     )

@@ -16,6 +16,7 @@ from typing import Any
 
 from bayesfric import compare, fsutil, limits, sizing
 from bayesfric.datasets import DataError, load_dataset, resolve, select
+from bayesfric.datasets.views import thin
 from bayesfric.laws.variants import for_data
 from bayesfric.model import build_program
 from bayesfric.priors import PriorError
@@ -157,9 +158,10 @@ def load_study_data(study: Study):
     except DataError as exc:
         raise StudyError(f"{study.path}: [data] dataset: {exc}") from None
     try:
-        return select(ds, study.select)
+        ds = select(ds, study.select)
     except DataError as exc:
         raise StudyError(f"{study.path}: [data] select: {exc}") from None
+    return thin(ds, study.every)
 
 
 def _fold_schemes(study: Study, ds, seed: int, kfold: int) -> list[tuple[str, object, str]]:

@@ -59,6 +59,8 @@ STUDY = Schema((
 DATA = Schema((
     Field("dataset", "str", REQUIRED, doc="built-in data set or CSV path relative to the study file"),
     Field("select", "table", {}, items="value", doc="rows whose coordinates equal these values"),
+    Field("every", "int", 1, min=1, doc="keep every n-th row (of each trajectory, its first row kept): thins a "
+                                        "large log"),
 ))
 NOISE = Schema((
     Field("kind", "str", "normal", choices=get_args(get_type_hints(Noise)["kind"]),

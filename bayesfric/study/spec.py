@@ -120,3 +120,4 @@ class Study:
     sizing: list[SizingQuestion] = field(default_factory=list)
     claims: list[Claim] = field(default_factory=list)
     raw: dict[str, Any] = field(default_factory=dict)
+    every: int = 1  # [data] every: keep every n-th row (datasets.views.thin)
