@@ -12,6 +12,7 @@ sampler settings, comparison methods and extrapolation folds::
     [data]
     dataset = "robot_joint"            # built-in name or a CSV path (relative to the study file)
     select = { series = [1, 2, 3] }    # optional row selection on coordinates
+    every = 1                          # keep one row in n (a large log), per trajectory from its start
 
     [noise]
     kind = "normal"                    # normal | student_t | proportional | ar1 (AR(1) along trajectories)
