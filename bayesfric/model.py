@@ -302,11 +302,9 @@ def build_program(
     """
     configure()  # x64 and the persistent compilation cache, on first use
     law = for_data(law, ds)  # the data's motion kind; optional inputs it lacks (laws.variants)
-    if law.trajectory and (ds.attrs.get("reduced_from") or response_se(ds) is not None):
-        raise DataError(f"law {law.name!r} is a trajectory (stateful) law, but data set {ds.attrs.get('name', '?')!r} "
-                        "holds segment means of a steady-state reduction, not a trajectory: fit it on the raw log")
-    inputs, response = law_inputs(ds, law), response_values(ds, law)  # a missing input, before priors
     noise = noise or Noise()
+    chain_start = _chain_starts(law, noise, ds)  # rows that are no trajectory, before a missing input
+    inputs, response = law_inputs(ds, law), response_values(ds, law)  # a missing input, before priors
     declared = law.default_priors() | _spread_priors(law, law.default_priors(), {}, strict=False) | {
         k: NOISE_PRIORS[k] for k in noise.sites()}
     for name, spec in (priors or {}).items():
@@ -330,15 +328,6 @@ def build_program(
             raise DataError(f"noise group {noise.group!r} is not a coordinate of the dataset")
         labels_arr, group_index = np.unique(np.asarray(ds[noise.group].values), return_inverse=True)
         labels = labels_arr.tolist()
-    chain_start, se = None, response_se(ds)
-    if noise.kind == "ar1" and se is not None:
-        raise DataError(f"noise kind 'ar1' does not apply to data set {ds.attrs.get('name', '?')!r}: its rows carry "
-                        f"standard errors (segment means of a reduction), independent, not a trajectory")
-    if noise.kind == "ar1":
-        if not ds.attrs.get("trajectory"):
-            raise DataError(f"noise kind 'ar1' needs ordered trajectories, but data set "
-                            f"{ds.attrs.get('name', '?')!r} names no trajectory group")
-        chain_start = trajectory_starts(ds)
     return Program(
         law=law,
         noise=noise,
@@ -351,9 +340,35 @@ def build_program(
         group_index=group_index,
         group_labels=labels,
         chain_start=chain_start,
-        response_se=se,
+        response_se=response_se(ds),
         groupings=groupings_of(law, ds),
     )
+
+
+def _chain_starts(law: Law, noise: Noise, ds: xr.Dataset) -> np.ndarray | None:
+    """Each trajectory's first row where the noise model needs it (``ar1``), else None.
+
+    Raises
+    ------
+    DataError
+        A trajectory law or ``ar1`` noise on rows that are no trajectory: segment means of a
+        steady-state reduction (rows with standard errors), or, for ``ar1``, data naming no
+        trajectory group.
+    """
+    name = ds.attrs.get("name", "?")
+    reduced = bool(ds.attrs.get("reduced_from")) or response_se(ds) is not None
+    if law.trajectory and reduced:
+        raise DataError(f"law {law.name!r} is a trajectory (stateful) law, but data set {name!r} holds segment "
+                        "means of a steady-state reduction, not a trajectory: fit it on the raw log")
+    if noise.kind != "ar1":
+        return None
+    if reduced:
+        raise DataError(f"noise kind 'ar1' does not apply to data set {name!r}: its rows carry standard errors "
+                        "(segment means of a reduction), independent, not a trajectory")
+    if not ds.attrs.get("trajectory"):
+        raise DataError(f"noise kind 'ar1' needs ordered trajectories, but data set {name!r} names no trajectory "
+                        "group")
+    return trajectory_starts(ds)
 
 
 def _spread_priors(law: Law, declared: Mapping[str, Prior], given: Mapping[str, Any],
