@@ -67,6 +67,10 @@ def validate_against_data(study: Study, ds) -> None:
     if study.noise.kind == "ar1" and not ds.attrs.get("trajectory"):
         raise StudyError(f"{where}: [noise] kind: 'ar1' needs ordered trajectories, but the data "
                          "names no trajectory group")
+    for i, spec in enumerate(study.laws):  # before [compare] grouped, which defaults to such a column
+        if missing := [c for c in spec.vary_by if c not in coords]:
+            raise StudyError(f"{where}: laws[{i}].vary_by: {missing[0]!r} is not a column of the data "
+                             f"({', '.join(sorted(coords))})")
     if study.grouped and study.grouped not in coords:
         raise StudyError(f"{where}: [compare] grouped: {study.grouped!r} is not a coordinate of the data "
                          f"({', '.join(sorted(coords))})")

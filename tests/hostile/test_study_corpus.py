@@ -270,6 +270,17 @@ CASES = [
     C("argparse-bad-choice", FIT + ("--sampler", "hmc"), "--sampler", "invalid choice"),
     C("argparse-no-command", (), "required"),
     C("argparse-study-no-file", ("study",), "study:", "required: file"),
+    # -- group terms (vary_by) and thinning ([data] every) ------------------------------------------------
+    S("vary-by-unknown-parameter", {"laws.0.vary_by": {"series": ["nope"]}}, "laws[0].vary_by.series",
+      "no sampled parameter 'nope'"),
+    S("vary-by-not-list", {"laws.0.vary_by": {"series": 3}}, "laws[0].vary_by"),
+    S("vary-by-empty", {"laws.0.vary_by": {"series": []}}, "laws[0].vary_by.series"),
+    S("vary-by-two-columns", {"laws.0.vary_by": {"series": ["T_C"], "run": ["T_C"]}}, "laws[0].vary_by",
+      "varies by both"),
+    S("vary-by-missing-column", {"laws.0.vary_by": {"unit": ["T_C"]}}, "laws[0].vary_by", "'unit' is not a column"),
+    S("vary-by-bad-column-name", {"laws.0.vary_by": {"a b": ["T_C"]}}, "laws[0].vary_by", "not a plain name"),
+    S("every-zero", {"data.every": 0}, "[data] every", "≥ 1"),
+    S("every-string", {"data.every": "ten"}, "[data] every", "integer"),
 ]
 
 
