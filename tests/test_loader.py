@@ -224,7 +224,7 @@ def test_a_file_too_large_for_the_memory_is_refused_from_its_size_before_reading
 def test_builtin_data_sets_load():
     from bayesfric.datasets import builtin_names, load_builtin
 
-    seeds = {"dahl_duplex", "drum_rollout", "pitch_bearing", "robot_joint", "unwinder"}  # from the papers
+    seeds = {"dahl_duplex", "drum_campaigns", "drum_rollout", "pitch_bearing", "robot_joint", "unwinder"}  # papers
     examples = {"asym_joint", "gms_loops", "tribo_loops"}  # simulated with known truth (studies/examples/)
     names = builtin_names()
     assert set(names) == seeds | examples
