@@ -53,6 +53,7 @@ import numpyro.distributions as dist
 
 from bayesfric.laws.base import Law
 from bayesfric.priors import Prior, PriorError
+from bayesfric.trend import coordinates, forecast_u, sample_levels, span
 
 __all__ = ["Grouping", "NEW_LEVEL", "SPREAD", "CENTRED_ROWS", "REAL_SPREAD", "hyperprior", "site_names",
            "group_sites", "law_mean", "elementwise", "spread_of", "level_values", "mean_draws", "groupings_of"]
@@ -102,9 +103,28 @@ def groupings_of(law: Law, ds) -> dict[str, Grouping]:
         if column not in ds.coords:
             raise DataError(f"law {law.name!r} varies by {column!r}, which is not a column of data set "
                             f"{ds.attrs.get('name', '?')!r}", column)
-        labels, index = np.unique(np.asarray(ds[column].values).astype(str), return_inverse=True)
-        out[column] = Grouping(tuple(str(v) for v in labels), np.asarray(index, dtype=int).reshape(-1))
+        labels, index = _levels(np.asarray(ds[column].values))
+        if column in law.trending.values():
+            try:
+                coordinates(labels)
+            except ValueError as exc:
+                raise DataError(f"law {law.name!r} follows a trend over {column!r}: {exc}", column) from None
+        out[column] = Grouping(labels, index)
     return out
+
+
+def _levels(values: np.ndarray) -> tuple[tuple[str, ...], np.ndarray]:
+    """Level labels and each row's level: in numeric order where every label is a number (campaigns
+    at 500 h before 1000 h), else in text order."""
+    labels, inverse = np.unique(values.astype(str), return_inverse=True)
+    try:
+        order = np.argsort([float(v) for v in labels], kind="stable")
+    except ValueError:
+        order = np.arange(labels.size)
+    rank = np.empty(labels.size, dtype=int)
+    rank[order] = np.arange(labels.size)
+    labels, index = labels[order], rank[np.asarray(inverse).reshape(-1)]
+    return tuple(str(v) for v in labels), np.asarray(index, dtype=int).reshape(-1)
 
 
 def spread_of(law: Law, name: str) -> tuple[str, str] | None:
@@ -125,8 +145,13 @@ def spread_of(law: Law, name: str) -> tuple[str, str] | None:
 def site_names(law: Law, groupings: Mapping[str, Grouping]) -> dict[str, tuple[str, str, str]]:
     """Parameter -> (spread site, level site: ``p_u`` centred or ``p_z`` non-centred, per-level
     deterministic site ``p_<column>``)."""
-    return {p: (f"{p}_sd", f"{p}_{'u' if groupings[col].centred else 'z'}", f"{p}_{col}")
+    return {p: (f"{p}_sd", f"{p}_{'u' if _centred(law, p, groupings) else 'z'}", f"{p}_{col}")
             for p, col in law.varying.items()}
+
+
+def _centred(law: Law, p: str, groupings: Mapping[str, Grouping]) -> bool:
+    """Whether ``p``'s levels are sampled centred: by its column's rows per level; a walk never."""
+    return bool(groupings[law.varying[p]].centred) and not (p in law.trending and law.trend_form == "walk")
 
 
 def hyperprior(prior: Prior, name: str) -> Prior:
@@ -167,6 +192,12 @@ def group_sites(law: Law, resolved: Mapping[str, Prior], groupings: Mapping[str,
         column = law.varying[p]
         sd = numpyro.sample(sd_site, resolved[sd_site].to_numpyro())
         t = _bijection(resolved[p])
+        if p in law.trending:
+            tau = coordinates(groupings[column].labels) / span(coordinates(groupings[column].labels))
+            u = sample_levels(resolved[p], law.trend_form, (f"{p}_trend", level, column),
+                              resolved.get(f"{p}_trend"), params[p], sd, tau, _centred(law, p, groupings))
+            out[p] = numpyro.deterministic(values_site, t(u))
+            continue
         with numpyro.plate(column, groupings[column].size):
             if groupings[column].centred:
                 u = numpyro.sample(level, dist.Normal(t.inv(params[p]), sd))
@@ -204,11 +235,14 @@ def law_mean(law: Law, inputs: Mapping[str, Any], params: Mapping[str, Any], con
 
 def level_values(law: Law, resolved: Mapping[str, Prior], posterior: Mapping[str, np.ndarray],
                  group: str | None, labels: Mapping[str, tuple[str, ...]], rng: np.random.Generator,
-                 ) -> dict[str, np.ndarray]:
+                 service: Mapping[str, float] | None = None, scatter: bool = True) -> dict[str, np.ndarray]:
     """Flat draws ``(S,)`` of every law parameter for one level: a new one (``group=None``: one
     standard-normal draw per posterior draw and parameter) or the named existing level.
 
     ``posterior`` maps site names to flat draws ``(S, ...)``; ``labels`` each column's level labels.
+    A parameter with a trend (:mod:`bayesfric.trend`) is forecast for a new campaign at
+    ``service[column]`` (default: the last fitted campaign's coordinate); ``scatter=False`` gives
+    the typical campaign there (the trend itself, no campaign-to-campaign scatter).
 
     Raises
     ------
@@ -218,9 +252,16 @@ def level_values(law: Law, resolved: Mapping[str, Prior], posterior: Mapping[str
     out = {p: np.asarray(posterior[p], dtype=float) for p in law.params}
     for p in law.varying:
         sd_site, level_site = f"{p}_sd", f"{p}_{law.varying[p]}"
+        if group is None and p in law.trending:
+            column, t = law.trending[p], _bijection(resolved[p])
+            at = (service or {}).get(column, max(coordinates(labels[column])))
+            z = rng.normal(size=out[p].shape) if scatter else np.zeros(out[p].shape)
+            u = forecast_u(resolved[p], law.trend_form, {**posterior, p: out[p]}, p, column, labels[column], at, z)
+            out[p] = np.asarray(t(jnp.asarray(u)), dtype=float)
+            continue
         if group is None:
             t = _bijection(resolved[p])
-            z = rng.normal(size=out[p].shape)
+            z = rng.normal(size=out[p].shape) if scatter else np.zeros(out[p].shape)
             out[p] = np.asarray(t(t.inv(jnp.asarray(out[p])) + jnp.asarray(posterior[sd_site]) * z), dtype=float)
             continue
         known = labels[law.varying[p]]
@@ -230,7 +271,8 @@ def level_values(law: Law, resolved: Mapping[str, Prior], posterior: Mapping[str
     return out
 
 
-def mean_draws(program, posterior, group: str | None = None, seed: int = 0, chunk: int | None = None) -> np.ndarray:
+def mean_draws(program, posterior, group: str | None = None, seed: int = 0, chunk: int | None = None,
+               service: Mapping[str, float] | None = None, scatter: bool = True) -> np.ndarray:
     """The law's mean function at ``program``'s rows for every posterior draw, ``(S, n)``.
 
     Parameters
@@ -249,6 +291,12 @@ def mean_draws(program, posterior, group: str | None = None, seed: int = 0, chun
         Seed of the new level's draws.
     chunk : int, optional
         Draws evaluated together (default: at most ``limits.CHUNK_NUMBERS`` draws × rows).
+    service : mapping of str to float, optional
+        For a law with a trend: the new campaign's service coordinate by column (default: the
+        last fitted campaign's).
+    scatter : bool
+        False: the typical new level (no between-level scatter: the trend itself, or the
+        typical value of a group term).
 
     Examples
     --------
@@ -258,7 +306,7 @@ def mean_draws(program, posterior, group: str | None = None, seed: int = 0, chun
 
     flat, labels = _flat(posterior), _labels(posterior)
     law, rng = program.law, np.random.default_rng(seed)
-    values = level_values(law, program.resolved, flat, group, labels, rng)
+    values = level_values(law, program.resolved, flat, group, labels, rng, service, scatter)
     inputs = {k: jnp.asarray(v) for k, v in program.inputs.items()}
     n, s = program.n_obs, len(next(iter(values.values())))
     size = chunk or max(1, CHUNK_NUMBERS // max(1, n))

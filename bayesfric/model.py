@@ -55,6 +55,7 @@ from bayesfric.noise import AR1Residuals
 from bayesfric.priors import DataScale, Prior, PriorError, resolve_all
 from bayesfric.runtime import configure
 from bayesfric.studentt import StudentT
+from bayesfric.trend import trend_prior
 
 __all__ = ["Noise", "Program", "build_program", "program_from_fit", "program_of_fit", "program_record", "OBS_SITE",
            "NOISE_PRIORS"]
@@ -260,6 +261,8 @@ class Program:
     def parameter_names(self) -> list[str]:
         """Law parameters, derived quantities, between-group spreads, then noise parameters (report order)."""
         spreads = [f"{p}_sd" for p in self.law.varying]
+        if self.law.trend_form != "walk":
+            spreads += [f"{p}_trend" for p in self.law.trending]
         return list(self.law.params) + list(self.law.derived) + spreads + list(self.noise.sites())
 
 
@@ -387,6 +390,8 @@ def _spread_priors(law: Law, declared: Mapping[str, Prior], given: Mapping[str, 
             if strict:
                 raise
             out[sd] = Prior("HalfNormal", scale=1.0)  # a placeholder name only: replaced or refused below
+    if law.trend_form != "walk":  # a trend's slope (bayesfric.trend)
+        out |= {f"{p}_trend": trend_prior(declared[p], p) for p in law.trending if f"{p}_trend" not in given}
     return out
 
 

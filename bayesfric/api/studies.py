@@ -66,7 +66,7 @@ def _law_object(where: str, law: Law, files: list[str]) -> dict[str, Any]:
     if REGISTRY.get(law.name) is law:
         return {"name": law.name}
     if law.recipe:
-        if unknown := set(law.recipe) - {"base", "add", "fixed", "asymmetric", "vary_by"}:
+        if unknown := set(law.recipe) - {"base", "add", "fixed", "asymmetric", "vary_by", "trend", "trend_form"}:
             raise config.StudyError(f"{where}: variant {law.name!r} ({', '.join(sorted(unknown))}) is made for "
                                     "one data set; give the law it was made from")
         files.extend(f for f in law_files(law) if f not in files)  # of its base and added laws

@@ -25,7 +25,7 @@ from bayesfric.compare.evidence import (
     compare_estimators,
     smc_log_evidence,
 )
-from bayesfric.compare.folds import Folds, blocked_masks, grouped_masks, kfold_masks
+from bayesfric.compare.folds import Folds, blocked_masks, forecast_masks, grouped_masks, kfold_masks
 from bayesfric.compare.importance import laplace_is_log_evidence
 from bayesfric.compare.loo import LooResult, Penalty, extrapolation_penalty, psis_loo
 from bayesfric.compare.pit import PitShape, pit_shape
@@ -39,7 +39,7 @@ __all__ = [
     "BayesFactors", "CVResult", "EstimatorAgreement", "Evidence", "Folds", "LooResult", "Penalty",
     "PitCheck", "PitShape", "PlausibilityReport", "RankingSensitivity", "RecoveryResult", "RefitEngine", "Weights",
     "averaged_predictive", "bayes_factors", "blocked_masks", "bridge_log_evidence", "compare_estimators",
-    "cross_validate", "extrapolation_penalty", "grouped_masks", "kfold_masks", "laplace_is_log_evidence",
+    "cross_validate", "extrapolation_penalty", "forecast_masks", "grouped_masks", "kfold_masks", "laplace_is_log_evidence",
     "loo_pit_check", "model_recovery", "pit_shape",
     "model_weights", "power_scaled_loo", "prior_predictive_check", "fit_prior_draws", "prior_sensitivity", "psis_loo",
     "ranking_sensitivity", "smc_log_evidence", "verdict_of", "StructureCheck", "residual_structure",

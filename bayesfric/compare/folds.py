@@ -48,7 +48,7 @@ import xarray as xr
 
 from bayesfric.datasets.loader import OBS_DIM, DataError
 
-__all__ = ["Folds", "kfold_masks", "grouped_masks", "blocked_masks"]
+__all__ = ["Folds", "kfold_masks", "grouped_masks", "forecast_masks", "blocked_masks"]
 
 
 @dataclass(frozen=True)
@@ -173,6 +173,50 @@ def grouped_masks(ds: xr.Dataset, group: str) -> Folds:
                             "trajectories")
     heldout = np.stack([index == f for f in range(levels.size)])
     return Folds(~heldout, heldout, f"leave one {group} out", [f"{group}={v}" for v in levels])
+
+
+def forecast_masks(ds: xr.Dataset, column: str, first: int = 2) -> Folds:
+    """Leave-future-out over ordered campaigns: fold ``k`` trains on the campaigns before the
+    ``k``-th (in the order of the service coordinate ``column``) and scores the ``k``-th, for
+    ``k = first … K−1``: the forecast a user makes of the next campaign, scored on each.
+
+    Later campaigns are neither trained on nor scored (their levels stay at their prior, which
+    does not touch the scored forecast). Each campaign must hold whole trajectories.
+
+    Raises
+    ------
+    DataError
+        ``column`` is not a coordinate, its values are not numbers, there are not more than
+        ``first`` campaigns, or a trajectory spans two campaigns.
+
+    Examples
+    --------
+    >>> forecast_masks(ds, "hours", first=3).labels     # doctest: +SKIP
+    ['hours=3000', 'hours=4000']
+    """
+    if column not in ds.coords:
+        raise DataError(f"dataset has no coordinate {column!r} to forecast along")
+    labels, index = np.unique(np.asarray(ds[column].values).astype(str), return_inverse=True)
+    try:
+        order = np.argsort([float(v) for v in labels], kind="stable")
+    except ValueError:
+        raise DataError(f"campaign column {column!r} must hold one number per campaign (hours, cycles); "
+                        f"got {labels[0]!r}") from None
+    rank = np.empty(labels.size, dtype=int)
+    rank[order] = np.arange(labels.size)
+    position = rank[np.asarray(index).reshape(-1)]
+    if labels.size <= first:
+        raise DataError(f"{column!r} has {labels.size} campaigns; leave-future-out needs more than {first} "
+                        "(the first ones to train on)")
+    unit, _ = _units(ds)
+    for u in np.unique(unit):
+        if np.unique(position[unit == u]).size > 1:
+            raise DataError(f"campaign {column!r} splits a trajectory; each campaign must hold whole trajectories")
+    ks = range(first, labels.size)
+    train = np.stack([position < k for k in ks])
+    heldout = np.stack([position == k for k in ks])
+    return Folds(train, heldout, f"leave future {column} out (each campaign forecast from those before it; "
+                 f"the first {first} only trained on)", [f"{column}={labels[order[k]]}" for k in ks])
 
 
 def blocked_masks(

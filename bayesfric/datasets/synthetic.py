@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -130,4 +130,47 @@ def simulate_runs(
     labels = np.array([f"r{i}" for i in run])
     ds = simulate(law, tiled, {p: v[run] for p, v in truth.items()}, sigma=sigma, seed=seed,
                   groups={column: labels}, name=f"simulated_runs_{law.name}")
+    return ds, truth
+
+
+def simulate_campaigns(
+    law: Law,
+    inputs: Mapping[str, np.ndarray],
+    params: Mapping[str, Any],
+    service: Sequence[float],
+    spread: Mapping[str, float],
+    *,
+    sigma: float,
+    seed: int = 0,
+    column: str = "hours",
+) -> tuple[xr.Dataset, dict[str, np.ndarray]]:
+    """Simulate test campaigns of a steady law at the same ``inputs``, one per service coordinate.
+
+    ``params[p]`` is a number or a function of the service coordinate (the true trend); a
+    parameter named in ``spread`` takes, per campaign, that value times ``exp(spread[p] · z)``,
+    ``z ~ Normal(0, 1)`` (campaign-to-campaign scatter). Rows are grouped by ``column``, whose
+    labels are the campaigns' coordinates. Returns the data set and each parameter's values per
+    campaign.
+
+    Examples
+    --------
+    >>> from bayesfric.laws import get_law
+    >>> ds, truth = simulate_campaigns(get_law("coulomb_viscous"), {"velocity": np.linspace(0.1, 2, 10)},
+    ...                                {"T_C": lambda t: 2.0 + 1e-3 * t, "c_v": 1.0}, [0, 500, 1000],
+    ...                                {"T_C": 0.05}, sigma=0.05, seed=1)
+    >>> ds.sizes["obs"], truth["T_C"].shape
+    (30, (3,))
+    """
+    hours = np.asarray(service, dtype=float)
+    rng = np.random.default_rng([seed, hours.size])
+    truth = {}
+    for p, v in params.items():
+        trend = np.asarray([float(v(t)) for t in hours]) if callable(v) else np.full(hours.size, float(v))
+        truth[p] = trend * np.exp(spread[p] * rng.normal(size=hours.size)) if p in spread else trend
+    n = len(next(iter(inputs.values())))
+    level = np.repeat(np.arange(hours.size), n)
+    tiled = {k: np.tile(np.asarray(v, dtype=float), hours.size) for k, v in inputs.items()}
+    labels = np.array([f"{t:g}" for t in hours])[level]
+    ds = simulate(law, tiled, {p: v[level] for p, v in truth.items()}, sigma=sigma, seed=seed,
+                  groups={column: labels}, name=f"simulated_campaigns_{law.name}")
     return ds, truth

@@ -211,10 +211,43 @@ class Law:
         name = self.name if self.name.endswith(f"_by_{group}") else f"{self.name}_by_{group}"
         return self._vary(vary_by={group: list(names)}, name=name)
 
+    def trend(self, coordinate: str, *names: str, form: str = "linear") -> Law:
+        """This law with the named parameters following a trend over a service coordinate (the
+        operating hours, cycles or date of each test campaign), partially pooled about it:
+        ``law.trend("hours", "T_C", form="linear")``.
+
+        The data column ``coordinate`` holds one number per campaign; each campaign is a level whose
+        values scatter about the trend as :meth:`vary_by`'s levels scatter about the typical value.
+        ``form``: ``"linear"`` (the parameter grows by a fixed amount per unit of service),
+        ``"loglinear"`` (by a fixed factor) or ``"walk"`` (a random walk: no trend shape assumed)
+        (:mod:`bayesfric.trend`). Forecasts answer for a new campaign at a later service time. The
+        variant is named ``<law>_trend_<coordinate>``.
+
+        Examples
+        --------
+        >>> from bayesfric.laws import get_law
+        >>> get_law("coulomb_viscous").trend("hours", "T_C").trending
+        {'T_C': 'hours'}
+        """
+        name = self.name if self.name.endswith(f"_trend_{coordinate}") else f"{self.name}_trend_{coordinate}"
+        return self._vary(trend={coordinate: list(names)}, trend_form=form, name=name)
+
     @property
     def varying(self) -> dict[str, str]:
-        """Parameter -> the data column whose levels it varies between (:meth:`vary_by`); empty if none."""
-        return {p: col for col, names in self.recipe.get("vary_by", {}).items() for p in names}
+        """Parameter -> the data column whose levels it varies between (:meth:`vary_by`, and the
+        service coordinate of a :meth:`trend`); empty if none."""
+        return {p: col for key in ("vary_by", "trend") for col, names in self.recipe.get(key, {}).items()
+                for p in names}
+
+    @property
+    def trending(self) -> dict[str, str]:
+        """Parameter -> the service coordinate it follows a trend over (:meth:`trend`); empty if none."""
+        return {p: col for col, names in self.recipe.get("trend", {}).items() for p in names}
+
+    @property
+    def trend_form(self) -> str:
+        """The form of the law's trends: ``linear``, ``loglinear`` or ``walk`` (:mod:`bayesfric.trend`)."""
+        return str(self.recipe.get("trend_form", "linear"))
 
     def __add__(self, other: Law | str) -> Law:
         """This law plus another law or a term (``"offset"``, ``"viscous"``), named ``a+b``."""

@@ -32,6 +32,11 @@ beyond that declaration is a *variant*, built here from a small recipe and valid
     parameter varies by one column; a trajectory (stateful) law, or one with vector parameters,
     by one column at most (it is evaluated once per level). Applied
     last, so it names the parameters as the variant has them (``T_C_pos``, ``offset``).
+``trend``, ``trend_form``
+    Trends over a service coordinate: ``{column: [parameters]}`` with the column holding one
+    number per test campaign (operating hours, cycles); each campaign is a level that scatters
+    about a ``linear`` (default), ``loglinear`` or ``walk`` trend (:mod:`bayesfric.trend`). A
+    column is a group or a trend column, not both; the one-column rule of ``vary_by`` counts both.
 ``motion``
     ``"translational"``: the law declared on rotary quantities runs on force data. Inputs map
     ``velocity → linear_velocity``, ``angle → displacement``, the response ``torque → force``;
@@ -41,7 +46,7 @@ beyond that declaration is a *variant*, built here from a small recipe and valid
     (time, preload, temperature) are unchanged. A law that cannot run translationally says why
     (:func:`translation_problem`).
 
-The order of application is fixed: add, asymmetric, fixed, without, motion, vary_by. :func:`for_data`
+The order of application is fixed: add, asymmetric, fixed, without, motion, vary_by and trend. :func:`for_data`
 adds the data-dependent steps (motion, missing optional inputs) to a law's recipe; the recipe is
 stored with every fit so the variant can be rebuilt (:func:`law_of_fit`).
 
@@ -93,11 +98,13 @@ def _part(name: str) -> Law:
 
 
 # -- recipes -------------------------------------------------------------------------------------
-_KEYS = ("base", "add", "asymmetric", "fixed", "without", "motion", "vary_by")
+_KEYS = ("base", "add", "asymmetric", "fixed", "without", "motion", "vary_by", "trend", "trend_form")
+TREND_FORMS = ("linear", "loglinear", "walk")
 
 
 def build(recipe: Mapping[str, Any], name: str | None = None) -> Law:
-    """The law a recipe describes (keys: base, add, asymmetric, fixed, without, motion, vary_by).
+    """The law a recipe describes (keys: base, add, asymmetric, fixed, without, motion, vary_by,
+    trend, trend_form).
 
     Raises
     ------
@@ -127,37 +134,49 @@ def build(recipe: Mapping[str, Any], name: str | None = None) -> Law:
         law = ops.translational(law)
     elif recipe.get("motion", "rotary") != "rotary":
         raise VariantError(f"motion {recipe['motion']!r}: not 'rotary' or 'translational'")
-    if recipe.get("vary_by"):
-        _check_vary_by(law, recipe["vary_by"])
+    if recipe.get("vary_by") or recipe.get("trend"):
+        _check_vary_by(law, recipe.get("vary_by", {}), recipe.get("trend", {}))
+    if recipe.get("trend_form", "linear") not in TREND_FORMS or (recipe.get("trend_form") and not recipe.get("trend")):
+        raise VariantError(f"trend_form {recipe.get('trend_form')!r}: not one of {', '.join(TREND_FORMS)}, or no "
+                           "trend to shape", "trend_form")
     clean = {k: recipe[k] for k in _KEYS if recipe.get(k)}
     return dataclasses.replace(law, name=name or str(recipe["base"]), recipe=clean)
 
 
-def _check_vary_by(law: Law, vary_by: Mapping[str, Sequence[str]]) -> None:
-    """Every group term names scalar, sampled parameters of ``law``, each under one column."""
-    if not isinstance(vary_by, Mapping):
-        raise VariantError("vary_by must map a data column to a list of parameters", "vary_by")
+def _check_vary_by(law: Law, vary_by: Mapping[str, Sequence[str]], trend: Mapping[str, Sequence[str]]) -> None:
+    """Every group term and trend names scalar, sampled parameters of ``law``, each under one column."""
     seen: dict[str, str] = {}
-    for column, names in vary_by.items():
-        if not isinstance(column, str) or not column.isidentifier():
-            raise VariantError(f"group column {column!r} is not a plain name", "vary_by")
-        if isinstance(names, str) or not names:
-            raise VariantError(f"vary_by.{column} must be a non-empty list of parameter names", f"vary_by.{column}")
-        for name in names:
-            if name not in law.params:
-                raise VariantError(f"law {law.name!r} has no sampled parameter {name!r} to vary by {column!r}; "
-                                   f"parameters: {', '.join(law.params)}", f"vary_by.{column}")
-            if law.params[name].shape:
-                raise VariantError(f"parameter {name!r} of law {law.name!r} is a vector; only scalar parameters "
-                                   "can vary between groups", f"vary_by.{column}")
-            if name in seen:
-                raise VariantError(f"parameter {name!r} varies by both {seen[name]!r} and {column!r}",
-                                   f"vary_by.{column}")
-            seen[name] = column
+    for key, table in (("vary_by", vary_by), ("trend", trend)):
+        if not isinstance(table, Mapping):
+            raise VariantError(f"{key} must map a data column to a list of parameters", key)
+        for column, names in table.items():
+            _check_group_entry(law, key, column, names, seen)
+    columns = set(vary_by) | set(trend)
+    if set(vary_by) & set(trend):
+        raise VariantError(f"column(s) {sorted(set(vary_by) & set(trend))} both a group and a trend column", "trend")
     per_level = law.trajectory or any(p.shape for p in law.params.values())  # bayesfric.hierarchy.elementwise
-    if per_level and len(vary_by) > 1:
+    if per_level and len(columns) > 1:
         raise VariantError(f"law {law.name!r} (a trajectory law or one with vector parameters) can vary by one "
-                           f"group column, not {len(vary_by)}", "vary_by")
+                           f"group column, not {len(columns)}", "trend" if trend else "vary_by")
+
+
+def _check_group_entry(law: Law, key: str, column: Any, names: Any, seen: dict[str, str]) -> None:
+    what = "group" if key == "vary_by" else "service-coordinate"
+    if not isinstance(column, str) or not column.isidentifier():
+        raise VariantError(f"{what} column {column!r} is not a plain name", key)
+    if isinstance(names, str) or not names:
+        raise VariantError(f"{key}.{column} must be a non-empty list of parameter names", f"{key}.{column}")
+    for name in names:
+        if name not in law.params:
+            raise VariantError(f"law {law.name!r} has no sampled parameter {name!r} to vary by {column!r}; "
+                               f"parameters: {', '.join(law.params)}", f"{key}.{column}")
+        if law.params[name].shape:
+            raise VariantError(f"parameter {name!r} of law {law.name!r} is a vector; only scalar parameters "
+                               "can vary between groups", f"{key}.{column}")
+        if name in seen:
+            raise VariantError(f"parameter {name!r} varies by both {seen[name]!r} and {column!r}",
+                               f"{key}.{column}")
+        seen[name] = column
 
 
 def _merge(first: Mapping[str, Any], then: Mapping[str, Any]) -> dict[str, Any]:
@@ -165,19 +184,22 @@ def _merge(first: Mapping[str, Any], then: Mapping[str, Any]) -> dict[str, Any]:
     for key in ("add", "asymmetric", "without"):
         out[key] = list(first.get(key, ())) + [v for v in then.get(key, ()) if v not in first.get(key, ())]
     out["fixed"] = dict(first.get("fixed", {})) | dict(then.get("fixed", {}))
-    groups = {c: list(v) for c, v in first.get("vary_by", {}).items()}
-    for column, names in then.get("vary_by", {}).items():
-        groups[column] = groups.get(column, []) + [n for n in names if n not in groups.get(column, [])]
-    out["vary_by"] = groups
-    if "motion" in then:
-        out["motion"] = then["motion"]
+    for key in ("vary_by", "trend"):
+        groups = {c: list(v) for c, v in first.get(key, {}).items()}
+        for column, names in then.get(key, {}).items():
+            groups[column] = groups.get(column, []) + [n for n in names if n not in groups.get(column, [])]
+        out[key] = groups
+    for key in ("motion", "trend_form"):
+        if key in then:
+            out[key] = then[key]
     return {k: v for k, v in out.items() if v}
 
 
 def vary(law: Law, *, name: str | None = None, add: Sequence[str] = (), offset: bool = False,
          asymmetric: Sequence[str] = (), fixed: Mapping[str, float] | None = None,
          without: Sequence[str] = (), motion: str | None = None,
-         vary_by: Mapping[str, Sequence[str]] | None = None) -> Law:
+         vary_by: Mapping[str, Sequence[str]] | None = None, trend: Mapping[str, Sequence[str]] | None = None,
+         trend_form: str | None = None) -> Law:
     """A variant of ``law`` (see the module docstring); ``law`` itself if nothing is asked.
 
     Parameters
@@ -186,14 +208,17 @@ def vary(law: Law, *, name: str | None = None, add: Sequence[str] = (), offset: 
         A registered law or a variant (its recipe is extended).
     name : str, optional
         The variant's name (the label of a study entry); default the law's name.
-    add, offset, asymmetric, fixed, without, motion, vary_by
+    add, offset, asymmetric, fixed, without, motion, vary_by, trend, trend_form
         As in the module docstring.
     """
     asked = {"add": list(add) + (["offset"] if offset and "offset" not in add else []),
              "asymmetric": list(asymmetric), "fixed": dict(fixed or {}), "without": list(without),
-             "vary_by": {str(c): list(v) for c, v in (vary_by or {}).items()}}
+             "vary_by": {str(c): list(v) for c, v in (vary_by or {}).items()},
+             "trend": {str(c): list(v) for c, v in (trend or {}).items()}}
     if motion is not None:
         asked["motion"] = motion
+    if trend_form is not None:
+        asked["trend_form"] = trend_form
     asked = {k: v for k, v in asked.items() if v}
     if not asked and (name is None or name == law.name):
         return law
@@ -267,6 +292,9 @@ def describe(law: Law) -> str:
         parts.append("translational")
     for column, names in r.get("vary_by", {}).items():
         parts.append(f"{', '.join(names)} vary by {column} (partial pooling)")
+    for column, names in r.get("trend", {}).items():
+        parts.append(f"{', '.join(names)} follow a {r.get('trend_form', 'linear')} trend over {column} "
+                     "(campaigns partially pooled about it)")
     return "; ".join(parts)
 
 

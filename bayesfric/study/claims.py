@@ -198,7 +198,7 @@ def _form(tree: xr.DataTree, label: str) -> dict:
         return {"label": label}
     attrs = tree[f"fits/{label}"].attrs
     recipe = json.loads(attrs.get("law_recipe") or "{}") or {"base": str(attrs.get("law", label))}
-    return {k: v for k, v in recipe.items() if k != "vary_by"}
+    return {k: v for k, v in recipe.items() if k not in ("vary_by", "trend", "trend_form")}
 
 
 def evaluate_claims(claims: list[Claim], tree: xr.DataTree) -> list[ClaimResult]:

@@ -44,11 +44,15 @@ sampler settings, comparison methods and extrapolation folds::
     fixed = { delta = 1.0 }            # hold parameters (or constants) at a value, SI units
     vary_by = { series = ["T_C"] }     # group terms: T_C varies between series, partially pooled
                                        # (answers are then for a new series; bayesfric.hierarchy)
+    trend = { hours = ["T_C"] }        # T_C follows a trend over the campaigns' service hours
+    trend_form = "linear"              # linear | loglinear | walk (bayesfric.trend)
 
     [compare]
     loo = true
     kfold = 10                         # 0 disables; else 2 … number of points (or trajectories)
     grouped = "series"                 # leave-one-group-out (default: the column a law varies by)
+    forecast = "hours"                 # leave-future-out over campaigns (default: a law's trend column)
+    forecast_first = 2                 # campaigns only trained on before the first forecast
     evidence = true                    # bridge sampling + Laplace-t importance sampling (two estimators)
     smc = false                        # also tempered SMC as a reference (opt-in: 3-13x the fit's cost)
     smc_particles = 300                # SMC particles per run (default 300, at least 20)
@@ -192,9 +196,9 @@ def _added(entry: dict[str, Any]) -> tuple[str, ...]:
     return add + (("offset",) if entry["offset"] and "offset" not in add else ())
 
 
-def _groups(entry: dict[str, Any]) -> dict[str, tuple[str, ...]]:
-    """The entry's group terms: column -> the parameters that vary between its levels."""
-    return {str(k): _listed(v) for k, v in entry.get("vary_by", {}).items()}
+def _groups(entry: dict[str, Any], key: str = "vary_by") -> dict[str, tuple[str, ...]]:
+    """The entry's group terms (or ``trend``s): column -> the parameters that vary between its levels."""
+    return {str(k): _listed(v) for k, v in entry.get(key, {}).items()}
 
 
 def _variant(where: str, entry: dict[str, Any]) -> Law:
@@ -202,7 +206,8 @@ def _variant(where: str, entry: dict[str, Any]) -> Law:
     law = get_law(entry["name"])
     for key, options in (("add", {"add": _added(entry)}), ("asymmetric", {"asymmetric": _listed(entry["asymmetric"])}),
                          ("constants", {"fixed": entry["constants"]}), ("fixed", {"fixed": entry["fixed"]}),
-                         ("vary_by", {"vary_by": _groups(entry)})):
+                         ("vary_by", {"vary_by": _groups(entry)}),
+                         ("trend", {"trend": _groups(entry, "trend"), "trend_form": entry.get("trend_form")})):
         if key == "constants" and (bad := [c for c in entry["constants"] if c not in law.constants]):
             raise StudyError(f"{where}.constants.{bad[0]}: law {law.name!r} has no constant {bad[0]!r} "
                              f"(constants: {', '.join(law.constants) or 'none'})")
@@ -218,7 +223,8 @@ def _law_spec(path: Path, i: int, entry: dict[str, Any], noise: Noise, modules: 
     """Law-specific checks of a parsed ``[[laws]]`` entry: options, parameter and constant names, priors."""
     where = f"{path}: laws[{i}]"
     law = _variant(where, entry)
-    known = list(law.params) + [f"{p}_sd" for p in law.varying] + list(noise.sites())
+    known = (list(law.params) + [f"{p}_sd" for p in law.varying] + [f"{p}_trend" for p in law.trending]
+             + list(noise.sites()))
     priors = {}
     for pname, spec in entry["priors"].items():
         if pname not in known:
@@ -230,7 +236,8 @@ def _law_spec(path: Path, i: int, entry: dict[str, Any], noise: Noise, modules: 
             raise StudyError(f"{where}.{exc.within(f'priors.{pname}')}") from None
     return LawSpec(entry["label"] or entry["name"], priors, dict(entry["constants"]), law=entry["name"],
                    fixed=dict(entry["fixed"]), add=_added(entry), asymmetric=_listed(entry["asymmetric"]),
-                   vary_by=_groups(entry), metric=entry["metric"], modules=modules)
+                   vary_by=_groups(entry), trend=_groups(entry, "trend"), trend_form=entry.get("trend_form"),
+                   metric=entry["metric"], modules=modules)
 
 
 def _sizing_question(path: Path, i: int, entry: dict[str, Any]) -> SizingQuestion:
@@ -313,6 +320,13 @@ def _group_column(laws: list[LawSpec], noise: Noise) -> str | None:
     return columns[0] if columns else None
 
 
+def _trend_column(laws: list[LawSpec]) -> str | None:
+    """The column leave-future-out folds along when ``[compare] forecast`` is not given: the
+    first service coordinate a law follows a trend over; None without trends."""
+    columns = [c for w in laws for c in w.trend]
+    return columns[0] if columns else None
+
+
 def study_from_raw(path: Path, raw: dict[str, Any]) -> Study:
     """Validate a study given as the parsed TOML (``raw``; :func:`load_study` reads it from
     ``path``, :class:`bayesfric.Study` builds it from Python objects). ``path`` names the study
@@ -345,6 +359,7 @@ def study_from_raw(path: Path, raw: dict[str, Any]) -> Study:
         question=meta["question"], dataset=dataset, select=data["select"], noise=noise,
         sampler=spec["sampler"], laws=laws, loo=compare["loo"], kfold=compare["kfold"],
         grouped=compare["grouped"] or _group_column(laws, noise), evidence=compare["evidence"], smc=compare["smc"],
+        forecast=compare["forecast"] or _trend_column(laws), forecast_first=compare["forecast_first"],
         smc_particles=compare["smc_particles"],
         smc_runs=compare["smc_runs"], blocked=blocked, include_failed=compare["include_failed"],
         failed_fits=compare["failed_fits"], sizing=sizing, claims=claims, raw=raw, every=data["every"],

@@ -68,9 +68,10 @@ def validate_against_data(study: Study, ds) -> None:
         raise StudyError(f"{where}: [noise] kind: 'ar1' needs ordered trajectories, but the data "
                          "names no trajectory group")
     for i, spec in enumerate(study.laws):  # before [compare] grouped, which defaults to such a column
-        if missing := [c for c in spec.vary_by if c not in coords]:
-            raise StudyError(f"{where}: laws[{i}].vary_by: {missing[0]!r} is not a column of the data "
-                             f"({', '.join(sorted(coords))})")
+        for key, columns in (("vary_by", spec.vary_by), ("trend", spec.trend)):
+            if missing := [c for c in columns if c not in coords]:
+                raise StudyError(f"{where}: laws[{i}].{key}: {missing[0]!r} is not a column of the data "
+                                 f"({', '.join(sorted(coords))})")
     if study.grouped and study.grouped not in coords:
         raise StudyError(f"{where}: [compare] grouped: {study.grouped!r} is not a coordinate of the data "
                          f"({', '.join(sorted(coords))})")
@@ -169,7 +170,8 @@ def load_study_data(study: Study):
 
 
 def _fold_schemes(study: Study, ds, seed: int, kfold: int) -> list[tuple[str, object, str]]:
-    """(label, Folds, kind) for every CV scheme the study asks for; kind: kfold, grouped or blocked.
+    """(label, Folds, kind) for every CV scheme the study asks for; kind: kfold, grouped, forecast or
+    blocked.
 
     ``kfold`` is the number of random folds to use (the study's, or fewer under ``--quick``).
     A scheme the data cannot support (one group level, a cut with no point on one side) is a
@@ -185,6 +187,12 @@ def _fold_schemes(study: Study, ds, seed: int, kfold: int) -> list[tuple[str, ob
         except (DataError, ValueError) as exc:
             raise StudyError(f"{where}: [compare] grouped: {exc}") from None
         schemes.append((f"leave-one-{study.grouped}-out", folds, "grouped"))
+    if study.forecast:
+        try:
+            folds = compare.forecast_masks(ds, study.forecast, study.forecast_first)
+        except (DataError, ValueError) as exc:
+            raise StudyError(f"{where}: [compare] forecast: {exc}") from None
+        schemes.append((f"leave-future-{study.forecast}-out", folds, "forecast"))
     for i, b in enumerate(study.blocked):
         try:
             folds = compare.blocked_masks(ds, b.axis, threshold=b.threshold, quantile=b.quantile,
@@ -236,6 +244,42 @@ def _check_claims(study: Study, labels: list[str], ds) -> None:
             raise StudyError(f"{study.path}: claims[{i}].{exc}") from None
         if problem := basis_problem(claim, provenance):
             raise StudyError(f"{study.path}: claims[{i}].basis: {problem}")
+
+
+def _companion(spec, checks: list, taken: set[str]):
+    """The reduced variant of ``spec`` where its failed checks name one (None otherwise, or where its
+    label is taken, or a reduced parameter varies by a group or a trend)."""
+    suffix, fixed = identifiability.reduction(checks)
+    label = f"{spec.name}_{suffix}"
+    grouped = {p for terms in (spec.vary_by, getattr(spec, "trend", {})) for ps in terms.values() for p in ps}
+    if not fixed or label in taken or set(fixed) & grouped:
+        return None
+    return dataclasses.replace(spec, name=label, fixed=spec.fixed | fixed, companion_of=spec.name,
+                               priors={k: v for k, v in spec.priors.items() if k not in fixed})
+
+
+def with_identifiability(study: Study, ds) -> Study:
+    """``study`` (a copy) with each law's identifiability checks on ``ds``
+    (:func:`bayesfric.identifiability.assess`, in ``identifiability``) and, under ``[compare]
+    companions = true``, the reduced variant of each law whose parameters the data do not
+    determine as a companion entry after the study's own (labelled ``<label>_<reduction>``,
+    e.g. ``lugre_Fs_eq_Fc``), checked against the data as the study's entries are."""
+    out = copy.copy(study)
+    out.identifiability, added = [], []
+    taken = {spec.name for spec in study.laws}
+    for spec in study.laws:
+        law = for_data(spec.build(), ds)
+        program = build_program(law, ds, priors=spec.priors, noise=study.noise)
+        checks = identifiability.assess(law, spec.law or spec.name, ds, program.resolved)
+        out.identifiability += checks
+        companion = _companion(spec, checks, taken) if study.companions and not spec.companion_of else None
+        if companion is not None:
+            added.append(companion)
+            taken.add(companion.name)
+    if added:
+        out.laws = list(study.laws) + added
+        validate_against_data(out, ds)
+    return out
 
 
 def _prepare(path: str | Path | Study, out_root: str | Path, quick: bool):

@@ -109,6 +109,12 @@ LAW = Schema((
               (f"{k}: {problem}" for k, v in t.items() if (problem := _names(v))), None),
           doc="group terms: column -> parameters that vary between its levels, partially pooled "
               '(e.g. { run = ["T_C", "c_v"] }); answers are then for a new level'),
+    Field("trend", "table", {}, items="value", rule=lambda t: next(
+              (f"{k}: {problem}" for k, v in t.items() if (problem := _names(v))), None),
+          doc="trends over a service coordinate: column (one number per campaign: hours, cycles) -> parameters "
+              'that follow a trend across campaigns, partially pooled about it (e.g. { hours = ["T_C"] })'),
+    Field("trend_form", "str", None, choices=("linear", "loglinear", "walk"),
+          doc="the trends' form: linear (default), loglinear or walk (random walk; bayesfric.trend)"),
     Field("metric", "str", None, choices=METRICS,
           doc="NUTS mass matrix of this law, over [sampler] metric (dense for strongly correlated coefficients)"),
 ))
@@ -124,6 +130,8 @@ COMPARE = Schema((
     Field("loo", "bool", True, doc="PSIS-LOO"),
     Field("kfold", "int", 0, min=0, rule=_kfold, doc="random K-fold folds (0: off)"),
     Field("grouped", "str", None, doc="leave-one-group-out coordinate"),
+    Field("forecast", "str", None, doc="leave-future-out over campaigns: the service-coordinate column (hours)"),
+    Field("forecast_first", "int", 2, min=1, doc="campaigns only trained on before the first forecast"),
     Field("evidence", "bool", True, doc="bridge sampling + Laplace-t importance sampling"),
     Field("smc", "bool", False, doc="tempered SMC reference estimator (opt-in: 3-13x the fit)"),
     Field("smc_particles", "int", 300, min=20, doc="SMC particles per run"),

@@ -44,8 +44,11 @@ class LawSpec:
     add: tuple[str, ...] = ()
     asymmetric: tuple[str, ...] = ()
     vary_by: dict[str, tuple[str, ...]] = field(default_factory=dict)  # group terms (bayesfric.hierarchy)
+    trend: dict[str, tuple[str, ...]] = field(default_factory=dict)  # trends over campaigns (bayesfric.trend)
+    trend_form: str | None = None
     metric: str | None = None  # this law's NUTS mass matrix, over [sampler] metric
     modules: tuple[str, ...] = ()  # the study's law files (absolute): loaded before the name is resolved
+    companion_of: str = ""  # added by the study: the reduced variant of this entry (bayesfric.identifiability)
 
     def settings(self, study_settings: dict[str, Any]) -> dict[str, Any]:
         """The sampler settings this law runs with: the study's, with the entry's own metric."""
@@ -65,7 +68,8 @@ class LawSpec:
         if built is None:
             load_modules(self.modules)
             built = vary(get_law(self.law or self.name), name=self.name, add=self.add,
-                         asymmetric=self.asymmetric, fixed=self.constants | self.fixed, vary_by=self.vary_by)
+                         asymmetric=self.asymmetric, fixed=self.constants | self.fixed, vary_by=self.vary_by,
+                         trend=self.trend, trend_form=self.trend_form)
             object.__setattr__(self, "_built", built)  # a cache, not a field: frozen otherwise
         return built
 
@@ -110,6 +114,8 @@ class Study:
     loo: bool = True
     kfold: int = 0
     grouped: str | None = None
+    forecast: str | None = None  # leave-future-out over campaigns (compare.forecast_masks)
+    forecast_first: int = 2
     evidence: bool = True
     smc: bool = False  # opt-in reference: tempered SMC costs 3-13x the fit (bench_evidence.py)
     smc_particles: int = 300  # tempered SMC: within ~0.1 nat of bridge sampling at ~1/5 the cost of 1000

@@ -242,7 +242,7 @@ def _compute_rest(job: LawJob, unit: Unit, fit: xr.DataTree) -> xr.Dataset:
         folds = compare.Folds(np.asarray(p["train"]), np.asarray(p["heldout"]), p["scheme"], p["labels"])
         return cv_dataset(compare.cross_validate(_engine(job, fit, warm=passed and p["kind"] == "kfold"), folds,
                                                  seed=job.seed, predictive=p["kind"] == "blocked",
-                                                 joint=p["kind"] == "grouped"))
+                                                 joint=p["kind"] in ("grouped", "forecast")))
     program = _program(job)
     if unit.stage == "bridge":
         return evidence_dataset(compare.bridge_log_evidence(program, fit, seed=job.seed))
