@@ -145,13 +145,18 @@ def spread_of(law: Law, name: str) -> tuple[str, str] | None:
 def site_names(law: Law, groupings: Mapping[str, Grouping]) -> dict[str, tuple[str, str, str]]:
     """Parameter -> (spread site, level site: ``p_u`` centred or ``p_z`` non-centred, per-level
     deterministic site ``p_<column>``)."""
-    return {p: (f"{p}_sd", f"{p}_{'u' if _centred(law, p, groupings) else 'z'}", f"{p}_{col}")
-            for p, col in law.varying.items()}
+    return {p: (f"{p}_sd", f"{p}_{_level_kind(law, p, groupings)}", f"{p}_{col}") for p, col in law.varying.items()}
+
+
+def _level_kind(law: Law, p: str, groupings: Mapping[str, Grouping]) -> str:
+    """``u`` (centred), ``z`` (non-centred) or ``w`` (a centred walk's later levels, :mod:`bayesfric.trend`)."""
+    if not groupings[law.varying[p]].centred:
+        return "z"
+    return "w" if p in law.trending and law.trend_form == "walk" else "u"
 
 
 def _centred(law: Law, p: str, groupings: Mapping[str, Grouping]) -> bool:
-    """Whether ``p``'s levels are sampled centred: by its column's rows per level; a walk never."""
-    return bool(groupings[law.varying[p]].centred) and not (p in law.trending and law.trend_form == "walk")
+    return _level_kind(law, p, groupings) != "z"
 
 
 def hyperprior(prior: Prior, name: str) -> Prior:
@@ -331,7 +336,7 @@ def _labels(posterior) -> dict[str, tuple[str, ...]]:
     """Each group dimension's level labels, from the posterior's coordinates (none for flat draws)."""
     coords = getattr(posterior, "coords", {})
     return {str(k): tuple(str(v) for v in np.asarray(c.values)) for k, c in coords.items()
-            if k not in ("chain", "draw") and not str(k).endswith(tuple(f"_dim_{i}" for i in range(8)))}
+            if k not in ("chain", "draw") and not str(k).endswith(("_step",) + tuple(f"_dim_{i}" for i in range(8)))}
 
 
 def _flat(posterior) -> dict[str, np.ndarray]:

@@ -163,6 +163,8 @@ class Program:
                 dims[name] = [f"{name}_dim_{k}" for k in range(len(p.shape))]
         for name, (_, z_site, level_site) in site_names(self.law, self.groupings).items():
             dims[z_site] = dims[level_site] = [self.law.varying[name]]
+            if z_site.endswith("_w"):  # a centred walk: the levels after the first (bayesfric.trend)
+                dims[z_site] = [f"{self.law.varying[name]}_step"]
         if self.noise.group is not None:
             dims.update(group_z=["group"], group_offset=["group"])
         return dims

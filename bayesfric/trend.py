@@ -47,8 +47,8 @@ import numpyro.distributions as dist
 
 from bayesfric.priors import Prior
 
-__all__ = ["FORMS", "FLOOR", "coordinates", "span", "trend_prior", "centre", "walk_levels", "sample_levels", "forecast_u",
-           "trend_of"]
+__all__ = ["FORMS", "FLOOR", "coordinates", "span", "support", "trend_prior", "centre", "walk_levels", "paths",
+           "sample_levels", "forecast_u", "trend_of"]
 
 #: Trend forms (module docstring).
 FORMS = ("linear", "loglinear", "walk")
@@ -89,13 +89,14 @@ def span(coords: np.ndarray) -> float:
     return top if top > 0 else 1.0
 
 
-def _support(prior: Prior):
+def support(prior: Prior):
+    """The support of ``prior``'s distribution (positive, real, an interval)."""
     return Prior(prior.dist, **prior.args).to_numpyro(None).support
 
 
 def trend_prior(prior: Prior, name: str) -> Prior:
     """Default prior of ``<name>_trend`` for a parameter whose prior is ``prior`` (module docstring)."""
-    if _support(prior) is not dist.constraints.real:
+    if support(prior) is not dist.constraints.real:
         return Prior("Normal", loc=0.0, scale=TREND_SD)
     return Prior("Normal", loc=0.0, scale=0.5 * float(prior.args.get("scale", 1.0)),
                  scaled_by=dict(prior.scaled_by))
@@ -103,11 +104,11 @@ def trend_prior(prior: Prior, name: str) -> Prior:
 
 def centre(prior: Prior, form: str, value, slope, tau):
     """The trend's unconstrained value ``T⁻¹(m(τ))`` at ``tau`` (traceable; broadcasts)."""
-    support = _support(prior)
-    t = dist.biject_to(support)
-    if form == "linear" and support is dist.constraints.positive:
+    kind = support(prior)
+    t = dist.biject_to(kind)
+    if form == "linear" and kind is dist.constraints.positive:
         return jnp.log(value) + jnp.log(jnp.maximum(1.0 + slope * tau, FLOOR))
-    if form == "linear" and support is dist.constraints.real:
+    if form == "linear" and kind is dist.constraints.real:
         return value + slope * tau
     return t.inv(value) + slope * tau
 
@@ -123,14 +124,21 @@ def sample_levels(prior: Prior, form: str, sites: tuple[str, str, str], slope_pr
     """Inside a numpyro model: sample ``<p>_trend`` and the levels; return the levels' unconstrained values.
 
     ``sites``: (trend site, level site, plate name: the column); ``slope_prior`` the trend site's
-    resolved prior (None for a walk); ``tau`` the levels' scaled coordinates. A walk is always
-    sampled non-centred (its increments).
+    resolved prior (None for a walk); ``tau`` the levels' scaled coordinates (strictly increasing).
+    A centred walk samples the levels after the first jointly (site ``<p>_w``, dimension
+    ``<column>_step``); a non-centred one its standardised increments (``<p>_z``).
     """
     trend_site, level_site, plate = sites
     if form == "walk":
+        u0 = dist.biject_to(support(prior)).inv(value)
+        if centred:  # the later levels jointly: Brownian covariance sd² min(τ_i − τ_0, τ_j − τ_0)
+            lag = np.asarray(tau[1:], dtype=float) - float(tau[0])
+            chol = np.linalg.cholesky(np.minimum.outer(lag, lag) + 1e-12 * np.eye(lag.size))
+            later = numpyro.sample(level_site, dist.MultivariateNormal(u0 * jnp.ones(lag.size), scale_tril=sd * chol))
+            return jnp.concatenate([jnp.reshape(u0, (1,)), later])
         with numpyro.plate(plate, len(tau)):
             z = numpyro.sample(level_site, dist.Normal(0.0, 1.0))
-        return walk_levels(dist.biject_to(_support(prior)).inv(value), sd, z, tau)
+        return walk_levels(u0, sd, z, tau)
     slope = numpyro.sample(trend_site, slope_prior.to_numpyro())
     mid = centre(prior, form, value, slope, jnp.asarray(tau))
     with numpyro.plate(plate, len(tau)):
@@ -157,9 +165,28 @@ def forecast_u(prior: Prior, form: str, posterior: Mapping[str, np.ndarray], p: 
     order = np.argsort(coords)
     before = [j for j in order if coords[j] <= float(t)] or [int(order[0])]
     j = before[-1]
-    bijection = dist.biject_to(_support(prior))
+    bijection = dist.biject_to(support(prior))
     u_last = np.asarray(bijection.inv(jnp.asarray(np.asarray(posterior[f"{p}_{column}"])[:, j])), dtype=float)
     return u_last + sd * np.sqrt(max(tau - coords[j] / span(coords), 0.0)) * z
+
+
+def paths(prior: Prior, form: str, posterior: Mapping[str, np.ndarray], p: str, column: str,
+          labels: Sequence[str], times: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """Unconstrained values ``(S, T)`` of ``p`` over increasing service ``times`` after the fitted
+    campaigns. ``z`` ``(S, T)``: standard-normal draws. A trend: a new campaign at each time,
+    independently (``z = 0``: the trend itself); a walk: one path per draw from the last fitted
+    campaign at or before ``times[0]``, its steps ``p_sd · √Δτ · z``.
+    """
+    times = np.asarray(times, dtype=float)
+    if form != "walk":
+        return np.stack([forecast_u(prior, form, posterior, p, column, labels, t, z[:, k])
+                         for k, t in enumerate(times)], axis=1)
+    coords = coordinates(labels)
+    start = forecast_u(prior, form, posterior, p, column, labels, times[0], np.zeros(z.shape[0]))
+    last = max([c for c in coords if c <= times[0]] or [coords.min()])
+    dtau = np.diff(np.concatenate([[last], times])) / span(coords)
+    sd = np.asarray(posterior[f"{p}_sd"], dtype=float)[:, None]
+    return start[:, None] + sd * np.cumsum(np.sqrt(np.maximum(dtau, 0.0))[None, :] * z, axis=1)
 
 
 def trend_of(law, name: str) -> tuple[str, str] | None:
@@ -167,10 +194,10 @@ def trend_of(law, name: str) -> tuple[str, str] | None:
     p = name.removesuffix("_trend")
     if not name.endswith("_trend") or p not in law.trending:
         return None
-    support = _support(law.params[p].prior)
+    kind = support(law.params[p].prior)
     column, form = law.trending[p], law.trend_form
-    if support is dist.constraints.real:
+    if kind is dist.constraints.real:
         return law.params[p].unit, f"change of {p} over the fitted span of {column!r} ({form} trend)"
-    if form == "linear" and support is dist.constraints.positive:
+    if form == "linear" and kind is dist.constraints.positive:
         return "1", f"relative change of {p} over the fitted span of {column!r} (linear trend)"
     return "1", f"change of {p} over the fitted span of {column!r} ({form} trend, unconstrained scale)"

@@ -269,7 +269,8 @@ def _variables(path: Path, meta_path: Path, columns: dict, cells: dict[str, list
     for col, spec in columns.items():
         role = spec["role"]
         if role == "group":
-            entries = [(col, coords, _group_values(path, col, cells[col]), {"role": "group", "column": col})]
+            attrs = {"role": "group", "column": col} | ({"units": str(spec["unit"])} if "unit" in spec else {})
+            entries = [(col, coords, _group_values(path, col, cells[col]), attrs)]
         else:
             values, attrs = _numeric_column(path, meta_path, col, spec, cells[col])
             name = spec["quantity"] if role in ("input", "response") else col

@@ -1,0 +1,283 @@
+"""Time to exceed: when will friction at an operating point first exceed what the drive can deliver?
+
+For a fit of a law whose parameters follow a trend over a service coordinate (:mod:`bayesfric.trend`),
+every posterior draw gives a friction curve over service time at the operating point: the law's
+mean (its steady state for a stateful law, :func:`bayesfric.sizing.steady.sizing_law`) with the
+trend's parameters at each time. Its first crossing of ``|friction| = capacity`` is that draw's
+time to exceed; their distribution gives quantiles and ``P(exceed before t)``.
+
+What the curve is. For a ``linear`` or ``loglinear`` trend it is the *typical* campaign's
+friction (the trend itself, without campaign-to-campaign scatter), for a ``walk`` one simulated
+path of the walk per draw, continued from the last fitted campaign. The fan also shows where a
+*single new campaign* at each time may lie (with the scatter between campaigns). The crossing is
+searched on a grid of :data:`GRID` service times from the last fitted campaign to the horizon
+(linear interpolation between grid points); a draw that has not crossed by the horizon counts as
+"not within the horizon" (``inf``), one already above the capacity at the last campaign crosses
+there. No model-form allowance is added here: the forecast bands' measured coverage
+(leave-future-out over campaigns, ``benchmarks/bench_trend_forecast.py``) says how far to trust
+them.
+
+Example
+-------
+>>> result = time_to_exceed(fit, {"velocity": "1400 rpm"}, capacity="1.8 N*m", horizon=15000)  # doctest: +SKIP
+>>> float(result["crossing_q"].sel(quantile=0.5))                                            # doctest: +SKIP
+9120.0
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import re
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import xarray as xr
+
+from bayesfric.sizing.points import SizingError, parse_capacity, parse_value
+from bayesfric.sizing.steady import steady_note
+
+__all__ = ["GRID", "QUANTILES", "time_to_exceed", "combine", "crossing_times", "parse_horizon"]
+
+#: Service times on which a crossing is searched.
+GRID = 241
+#: Quantiles of the crossing time and of the fan.
+QUANTILES = (0.05, 0.25, 0.5, 0.75, 0.95)
+
+
+def parse_horizon(horizon: Any, unit: str = "") -> float:
+    """The horizon as a number in the service coordinate's ``unit``: a number as it is, or a text
+    ``"20000 h"`` converted to ``unit`` (when the data declare one).
+
+    Raises
+    ------
+    SizingError
+        Not a positive number, or a unit that cannot be converted to ``unit``.
+    """
+    if isinstance(horizon, int | float) and not isinstance(horizon, bool):
+        value = float(horizon)
+    else:
+        match = re.fullmatch(r"\s*([-+0-9.eE]+)\s*(.*?)\s*", str(horizon))
+        try:
+            value, written = float(match.group(1)), match.group(2)
+        except (AttributeError, ValueError):
+            raise SizingError("horizon", f"cannot read {horizon!r}: give a service time, e.g. \"20000 h\"") from None
+        if written and unit and written != unit:
+            from bayesfric.quantities import ureg
+
+            try:
+                value = float(ureg.Quantity(value, written).to(unit).magnitude)
+            except Exception:  # pint's errors: undefined unit, other dimension
+                raise SizingError("horizon", f"{horizon!r} cannot be expressed in {unit!r}, the unit of the "
+                                  "service coordinate") from None
+    if not np.isfinite(value) or value <= 0:
+        raise SizingError("horizon", f"must be a positive service time, got {horizon!r}")
+    return value
+
+
+def _points(law, at: Mapping[str, Any]) -> dict[str, np.ndarray]:
+    """One operating point, SI, for every operating input of ``law``."""
+    out = {}
+    for name in law.operating_inputs:
+        if name not in at:
+            raise SizingError("at", f"law {law.name!r} reads {name!r}, which the point does not give")
+        value = at[name]
+        out[name] = np.asarray([float(value) if isinstance(value, int | float) else
+                                parse_value(value, name, f"at.{name}", allow_range=False).lo])
+    return out
+
+
+def _trend_params(program, flat: Mapping[str, np.ndarray], labels, times: np.ndarray, rng,
+                  scatter: bool) -> dict[str, np.ndarray]:
+    """Every law parameter's draws over ``times``: ``(S, T)`` for a trending one, ``(S, 1)`` else."""
+    import numpyro.distributions as dist
+
+    from bayesfric.trend import paths, support
+
+    law = program.law
+    out = {p: np.asarray(flat[p], dtype=float)[:, None] for p in law.params}
+    for p, column in law.trending.items():
+        z = rng.normal(size=(out[p].shape[0], times.size))
+        u = paths(program.resolved[p], law.trend_form, flat, p, column, labels[column], times,
+                  z if scatter or law.trend_form == "walk" else np.zeros_like(z))
+        out[p] = np.asarray(dist.biject_to(support(program.resolved[p]))(jnp.asarray(u)), dtype=float)
+    return out
+
+
+def friction_curves(fit: xr.DataTree, at: Mapping[str, Any], times: Sequence[float], *, seed: int = 0,
+                    scatter: bool = False) -> np.ndarray:
+    """Mean friction at the point ``at`` over service ``times`` per posterior draw, ``(S, T)``.
+
+    ``scatter=False``: the typical campaign (a walk's path is random either way); ``True``: a new
+    campaign at each time, drawn independently.
+    """
+    from bayesfric.hierarchy import _flat, _labels
+    from bayesfric.model import program_of_fit
+    from bayesfric.sizing.steady import sizing_law
+
+    program = program_of_fit(fit)
+    law = sizing_law(program.law)
+    if not law.trending:
+        raise SizingError("", f"law {program.law.name!r} follows no trend over a service coordinate "
+                              "(law.trend(column, ...) / trend = { hours = [...] })")
+    post = fit["posterior"].to_dataset()
+    times = np.asarray(times, dtype=float)
+    program = dataclasses.replace(program, law=law).at(_points(law, at))
+    flat, labels = _flat(post), _labels(post)
+    params = _trend_params(program, flat, labels, times, np.random.default_rng(seed), scatter)
+    inputs = {k: jnp.broadcast_to(jnp.asarray(v), (times.size,)) for k, v in program.inputs.items()}
+    mean = jax.jit(jax.vmap(lambda p: law.mean(inputs, p, program.constants)))
+    s = next(iter(flat.values())).shape[0]
+    step = max(1, 200_000 // max(times.size, 1))
+    parts = [np.asarray(mean({k: jnp.asarray(np.broadcast_to(v[a:a + step], (min(step, s - a), v.shape[1])))
+                              for k, v in params.items()})) for a in range(0, s, step)]
+    return np.broadcast_to(np.concatenate(parts), (s, times.size)).astype(float)
+
+
+def crossing_times(curves: np.ndarray, times: np.ndarray, capacity: float) -> np.ndarray:
+    """First service time at which ``|curve|`` reaches ``capacity``, per draw (``inf``: not by the
+    last time), linearly interpolated between grid points.
+
+    Examples
+    --------
+    >>> crossing_times(np.array([[1.0, 2.0, 3.0], [1.0, 1.0, 1.0]]), np.array([0.0, 10.0, 20.0]), 2.5)
+    array([15., inf])
+    """
+    y = np.abs(np.asarray(curves, dtype=float))
+    above = y >= capacity
+    first = np.argmax(above, axis=1)
+    out = np.full(y.shape[0], np.inf)
+    hit = above.any(axis=1)
+    at_start = hit & (first == 0)
+    out[at_start] = times[0]
+    inner = hit & (first > 0)
+    k = first[inner]
+    rows = np.nonzero(inner)[0]
+    y0, y1 = y[rows, k - 1], y[rows, k]
+    frac = np.where(y1 > y0, (capacity - y0) / np.where(y1 > y0, y1 - y0, 1.0), 1.0)
+    out[inner] = times[k - 1] + np.clip(frac, 0.0, 1.0) * (times[k] - times[k - 1])
+    return out
+
+
+def _campaigns(fit: xr.DataTree, at: Mapping[str, Any], column: str) -> tuple[np.ndarray, np.ndarray]:
+    """The fitted campaigns' coordinates and the quantiles of each one's friction at ``at``."""
+    from bayesfric.hierarchy import mean_draws
+    from bayesfric.model import program_of_fit
+    from bayesfric.sizing.steady import sizing_law
+    from bayesfric.trend import coordinates
+
+    program = program_of_fit(fit)
+    law = sizing_law(program.law)
+    program = dataclasses.replace(program, law=law).at(_points(law, at))
+    post = fit["posterior"].to_dataset()
+    labels = [str(v) for v in post[column].values]
+    values = [np.quantile(mean_draws(program, post, group=g)[:, 0], QUANTILES) for g in labels]
+    return coordinates(labels), np.asarray(values)
+
+
+def time_to_exceed(fit: xr.DataTree, at: Mapping[str, Any], capacity: Any, horizon: Any, *, seed: int = 0,
+                   unit: str = "", grid: int = GRID) -> xr.Dataset:
+    """When friction at the operating point ``at`` first exceeds ``capacity``, per posterior draw.
+
+    Parameters
+    ----------
+    fit : xarray.DataTree
+        A fit of a law with a trend over a service coordinate (:meth:`Law.trend
+        <bayesfric.laws.base.Law.trend>`).
+    at : mapping
+        Every operating input the law reads: SI numbers or texts with units (``"1400 rpm"``).
+    capacity : str, (number, unit) or float
+        The drive's torque or force (SI if a number).
+    horizon : str or float
+        The latest service time to look at (``"20000 h"``, or a number in the coordinate's unit).
+    seed : int
+        Seed of a walk's paths and of the new campaigns' scatter.
+    unit : str
+        The service coordinate's unit (the data column's), to convert ``horizon`` into.
+    grid : int
+        Service times searched between the last campaign and the horizon.
+
+    Returns
+    -------
+    xarray.Dataset
+        ``crossing`` (draw): each draw's time to exceed (``inf``: not by the horizon);
+        ``crossing_q`` (quantile); ``p_exceed`` (service): P(crossed by t); ``fan`` and ``fan_new``
+        (quantile, service): the typical campaign's and a new campaign's friction; ``campaign_q``
+        (campaign, quantile): each fitted campaign's; ``curve`` (draw, service): the typical
+        curves (drop it before storing). Attrs say what the answer is for.
+
+    Raises
+    ------
+    SizingError
+        The law follows no trend, the point misses an input, a bad capacity or horizon.
+
+    Examples
+    --------
+    >>> out = time_to_exceed(fit, {"velocity": "1400 rpm"}, "1.8 N*m", "15000 h", unit="h")  # doctest: +SKIP
+    >>> out["p_exceed"].sel(service=10000, method="nearest")                                 # doctest: +SKIP
+    """
+    from bayesfric.model import program_of_fit
+    from bayesfric.sizing.steady import sizing_law
+    from bayesfric.trend import coordinates
+
+    fitted = program_of_fit(fit).law
+    law = sizing_law(fitted)
+    if not law.trending:
+        raise SizingError("", f"law {fitted.name!r} follows no trend over a service coordinate")
+    column = next(iter(law.trending.values()))
+    cap = float(capacity) if isinstance(capacity, int | float) else parse_capacity(capacity, law.response).lo
+    end = parse_horizon(horizon, unit)
+    last = float(coordinates([str(v) for v in fit["posterior"][column].values]).max())
+    if end <= last:
+        raise SizingError("horizon", f"{horizon!r} is not after the last fitted campaign ({last:g} {unit})".rstrip())
+    times = np.linspace(last, end, grid)
+    curve = friction_curves(fit, at, times, seed=seed)
+    new = friction_curves(fit, at, times, seed=seed + 1, scatter=True)
+    crossing = crossing_times(curve, times, cap)
+    where, campaign_q = _campaigns(fit, at, column)
+    return xr.Dataset(
+        {"crossing": ("draw", crossing),
+         "crossing_q": ("quantile", np.quantile(crossing, QUANTILES, method="inverted_cdf")),
+         "p_exceed": ("service", (crossing[:, None] <= times[None, :]).mean(axis=0)),
+         "fan": (("quantile", "service"), np.quantile(np.abs(curve), QUANTILES, axis=0)),
+         "fan_new": (("quantile", "service"), np.quantile(np.abs(new), QUANTILES, axis=0)),
+         "campaign_q": (("campaign", "quantile"), np.abs(campaign_q)), "curve": (("draw", "service"), curve)},
+        coords={"service": times, "quantile": list(QUANTILES), "campaign": where},
+        attrs={"law": fitted.name, "capacity": cap, "horizon": end, "column": column, "unit": unit,
+               "form": fitted.trend_form, "at": repr(dict(at)), "response": law.response,
+               "steady": steady_note(fitted, law),
+               "curve": ("one simulated path of the random walk per draw" if fitted.trend_form == "walk" else
+                         "the typical campaign: the trend itself, without campaign-to-campaign scatter"),
+               "p_within_horizon": float(np.isfinite(crossing).mean())})
+
+
+def combine(results: Mapping[str, xr.Dataset], weights: Mapping[str, float], seed: int = 0) -> xr.Dataset:
+    """The weighted mixture of several laws' :func:`time_to_exceed` answers (same times).
+
+    Each law contributes draws in proportion to its weight (resampled, seeded); ``p_exceed`` is
+    the weighted mean of the laws' (exact). Laws with zero weight are left out.
+    """
+    names = [n for n in results if weights.get(n, 0.0) > 0]
+    if not names:
+        raise ValueError("no law with a positive weight to combine")
+    w = np.asarray([weights[n] for n in names], dtype=float)
+    w = w / w.sum()
+    rng = np.random.default_rng(seed)
+    size = max(results[n].sizes["draw"] for n in names)
+    picks = rng.choice(len(names), size=size, p=w)
+    draws = [results[n]["crossing"].values[rng.integers(0, results[n].sizes["draw"], (picks == i).sum())]
+             for i, n in enumerate(names)]
+    curves = [results[n]["curve"].values[rng.integers(0, results[n].sizes["draw"], (picks == i).sum())]
+              for i, n in enumerate(names)]
+    crossing, curve = np.concatenate(draws), np.concatenate(curves)
+    first = results[names[0]]
+    return first.copy(data={
+        "crossing": crossing, "crossing_q": np.quantile(crossing, QUANTILES, method="inverted_cdf"),
+        "p_exceed": sum(wi * results[n]["p_exceed"].values for wi, n in zip(w, names, strict=True)),
+        "fan": np.quantile(np.abs(curve), QUANTILES, axis=0),
+        "fan_new": sum(wi * results[n]["fan_new"].values for wi, n in zip(w, names, strict=True)),
+        "campaign_q": sum(wi * results[n]["campaign_q"].values for wi, n in zip(w, names, strict=True)),
+        "curve": curve}).assign_attrs(law="model average", weights=repr(dict(zip(names, w.round(4), strict=True))),
+                                      p_within_horizon=float(np.isfinite(crossing).mean()))

@@ -1,0 +1,136 @@
+"""Forecasts over service time: do the 90 % bands of the next campaign and of the time to exceed
+cover the truth?
+
+Usage::
+
+    .venv/bin/python benchmarks/bench_trend_forecast.py [--replicates 120] [--cases linear accelerating walk]
+
+SIMULATED data. Each replicate simulates 8 test campaigns of ``coulomb_viscous`` at 0, 500, …,
+3500 service hours (10 speeds 0.1–2 rad/s each, noise sd 0.05 N·m), the Coulomb level following
+a true trend and scattering between campaigns by a factor ``exp(0.03 z)``
+(:func:`bayesfric.datasets.synthetic.simulate_campaigns`); ``c_v = 1 N·m·s/rad`` throughout.
+The law ``coulomb_viscous.trend("hours", "T_C", form=...)`` is fitted (NUTS, 4 × 500 after 500
+warm-up) on the first 7 campaigns; the 8th (3500 h) is masked out of the likelihood, so its level
+is the model's forecast of a new campaign there (leave-future-out, as a study's
+``[compare] forecast`` folds score it). Reported per case:
+
+* coverage of the 3500 h campaign's true mean curve (at 0.1, 1 and 2 rad/s, and the whole curve
+  at once) by the central 90 % band of its forecast, and the mean interval score (Gneiting &
+  Raftery 2007, alpha = 0.1) at 1 rad/s;
+* coverage of the true time to exceed -- when the true trend's friction at 1 rad/s reaches the
+  capacity 5 N·m (6000 h for the linear truth) -- by the central 90 % interval of the crossing
+  times of the fitted typical-campaign curves (:func:`bayesfric.sizing.exceed.crossing_times`,
+  the function ``time_to_exceed`` uses), searched to 20 000 h.
+
+Cases: ``linear`` (truth T_C = 2 (1 + t/6000), candidate linear: the trend form is a candidate);
+``accelerating`` (truth T_C = 2 (1 + (t/6000)²), true crossing 6000 h as well, candidate linear:
+the form is NOT a candidate); ``walk`` (linear truth, random-walk candidate: no trend shape). One
+compiled sampler per case serves every replicate (``NutsEngine.with_response``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from bayesfric.datasets.synthetic import simulate_campaigns
+from bayesfric.inference.engine import NutsEngine
+from bayesfric.laws import get_law
+from bayesfric.model import build_program
+from bayesfric.sizing.exceed import crossing_times
+from bayesfric.trend import FLOOR, coordinates, span
+
+SPEEDS = np.linspace(0.1, 2.0, 10)
+HOURS = np.arange(8) * 500.0
+AT = np.array([0.1, 1.0, 2.0])
+CAPACITY, C_V, SIGMA, SCATTER, ALPHA = 5.0, 1.0, 0.05, 0.03, 0.1
+TRUTHS = {"linear": lambda t: 2.0 * (1 + t / 6000.0), "accelerating": lambda t: 2.0 * (1 + (t / 6000.0) ** 2)}
+CASES = {"linear": ("linear", "linear"), "accelerating": ("accelerating", "linear"), "walk": ("linear", "walk")}
+SEARCH = np.linspace(3000.0, 20000.0, 681)
+
+
+def interval_score(lo, hi, x, alpha=ALPHA):
+    """Gneiting & Raftery (2007) interval score of the central (1 - alpha) interval [lo, hi] at x."""
+    return (hi - lo) + (2 / alpha) * np.maximum(lo - x, 0) + (2 / alpha) * np.maximum(x - hi, 0)
+
+
+def true_crossing(truth) -> float:
+    t = np.linspace(0, 20000, 200001)
+    return float(t[np.argmax(truth(t) + C_V >= CAPACITY)])
+
+
+def typical_curves(post: dict, form: str, labels, rng) -> np.ndarray:
+    """Friction at 1 rad/s over ``SEARCH`` per draw: the fitted trend (or a walk's path)."""
+    tau = SEARCH / span(coordinates(labels))
+    t_c, c_v = post["T_C"].reshape(-1)[:, None], post["c_v"].reshape(-1)[:, None]
+    if form == "linear":
+        return t_c * np.maximum(1 + post["T_C_trend"].reshape(-1)[:, None] * tau, FLOOR) + c_v
+    last = np.log(post["T_C_hours"].reshape(-1, len(labels))[:, 6])[:, None]  # 3000 h, the last trained
+    dtau = np.diff(np.concatenate([[3000.0], SEARCH])) / span(coordinates(labels))
+    steps = np.sqrt(dtau)[None, :] * rng.normal(size=(t_c.shape[0], SEARCH.size))
+    return np.exp(last + post["T_C_sd"].reshape(-1)[:, None] * np.cumsum(steps, axis=1)) + c_v
+
+
+def run_case(name: str, replicates: int) -> dict:
+    truth_name, form = CASES[name]
+    truth = TRUTHS[truth_name]
+    law = get_law("coulomb_viscous")
+
+    def data(r):
+        return simulate_campaigns(law, {"velocity": SPEEDS}, {"T_C": truth, "c_v": C_V}, HOURS, {"T_C": SCATTER},
+                                  sigma=SIGMA, seed=r)
+
+    first, _ = data(0)
+    engine = NutsEngine(build_program(law.trend("hours", "T_C", form=form), first), draws=500, tune=500, chains=4,
+                        seed=0)
+    hours = np.asarray(first["hours"].values).astype(float)
+    train = hours < 3500
+    labels = [f"{h:g}" for h in HOURS]
+    crossing = true_crossing(truth)
+    row = {"cover": [], "score": [], "cross": [], "width": [], "failed": 0, "s": 0.0}
+    for r in range(replicates):
+        ds, values = data(r)
+        start = time.perf_counter()
+        fits = engine.with_response(np.asarray(ds["torque"].values)).run(train[None, :], seed=r)
+        row["s"] += time.perf_counter() - start
+        post = {k: np.asarray(v[0]) for k, v in fits.samples.items()}
+        level = post["T_C_hours"].reshape(-1, len(labels))[:, 7]
+        curve = level[:, None] + post["c_v"].reshape(-1)[:, None] * AT[None, :]
+        lo, hi = np.quantile(curve, ALPHA / 2, axis=0), np.quantile(curve, 1 - ALPHA / 2, axis=0)
+        true_curve = values["T_C"][7] + C_V * AT
+        row["cover"].append((lo <= true_curve) & (true_curve <= hi))
+        row["score"].append(interval_score(lo[1], hi[1], true_curve[1]))
+        times = crossing_times(typical_curves(post, form, labels, np.random.default_rng(r)), SEARCH, CAPACITY)
+        c_lo, c_hi = np.quantile(times, [ALPHA / 2, 1 - ALPHA / 2], method="inverted_cdf")
+        row["cross"].append(c_lo <= crossing <= c_hi)
+        row["width"].append(c_hi - c_lo)
+        row["failed"] += int(not fits.verdicts[0].passed)
+    row["truth"] = crossing
+    return row
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--replicates", type=int, default=120)
+    ap.add_argument("--cases", nargs="+", default=list(CASES), choices=list(CASES))
+    args = ap.parse_args()
+    n = args.replicates
+    print(f"SIMULATED: 8 campaigns at 0-3500 h x {SPEEDS.size} speeds, trained on the first 7, forecast the 8th; "
+          f"scatter {SCATTER} (log), noise sd {SIGMA} N*m, capacity {CAPACITY} N*m at 1 rad/s, {n} replicates")
+    print("case (truth / candidate)         cover@0.1/1/2 rad/s   whole curve  IS@1  crossing cover  "
+          "median 90% width h  true crossing h  gate failed  s/fit")
+    for name in args.cases:
+        row = run_case(name, n)
+        cover = np.mean(row["cover"], axis=0)
+        print(f"{name:10s} ({CASES[name][0]} / {CASES[name][1]})".ljust(33)
+              + " / ".join(f"{c:.3f}" for c in cover) + f"   {np.mean(np.all(row['cover'], axis=1)):.3f}"
+              + f"      {np.mean(row['score']):.3f}  {np.mean(row['cross']):.3f}"
+              + f"           {np.median(row['width']):8.0f}          {row['truth']:7.0f}"
+              + f"       {row['failed']:5d}  {row['s'] / n:5.2f}", flush=True)
+    print(f"binomial sd of a 90 % coverage over {n} replicates: {np.sqrt(0.09 / n):.3f}")
+
+
+if __name__ == "__main__":
+    main()
