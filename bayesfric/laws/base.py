@@ -50,6 +50,7 @@ __all__ = [
     "declared_in",
     "VariantError",
     "set_variant_builder",
+    "Steady",
 ]
 
 #: Structural input of trajectory (stateful) laws: True at the first sample of each ordered
@@ -122,6 +123,28 @@ class OptionalInput:
 
 
 @dataclass(frozen=True)
+class Steady:
+    """A trajectory law's friction at constant speed, derived from its own equations.
+
+    ``fn``'s signature is *steady inputs, then the law's parameters, then its constants* (the same
+    names): the steady inputs are what the friction reads once the transient has settled (the
+    velocity, for its direction and Stribeck curve; a preload, a normal force). ``response``: the
+    quantity it returns ("" : the law's own; a coast-down, which predicts speed, gives ``"torque"``).
+    :func:`bayesfric.laws.steady.steady_state` builds the elementwise law sizing evaluates from it.
+
+    Examples
+    --------
+    >>> Steady(lambda velocity, T_C: T_C * jnp.sign(velocity)).response
+    ''
+    """
+
+    fn: Callable[..., Any]
+    response: str = ""
+    sign_definite: bool = True
+    inputs: tuple[str, ...] = ()  # filled by declare from fn's signature
+
+
+@dataclass(frozen=True)
 class Law:
     """A declared friction law. Call it like its function; use :meth:`mean` with mappings."""
 
@@ -145,6 +168,11 @@ class Law:
     #: How a variant was made from a registered law (:mod:`bayesfric.laws.variants`); empty for a
     #: law declared by its own function.
     recipe: Mapping[str, Any] = field(default_factory=dict)
+    #: A trajectory law's friction at constant speed (:class:`Steady`); None if it declares none.
+    steady: Steady | None = None
+    #: The trajectory law whose steady state this law is (:mod:`bayesfric.laws.steady`); "" for a
+    #: law in its own right. Its priors are that law's, scaled by that law's data.
+    steady_of: str = ""
 
     def __call__(self, *args, **kwargs):
         return self.fn(*args, **kwargs)
@@ -324,6 +352,7 @@ def law(
     sign_definite: bool = True,
     rotary_only: str = "",
     optional: Mapping[str, OptionalInput] | None = None,
+    steady: Steady | Callable[..., Any] | None = None,
 ) -> Callable[[Callable[..., Any]], Law]:
     """Declare and register a friction law (see the module docstring).
 
@@ -333,7 +362,9 @@ def law(
     remarks the report prints. A law declared on rotary quantities (torque, ``velocity``,
     ``angle``) also runs on translational data (force, ``linear_velocity``, ``displacement``)
     unless ``rotary_only`` says why it cannot (:mod:`bayesfric.laws.variants`). ``optional``
-    names inputs the law can do without (:class:`OptionalInput`).
+    names inputs the law can do without (:class:`OptionalInput`). ``steady`` (a trajectory law's
+    :class:`Steady`, or its function) gives the law's friction at constant speed, which sizing
+    answers from (:func:`bayesfric.laws.steady.steady_state`).
 
     Raises
     ------
@@ -350,7 +381,7 @@ def law(
         declared = declare(fn, name=name, family=family, inputs=inputs, response=response, source=source,
                            params=params, constants=constants, derived=derived, trajectory=trajectory,
                            notes=notes, sign_definite=sign_definite, rotary_only=rotary_only,
-                           optional=optional)
+                           optional=optional, steady=steady)
         REGISTRY[name] = declared
         return declared
 
@@ -394,6 +425,8 @@ def declare(
     optional: Mapping[str, OptionalInput] | None = None,
     recipe: Mapping[str, Any] | None = None,
     summary: str | None = None,
+    steady: Steady | Callable[..., Any] | None = None,
+    steady_of: str = "",
 ) -> Law:
     """Validate a declaration and build its :class:`Law` without registering it (see :func:`law`).
 
@@ -411,7 +444,8 @@ def declare(
         )
     _check_inputs(where, inputs, response, trajectory)
     for pname, p in params.items():
-        _check_param(where, pname, p, inputs)
+        # a steady-state law keeps its trajectory law's priors, scaled by that law's data
+        _check_param(where, pname, p, inputs if not steady_of else (*inputs, *p.prior.scaled_by))
     for cname, c in consts.items():
         _check_unit(where, cname, c.unit)
     for dname, d in (derived or {}).items():
@@ -431,7 +465,30 @@ def declare(
         source=source, summary=doc.splitlines()[0], constants=consts, derived=dict(derived or {}),
         trajectory=trajectory, notes=notes, sign_definite=sign_definite, rotary_only=rotary_only,
         optional=dict(optional or {}), recipe=dict(recipe or {}),
+        steady=_check_steady(where, steady, trajectory, list(params) + list(consts), response, optional or {}),
+        steady_of=steady_of,
     )
+
+
+def _check_steady(where: str, steady: Steady | Callable[..., Any] | None, trajectory: bool, names: list[str],
+                  response: str, optional: Mapping[str, OptionalInput]) -> Steady | None:
+    """A trajectory law's :class:`Steady`, its inputs read from its function's signature: steady
+    inputs from the vocabulary, then the law's parameters and constants; it reads every optional
+    input of the law (so :func:`bayesfric.laws.transforms.without` applies to it as to the law)."""
+    if steady is None:
+        return None
+    steady = steady if isinstance(steady, Steady) else Steady(steady)
+    if not trajectory:
+        raise LawDeclarationError(f"{where}: a steady state is declared by a trajectory law only")
+    sig = list(inspect.signature(steady.fn).parameters)
+    inputs = tuple(sig[:len(sig) - len(names)])
+    if sig[len(inputs):] != names or any(i not in QUANTITIES for i in inputs):
+        raise LawDeclarationError(f"{where}: steady-state signature {sig} is not steady inputs (from the "
+                                  f"vocabulary) + the law's parameters and constants {names}")
+    if not set(optional) <= set(inputs) or (steady.response or response) not in RESPONSES:
+        raise LawDeclarationError(f"{where}: the steady state must read every optional input "
+                                  f"({', '.join(optional)}) and return a response of {RESPONSES}")
+    return Steady(steady.fn, steady.response or response, steady.sign_definite, inputs)
 
 
 def declared_in(fn: Callable[..., Any]) -> str:

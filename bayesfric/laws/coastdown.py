@@ -22,7 +22,7 @@ import jax
 import jax.numpy as jnp
 
 from bayesfric.laws import classical
-from bayesfric.laws.base import REGISTRY, TRAJECTORY_START, Constant, Law, LawDeclarationError, Param, law
+from bayesfric.laws.base import REGISTRY, TRAJECTORY_START, Constant, Law, LawDeclarationError, Param, Steady, law
 from bayesfric.priors import DataScale, Prior
 
 __all__ = ["SEED", "DRUM_INERTIA", "INERTIA", "COASTDOWN_INPUTS", "coastdown", "coulomb_viscous_coastdown",
@@ -101,6 +101,20 @@ def _coastdown_params(base: Law, inertia: float) -> dict[str, Param]:
     return {k: replace(p, prior=_coastdown_prior(p.prior, inertia)) for k, p in base.params.items()}
 
 
+def _steady(base: Law, params: dict[str, Param], constants: dict[str, Constant]) -> Steady:
+    """A coast-down's steady state: its friction law T_f(ω), the torque that would hold the speed
+    constant (−J dω/dt along the coast-down at that speed); J plays no part in it."""
+    kind = inspect.Parameter.POSITIONAL_OR_KEYWORD
+    signature = inspect.Signature([inspect.Parameter(k, kind) for k in ("velocity", *params, *constants)])
+
+    def torque(*args, **kwargs):
+        a = signature.bind(*args, **kwargs).arguments
+        return base.fn(a["velocity"], *(a[k] for k in params), **{k: a[k] for k in base.constants})
+
+    torque.__signature__ = signature
+    return Steady(torque, response="torque", sign_definite=base.sign_definite)
+
+
 _COASTDOWN_NOTES = (
     "Only T_f/J is identified from a coast-down, so J is a fixed constant (DRUM_INERTIA); the "
     "friction parameters are in absolute units only as far as J is right (they scale with J). "
@@ -111,16 +125,18 @@ _COASTDOWN_SOURCE = f"{SEED}, §4 (roll-out tests: J dω/dt = −T_f(ω))"
 
 def _closed_form_coastdown(name: str, friction: Law, notes: str):
     """The ``@law`` declaration shared by the closed-form coast-downs of a steady-state law."""
+    params = _coastdown_params(friction, DRUM_INERTIA)
     return law(
         name=name,
         family="drum",
         inputs=COASTDOWN_INPUTS,
         response="velocity",
         source=f"{_COASTDOWN_SOURCE}; friction: {friction.source}",
-        params=_coastdown_params(friction, DRUM_INERTIA),
+        params=params,
         constants={"J": INERTIA},
         trajectory=True,
         notes=_COASTDOWN_NOTES + notes,
+        steady=_steady(friction, params, {"J": INERTIA}),
     )
 
 
@@ -237,6 +253,7 @@ def coastdown(velocity_law: Law | str, *, inertia: float = DRUM_INERTIA) -> Law:
         "trajectory_start is accepted but not needed. "
         + (f"Base law: {base.notes}" if base.notes else ""),
         sign_definite=base.sign_definite,
+        steady=_steady(base, params, constants),
     )(_integrator(base, params, constants))
 
 

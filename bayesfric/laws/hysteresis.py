@@ -83,7 +83,7 @@ from bayesfric.numerics import positive_power, power_ratio
 from bayesfric.priors import Prior
 
 __all__ = ["DAHL_LAWS", "dahl_torque", "lugre", "dahl_relax", "lugre_bristle", "START_STATE",
-           "held_velocity", "phi1"]
+           "held_velocity", "phi1", "dahl_steady", "lugre_steady"]
 
 SEED = "seed 001 (Dahl 1977, solid friction parameters of ball bearings)"
 LUGRE = "Canudas de Wit et al. 1995 (LuGre), named in seed 002"
@@ -227,6 +227,16 @@ def dahl_torque(angle, preload, trajectory_start, F_c0, gamma, x_c0, kappa, i, P
     return F_c * phi
 
 
+def dahl_steady(velocity, preload, F_c0, gamma, x_c0, kappa, i, P_ref, F_start):
+    """Dahl at constant speed: along a monotone run u = 1 − (F/F_c) sgn ẋ relaxes to 0
+    (:func:`dahl_relax`, every i > 0), so F = F_c sgn ẋ with F_c = F_c0 (P/P_ref)^γ."""
+    return jnp.sign(velocity) * F_c0 * power_ratio(jnp.asarray(preload, dtype=float), P_ref, gamma)
+
+
+def _signature(names) -> inspect.Signature:
+    return inspect.Signature([inspect.Parameter(n, inspect.Parameter.POSITIONAL_OR_KEYWORD) for n in names])
+
+
 def _dahl_law(name: str, knee_by_preload: bool):
     """Declare one Dahl law: x_c shared or preload-dependent (the exponent i is fixed by aliases)."""
     params = {"F_c0": F_c0, "gamma": gamma, "x_c0": x_c0}
@@ -239,13 +249,16 @@ def _dahl_law(name: str, knee_by_preload: bool):
     constants["P_ref"] = P_REF
     constants["F_start"] = F_START
     inputs = ("angle", "preload", TRAJECTORY_START)
-    names = list(inputs) + list(params) + list(constants)
-    signature = inspect.Signature(
-        [inspect.Parameter(n, inspect.Parameter.POSITIONAL_OR_KEYWORD) for n in names]
-    )
+    signature = _signature([*inputs, *params, *constants])
+    steady_signature = _signature(["velocity", "preload", *params, *constants])
 
     def fn(*args, **kwargs):
         return dahl_torque(**signature.bind(*args, **kwargs).arguments)
+
+    def steady(*args, **kwargs):
+        return dahl_steady(**steady_signature.bind(*args, **kwargs).arguments)
+
+    steady.__signature__ = steady_signature
 
     knee_text = "x_c ∝ P^κ per preload" if knee_by_preload else "one x_c for all preloads"
     fn.__signature__ = signature
@@ -264,6 +277,7 @@ def _dahl_law(name: str, knee_by_preload: bool):
         trajectory=True,
         notes=_DAHL_NOTES,
         optional={"preload": OptionalInput("P_ref", ("gamma", "kappa"))},
+        steady=steady,
     )(fn)
 
 
@@ -339,6 +353,13 @@ def lugre_bristle(velocity, time, trajectory_start, sigma0, F_c, dF_s, v_s, F_st
     return z, g(v)
 
 
+def lugre_steady(velocity, preload, sigma0, rho1, sigma2, F_c, F_ratio, v_s, gamma, F_start, P_ref):
+    """LuGre at constant speed: ż = 0 at z = g(v) sgn v/σ0, so T = (P/P_ref)^γ g(v) sgn v + σ2 v."""
+    v = jnp.asarray(velocity, dtype=float)
+    g = F_c + F_c * (1.0 / F_ratio - 1.0) * jnp.exp(-((v / v_s) ** 2))
+    return power_ratio(jnp.asarray(preload, dtype=float), P_ref, gamma) * g * jnp.sign(v) + sigma2 * v
+
+
 @law(
     name="lugre",
     family="hysteresis",
@@ -399,6 +420,7 @@ def lugre_bristle(velocity, time, trajectory_start, sigma0, F_c, dF_s, v_s, F_st
     trajectory=True,
     notes=_LUGRE_NOTES,
     optional={"preload": OptionalInput("P_ref", ("gamma",))},
+    steady=lugre_steady,
 )
 def lugre(velocity, time, preload, trajectory_start, sigma0, rho1, sigma2, F_c, F_ratio, v_s, gamma,
           F_start, P_ref):

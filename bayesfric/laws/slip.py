@@ -70,7 +70,8 @@ from bayesfric.laws.hysteresis import START_STATE, held_velocity, phi1
 from bayesfric.priors import Prior
 
 __all__ = ["maxwell_slip_law", "gms_law", "elastoplastic", "maxwell_slip_torque", "gms_torque",
-           "elastoplastic_deflection", "N_DEFAULT", "N_MAX", "SUBSTEPS"]
+           "elastoplastic_deflection", "N_DEFAULT", "N_MAX", "SUBSTEPS", "maxwell_slip_steady", "gms_steady",
+           "elastoplastic_steady"]
 
 MS = "Lampaert, Al-Bender & Swevers 2003 (Tribology Letters 16(1-2):95-105), Maxwell-slip"
 GMS = "Al-Bender, Lampaert & Swevers 2005 (IEEE TAC 50(11):1883-1887), generalized Maxwell-slip"
@@ -139,6 +140,12 @@ def maxwell_slip_torque(angle, trajectory_start, F_c, w, dx, F_start):
     return F_c * phi @ alpha
 
 
+def maxwell_slip_steady(velocity, F_c, w, dx, F_start):
+    """Maxwell-slip at constant speed: every element slides at its break-away torque, T = Σ α_i F_c sgn v."""
+    alpha, _ = _shares(w, dx)
+    return jnp.sign(velocity) * F_c * jnp.sum(alpha, axis=-1)
+
+
 # --- GMS ---------------------------------------------------------------------------------------
 def gms_torque(velocity, time, trajectory_start, F_c, dF_s, v_s, sigma2, C, w, dx, F_start):
     """GMS torque along ordered velocity trajectories (exact for piecewise-constant velocity)."""
@@ -172,6 +179,13 @@ def gms_torque(velocity, time, trajectory_start, F_c, dF_s, v_s, sigma2, C, w, d
     init = (jnp.full(delta.shape, phi_init[0]), jnp.full(delta.shape, dir_init[0]))
     _, phi = lax.scan(advance, init, (start, v_hold, h, s_hold, phi_init, dir_init))
     return phi @ alpha + sigma2 * v
+
+
+def gms_steady(velocity, F_c, dF_s, v_s, sigma2, C, w, dx, F_start):
+    """GMS at constant speed: every element sits at α_i s(v) sgn v, so T = Σ α_i s(v) sgn v + σ2 v."""
+    v = jnp.asarray(velocity, dtype=float)
+    alpha, _ = _shares(w, dx)
+    return jnp.sign(v) * (F_c + dF_s * jnp.exp(-((v / v_s) ** 2))) * jnp.sum(alpha, axis=-1) + sigma2 * v
 
 
 # --- elasto-plastic ----------------------------------------------------------------------------
@@ -213,6 +227,13 @@ def elastoplastic_deflection(velocity, time, trajectory_start, sigma0, beta, F_c
     return z
 
 
+def elastoplastic_steady(velocity, sigma0, beta, F_c, F_ratio, v_s, sigma2, F_start):
+    """Elasto-plastic at constant speed: z reaches z_ss(v) = f_ss(v) sgn v/σ0 (α = 1 there), so
+    T = σ0 z_ss + σ2 v = f_ss(v) sgn v + σ2 v."""
+    v = jnp.asarray(velocity, dtype=float)
+    return jnp.sign(v) * (F_c + F_c * (1.0 / F_ratio - 1.0) * jnp.exp(-((v / v_s) ** 2))) + sigma2 * v
+
+
 @law(
     name="elastoplastic",
     family="hysteresis",
@@ -251,6 +272,7 @@ def elastoplastic_deflection(velocity, time, trajectory_start, sigma0, beta, F_c
            "near 1, and NUTS diverges at the edge of the second arm: defaults on the tribo_loops "
            "design, R-hat 1.012, ESS 660/437, 1 divergence after the retry at 0.99 (README, issue 29); "
            "check R-hat and divergences. Not sign-definite in velocity: the torque lags at reversals."),
+    steady=elastoplastic_steady,
 )
 def elastoplastic(velocity, time, trajectory_start, sigma0, beta, F_c, F_ratio, v_s, sigma2, F_start):
     """Elasto-plastic friction: T = σ0 z + σ2 v, ż = v(1 − α(z, v) z/z_ss(v)), elastic below z_ba."""
@@ -283,7 +305,7 @@ def maxwell_slip_law(n: int = N_DEFAULT) -> Law:
                   "T = Σ k_i z_i, Δ_i ordered.")
     return law(name=name, family="hysteresis", inputs=inputs, response="torque",
                source=f"{MS}; {GMS} (rate-independent case)", params=params,
-               constants={"F_start": START_STATE}, trajectory=True,
+               constants={"F_start": START_STATE}, trajectory=True, steady=maxwell_slip_steady,
                derived={"break_away": Derived(lambda dx: jnp.sum(dx, axis=-1), "rad",
                                               "largest break-away deflection Δ_N (end of pre-sliding)")},
                notes=(f"{n} elements. The ordered deflections Δ_i are identified only where the data "
@@ -313,7 +335,7 @@ def gms_law(n: int = N_DEFAULT) -> Law:
     fn.__doc__ = (f"Generalized Maxwell-slip, {n} elements: stick dF_i/dt = k_i v, slip dF_i/dt = "
                   "sgn(v) C (1 − F_i/(α_i s(v))), T = Σ F_i + σ2 v.")
     return law(name=name, family="hysteresis", inputs=inputs, response="torque",
-               source=GMS, params=params, constants={"F_start": START_STATE},
+               source=GMS, params=params, constants={"F_start": START_STATE}, steady=gms_steady,
                derived={"F_s": Derived(lambda F_c, dF_s: F_c + dF_s, "N*m", "static friction torque F_s")},
                trajectory=True,
                notes=(f"{n} elements. Steady sliding gives the Stribeck curve s(v) sgn v + σ2 v "

@@ -75,7 +75,9 @@ def _format_unit(powers: Mapping[str, float]) -> str:
 # -- building blocks -----------------------------------------------------------------------------
 def _rebuild(base: Law, call: Callable[[dict[str, Any]], Any], **changes: Any) -> Law:
     """A new (unregistered) law like ``base`` with ``changes``; its function calls ``call(kwargs)``."""
-    fields = {f.name: getattr(base, f.name) for f in dataclasses.fields(Law)} | changes
+    # a declared steady state reads the declared law's names: a variant's is rebuilt from its recipe
+    # (bayesfric.laws.steady.steady_state), never carried over
+    fields = {f.name: getattr(base, f.name) for f in dataclasses.fields(Law)} | {"steady": None} | changes
     names = list(fields["inputs"]) + list(fields["params"]) + list(fields["constants"])
     signature = inspect.Signature([inspect.Parameter(n, inspect.Parameter.POSITIONAL_OR_KEYWORD) for n in names])
 
