@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from bayesfric import sizing
+from bayesfric.laws import get_law
 from bayesfric.model import Noise
 from bayesfric.sizing import SizingError, make_question
 from tests.bench_data import write_bench
@@ -187,10 +188,18 @@ def test_student_t_with_infinite_variance_is_reported():
     assert np.isfinite(a.laws[0].var_noise[0]) and any("nu ≤ 2" in w for w in a.warnings)
 
 
-def test_trajectory_laws_cannot_be_sized():
-    fit = hand_fit("coulomb", {"T_C": const(1), "sigma": const(1)}, TESTED)
-    fit.attrs["law"] = "dahl"
-    with pytest.raises(SizingError, match="trajectory"):
+def test_trajectory_laws_are_sized_by_their_steady_state():
+    """Dahl at constant speed is F_c0 (P/P_ref)^γ sgn v (tests/test_steady_state.py checks every
+    stateful law against its long run); the angle is no input of its steady state."""
+    from bayesfric.laws.steady import STEADY_NOTE
+
+    draws = {"F_c0": const(2.0), "gamma": const(1.0), "x_c0": const(0.01), "i": const(1.5), "sigma": const(0.1)}
+    fit = hand_fit("dahl", draws, {"angle": np.linspace(0, 1, 6), "preload": np.full(6, 50.0)})
+    d = sizing.predict(fit, {"velocity": np.array([-1.0, 2.0]), "preload": np.array([100.0, 25.0])})
+    p_ref = get_law("dahl").constants["P_ref"].value
+    np.testing.assert_allclose(d.mu[0, 0], 2.0 * np.array([-100.0, 25.0]) / p_ref, rtol=1e-12)
+    assert d.steady == STEADY_NOTE
+    with pytest.raises(SizingError, match="reads velocity"):
         sizing.predict(fit, {"angle": np.array([0.1]), "preload": np.array([10.0])})
 
 

@@ -17,6 +17,7 @@ from bayesfric.report.findings import Finding, plain
 from bayesfric.report.tables import format_table
 from bayesfric.report.typeset import fmt, unit
 from bayesfric.sizing import EXTRAPOLATION_WARN, LEVELS, RANGE_POINTS, Answer, SizingResult
+from bayesfric.sizing.steady import steady_line
 
 __all__ = ["Section", "sections", "records", "text_report", "headlines", "RANGE_ROWS"]
 
@@ -36,6 +37,7 @@ class Section:
     warnings: list[str] = field(default_factory=list)
     tables: list[tuple[str, list[str], list[list[str]]]] = field(default_factory=list)  # caption, header, rows
     figure: str | None = None  # the fan figure: file name (Markdown) or base64 PNG (HTML), when one was drawn
+    caption: str = ""  # the figure's caption, where it is not the sizing fan's
 
 
 def _g(x: float, digits: int = 4) -> str:
@@ -128,8 +130,9 @@ def _law_table(result: SizingResult, answer: Answer, j: int) -> tuple[str, list[
                 cells.append(_p_text(float(a.p_exceed[j]), float(a.p_se[j]), float(a.p_bound[j])))
         return cells + (_cal_cells(a, j, scale, capacity) if calibrated else [])
 
-    rows = [row(a.name, a, (a.weight_raw, a.weight, a.weight_loo)) for a in answer.used]
-    rows += [row(f"{a.name} (EXCLUDED)", a, (a.weight_raw, math.nan, a.weight_loo))
+    mark = {a.name: " (steady state)" for a in answer.laws if a.steady}  # a stateful law's steady state
+    rows = [row(a.name + mark.get(a.name, ""), a, (a.weight_raw, a.weight, a.weight_loo)) for a in answer.used]
+    rows += [row(f"{a.name}{mark.get(a.name, '')} (EXCLUDED)", a, (a.weight_raw, math.nan, a.weight_loo))
              for a in answer.laws if a.excluded is not None]
     for mix, name in ((answer.average, "MODEL AVERAGE"), (answer.average_loo, "average by LOO weights")):
         if mix is not None and not single:
@@ -234,6 +237,8 @@ def sections(result: SizingResult, figures: dict[int, str] | None = None) -> lis
             worst = {k: float(np.max(d)) for k, d in answer.distance.items()}
             sec.lines.append("Largest over the range: " + "; ".join(f"{k} {_g(d, 3)}" for k, d in worst.items()) + ".")
         sec.warnings += _first_warnings(answer)
+        if steady := steady_line(answer.laws):
+            sec.lines.append(steady)
         if answer.basis is None:
             sec.lines.append("One fit: no model average, no weights; no blocked fold measured this law's model-form "
                              "error, so no calibrated numbers: its intervals carry parameter and noise uncertainty "
@@ -287,7 +292,8 @@ def headlines(result: SizingResult) -> list[Finding]:
             continue
         mix = answer.average.calibrated or answer.average
         what = "calibrated for model-form error" if answer.average.calibrated is not None else "within-model"
-        tail = f" at confidence {q.confidence:g} ({what}, model average, {_point_text(answer, j)}"
+        steady = " at steady state (constant speed)" if steady_line(answer.used, answer.average.weights) else ""
+        tail = f"{steady} at confidence {q.confidence:g} ({what}, model average, {_point_text(answer, j)}"
         if answer.average.calibrated is not None and not (answer.basis and answer.basis.no_extrapolation):
             tail += f"; within-model {_g(float(answer.average.required[j]) / scale)} {shown}"
         if q.capacity is not None:
@@ -349,7 +355,8 @@ def records(result: SizingResult) -> list[dict]:
     ``calibrated_q5/q50/q95`` are the friction curve's quantiles with the measured model-form
     error, ``calibrated_required`` and ``calibrated_p_exceed`` the required capacity and
     exceedance probability with noise and that error (NaN where nothing was measured: one fit,
-    no blocked fold). One fit (``bayesfric size FIT.nc``) has no weight columns and no averages.
+    no blocked fold). ``steady_state``: what a stateful law's answer is (:data:`bayesfric.sizing.STEADY_NOTE`;
+    "" for a steady law). One fit (``bayesfric size FIT.nc``) has no weight columns and no averages.
     """
     out = []
     for i, answer in enumerate(result.answers):
@@ -367,7 +374,8 @@ def records(result: SizingResult) -> list[dict]:
             base["governing"] = j == answer.governing
             base["basis"] = basis
             for name, role, excluded, weights, a in _rows(answer):
-                rec = dict(base, role=role, law=name, included=excluded is None, excluded_reason=excluded or "")
+                rec = dict(base, role=role, law=name, included=excluded is None, excluded_reason=excluded or "",
+                           steady_state=a.steady if role == "law" else steady_line(answer.laws, a.weights, False))
                 if weights is not None:
                     rec.update(zip(("weight_basis", "weight_used", "weight_stacking_loo"), weights, strict=True))
                 for level in levels:

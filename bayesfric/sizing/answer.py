@@ -110,7 +110,7 @@ def _widened(src: LawSource, d: Draws, basis: Basis, schemes: Sequence[Scheme], 
         rel = np.maximum(rel, np.abs(bias))
     rng = np.random.default_rng([seed, zlib.crc32(("calibrated " + src.name).encode())])
     mu, y, _ = widen(d.mu, d.y, rel, rng, shift)
-    return Draws(mu, y, d.noise_var), rel
+    return Draws(mu, y, d.noise_var, d.steady), rel
 
 
 def undetected(sources: Sequence[LawSource], weights: Mapping[str, float], basis: Basis,

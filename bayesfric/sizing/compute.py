@@ -12,6 +12,8 @@ Per law and point
     model). **With noise** adds one draw of the fit's observation noise per posterior draw, from
     the fit's own program (:meth:`bayesfric.model.Program.observation`: the likelihood's
     distribution; ar1 at its stationary marginal ``σ / sqrt(1 − ρ²)``).
+    A trajectory (stateful) law is evaluated by its **steady state at constant speed**
+    (:mod:`bayesfric.sizing.steady`): no transient, and the answer says so (``LawAnswer.steady``).
 
 Magnitudes
     Friction opposes motion, so the drive must overcome ``|T|`` whichever the direction: every
@@ -57,6 +59,7 @@ Energy (pitch drives, seed 000 §1)
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import zlib
 from collections.abc import Mapping, Sequence
@@ -112,6 +115,7 @@ class Draws:
     mu: np.ndarray  # mean function (new-unit offset included), signed
     y: np.ndarray  # with observation noise, signed
     noise_var: np.ndarray  # noise-model variance per draw and point (inf: Student-t with nu <= 2)
+    steady: str = ""  # a trajectory law's steady state at constant speed: what the answer is (sizing.steady)
 
     @property
     def n_draws(self) -> int:
@@ -152,6 +156,7 @@ class LawAnswer:
     n_draws: int
     rel_sd: np.ndarray | None = None  # relative sd of the model-form discrepancy per point (calibrated only)
     calibrated: LawAnswer | None = None  # the same answer with the measured model-form error added
+    steady: str = ""  # "" or, from a trajectory law's steady state, what the answer is (sizing.steady)
 
 
 @dataclass
@@ -283,25 +288,28 @@ def predict(fit: xr.DataTree, grid: Mapping[str, np.ndarray], seed: int = 0, gro
     With group terms (``vary_by``, ``[noise] group``) the answer is for a new run / unit unless
     ``group`` names an existing level (:func:`bayesfric.hierarchy.mean_draws`).
 
+    A trajectory (stateful) law answers from its steady state at constant speed
+    (:func:`bayesfric.sizing.steady.sizing_law`), evaluated with the fit's posterior; the draws say
+    so (``Draws.steady``).
+
     Raises
     ------
     SizingError
-        The fit's law is a trajectory (stateful) law, or ``grid`` lacks an input it reads.
+        The fit's law is a trajectory (stateful) law without a steady state, or ``grid`` lacks an
+        input it reads.
     """
     from bayesfric.hierarchy import mean_draws
     from bayesfric.model import program_of_fit
+    from bayesfric.sizing.steady import sizing_law, steady_note
 
     program = program_of_fit(fit)
-    law = program.law
-    if law.trajectory:
-        raise SizingError("", f"law {law.name!r} is a trajectory (stateful) law: its friction depends on the "
-                              "path, so it cannot be sized at an operating point")
+    fitted, law = program.law, sizing_law(program.law)
     missing = [k for k in law.operating_inputs if k not in grid]
     if missing:
         raise SizingError("", f"law {law.name!r} reads {', '.join(missing)}, which the point does not give")
     n = len(next(iter(grid.values())))
     # a new unit of a grouped fit; with ar1 noise each point its own trajectory (stationary marginal)
-    program = program.at({k: grid[k] for k in law.operating_inputs})
+    program = dataclasses.replace(program, law=law).at({k: grid[k] for k in law.operating_inputs})
     post = fit["posterior"].to_dataset()
     chains, draws = post.sizes["chain"], post.sizes["draw"]
     s = chains * draws
@@ -312,6 +320,9 @@ def predict(fit: xr.DataTree, grid: Mapping[str, np.ndarray], seed: int = 0, gro
 
     mu = mean_draws(program, post, group=group, seed=zlib.crc32(law.name.encode()) + seed)
     _check_magnitude(law, grid, mu)
+    shape, note = (chains, draws, n), steady_note(fitted, law)
+    if law.response != fitted.response:  # a coast-down's torque: the fit's noise is on its speed
+        return Draws(mu.reshape(shape), mu.reshape(shape), np.zeros(shape), note)
     rng = np.random.default_rng([seed, zlib.crc32(law.name.encode())])
     # The fit's own observation distribution (Program.observation: the likelihood's, ar1 at its
     # stationary marginal). One standardised noise draw per posterior draw, shared by the
@@ -326,8 +337,7 @@ def predict(fit: xr.DataTree, grid: Mapping[str, np.ndarray], seed: int = 0, gro
         y = loc + scale * rng.normal(size=(s, 1))
     var = np.asarray(jnp.broadcast_to(obs.variance, (s, n)), dtype=float)
     var = np.where(np.isfinite(var), var, np.inf)
-    shape = (chains, draws, n)
-    return Draws(mu.reshape(shape), y.reshape(shape), np.asarray(var, dtype=float).reshape(shape))
+    return Draws(mu.reshape(shape), y.reshape(shape), np.asarray(var, dtype=float).reshape(shape), note)
 
 
 def _check_magnitude(law, grid: Mapping[str, np.ndarray], mu: np.ndarray) -> None:
@@ -389,7 +399,7 @@ def law_answer(source: LawSource, draws: Draws, question: SizingQuestion, levels
         excluded=source.excluded,
         weight_note=source.weight_note, mean_fn=mean_fn, noisy=noisy, required=noisy.q(question.confidence),
         p_exceed=p, p_se=se, p_bound=bound, ess=ess, var_param=mu_abs.reshape(-1, mu_abs.shape[-1]).var(axis=0),
-        var_noise=var_noise, infinite_noise=infinite, n_draws=draws.n_draws,
+        var_noise=var_noise, infinite_noise=infinite, n_draws=draws.n_draws, steady=draws.steady,
     )
 
 

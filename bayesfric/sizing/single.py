@@ -15,7 +15,7 @@ import xarray as xr
 
 from bayesfric.errors import UserError
 from bayesfric.inference import load_fit
-from bayesfric.sizing.points import SizingQuestion, check_question
+from bayesfric.sizing.points import SizingError, SizingQuestion, check_question
 
 __all__ = ["read_fit", "fit_question", "answer_fit"]
 
@@ -59,19 +59,20 @@ def fit_question(fit: xr.DataTree, question: SizingQuestion, *, keys: Mapping[st
     UserError
         Not a bayesfric fit, a law that cannot be rebuilt (no longer known by its name, or a
         law file the fit records gone: :class:`~bayesfric.laws.plugins.LawModuleError`), a
-        trajectory (stateful) law, or a question the law cannot answer
-        (:class:`~bayesfric.sizing.points.SizingError`).
+        trajectory (stateful) law without a steady state, or a question the law cannot answer
+        (:class:`~bayesfric.sizing.points.SizingError`). A trajectory law's question is asked of
+        its steady state at constant speed (:func:`bayesfric.sizing.steady.sizing_law`).
     """
     from bayesfric.laws.variants import law_of_fit
+    from bayesfric.sizing.steady import sizing_law
 
     _check_is_fit(fit, where)
     try:
-        law = law_of_fit(fit.attrs)
+        law = sizing_law(law_of_fit(fit.attrs))  # the law as it ran on the fit's data
     except KeyError as exc:
         raise UserError(f"{where}: {exc.args[0]}") from None
-    if law.trajectory:
-        raise UserError(f"{where}: law {law.name!r} is a trajectory (stateful) law: its friction depends on the "
-                        "path, so it cannot be sized at an operating point")
+    except SizingError as exc:
+        raise UserError(f"{where}: {exc.problem}") from None
     return check_question(question, law.operating_inputs, law.operating_inputs, law.response, keys=keys,
                           inputs_of=f"law {law.name!r}")
 

@@ -124,9 +124,11 @@ def sizing_questions(study: Study, ds, questions: list[sizing.SizingQuestion] | 
                      cli: bool = False, keys: dict[str, str] | None = None) -> list[sizing.SizingQuestion]:
     """The study's ``[[sizing]]`` questions (or ``questions``) checked against the data and the laws.
 
-    Every input named must be an input of the data, every input a candidate law reads must be
-    given, a capacity must be of the data's response quantity, and no candidate law may be a
-    trajectory law. Returns the questions with their capacity parsed.
+    Every input named must be an input of the data (or one a stateful law's steady state reads),
+    every input a candidate law reads must be given (a trajectory law: its steady state's,
+    :func:`bayesfric.sizing.sizing_law`), a capacity must be of the quantity sized (the data's
+    response; a coast-down's steady state: torque), and every trajectory law must declare a steady
+    state. Returns the questions with their capacity parsed.
 
     Raises
     ------
@@ -142,14 +144,19 @@ def sizing_questions(study: Study, ds, questions: list[sizing.SizingQuestion] | 
     inputs = [k for k, v in ds.coords.items() if v.attrs.get("role") == "input"]
     laws = [for_data(spec.build(), ds) for spec in study.laws]  # inputs as the laws read this data
     for i, law in enumerate(laws):
-        if law.trajectory:
-            raise StudyError(f"{where}: laws[{i}] ({law.name}): a trajectory (stateful) law cannot be sized at an "
-                             "operating point; remove it or the [[sizing]] questions")
+        try:
+            laws[i] = sizing.sizing_law(law)  # a trajectory law: its steady state at constant speed
+        except sizing.SizingError as exc:
+            raise StudyError(f"{where}: laws[{i}] ({law.name}): {exc.problem}; remove it or the [[sizing]] "
+                             "questions") from None
     required = list(dict.fromkeys(q for law in laws for q in law.operating_inputs))
+    inputs += [q for q in required if q not in inputs]
+    responses = {law.response for law in laws}
+    response = responses.pop() if len(responses) == 1 else ds.attrs["response"]
     checked = []
     for i, question in enumerate(questions):
         try:
-            checked.append(sizing.check_question(question, inputs, required, ds.attrs["response"],
+            checked.append(sizing.check_question(question, inputs, required, response,
                                                  keys=sizing.CLI_KEYS if cli else keys))
         except sizing.SizingError as exc:
             raise StudyError(str(exc) if cli or keys is not None else f"{where}: sizing[{i}].{exc}") from None
