@@ -17,7 +17,9 @@ to Dahl's on the same data (the issue's budget: ≤ 3×). Seconds move with the 
 load, printed with each row.
 
 Run: ``PYTHONPATH=. .venv/bin/python benchmarks/bench_stateful_loops.py [--design 800] [--laws dahl lugre]
-[--limit 1800] [--init pathfinder]``. Writes ``reports/benchmarks/bench_stateful_loops.json``.
+[--limit 1800] [--init pathfinder] [--seeds 1 2 3 4]``. ``--seeds`` runs every law on each data seed in
+turn (Dahl first on each, so each ratio is to Dahl on the same data; issue 50's target is four seeds × the
+two designs). Writes ``reports/benchmarks/bench_stateful_loops.json`` (``--out`` for another file).
 """
 
 from __future__ import annotations
@@ -94,6 +96,8 @@ def main() -> None:
     parser.add_argument("--design", choices=sorted(DESIGNS), default="800")
     parser.add_argument("--laws", nargs="+", default=LAWS)
     parser.add_argument("--seed", type=int, default=3)
+    parser.add_argument("--seeds", type=int, nargs="+", help="data seeds, each law on each (overrides --seed)")
+    parser.add_argument("--out", type=Path, default=OUT, help="JSON file written after each row")
     parser.add_argument("--limit", type=float, default=1800.0, help="seconds per law (a fit past it is cut)")
     parser.add_argument("--init", choices=["median", "pathfinder"], default="median",
                         help="chain starts of every law (the default: prior medians)")
@@ -102,17 +106,21 @@ def main() -> None:
     if args.child:
         print(json.dumps(child(args.child, args.design, args.seed, args.init)), flush=True)
         return
+    seeds = args.seeds or [args.seed]
     rows = []
-    for name in args.laws:
-        row = run_one(name, args.design, args.seed, args.limit, args.init)
-        rows.append(row)
-        dahl = next((r["seconds"] for r in rows if r["law"] == "dahl" and "seconds" in r), None)
-        if "seconds" in row and dahl:
-            row["vs_dahl"] = row["seconds"] / dahl
-        print(json.dumps(row), flush=True)
-        OUT.parent.mkdir(parents=True, exist_ok=True)
-        summary = {"design": args.design, "seed": args.seed, "init": args.init, "rows": rows}
-        OUT.write_text(json.dumps(summary, indent=1))
+    for seed in seeds:
+        for name in args.laws:
+            row = run_one(name, args.design, seed, args.limit, args.init)
+            row["seed"] = seed
+            rows.append(row)
+            dahl = next((r["seconds"] for r in rows
+                         if r["law"] == "dahl" and r["seed"] == seed and "seconds" in r), None)
+            if "seconds" in row and dahl:
+                row["vs_dahl"] = row["seconds"] / dahl
+            print(json.dumps(row), flush=True)
+            args.out.parent.mkdir(parents=True, exist_ok=True)
+            summary = {"design": args.design, "seeds": seeds, "init": args.init, "rows": rows}
+            args.out.write_text(json.dumps(summary, indent=1))
 
 
 if __name__ == "__main__":

@@ -125,6 +125,7 @@ def psis_loo(
     program: Program | None = None,
     engine: RefitEngine | Callable[[], RefitEngine] | None = None,
     seed: int = 0,
+    no_refit: str = "",
 ) -> LooResult:
     """PSIS-LOO of ``fit`` with exact refits of the high Pareto-k points.
 
@@ -142,12 +143,15 @@ def psis_loo(
         engine costs ~0.1 s to set up; most fits have no high-k point).
     seed : int
         Seed of the refits.
+    no_refit : str, optional
+        Why no point may be refitted (a study's fit that failed the gate under ``[compare]
+        failed_fits = "skip"``): the PSIS values are kept and ``handling`` gives the reason.
 
     Returns
     -------
     LooResult
-        If high-k points exist and no data were given to refit them, ``refitted`` is False,
-        ``handling`` says so and the result is flagged unreliable.
+        If high-k points exist and no data were given to refit them (or ``no_refit`` says why
+        not), ``refitted`` is False, ``handling`` says so and the result is flagged unreliable.
     """
     data, sub = subsample_psis(fit, program, ds) if is_subsampled(fit) else (_psis(fit), None)
     pareto_k = np.asarray(data.pareto_k.values, dtype=float).ravel()  # NaN off a subsample
@@ -158,6 +162,9 @@ def psis_loo(
     refitted = True
     if high.size == 0:
         handling = "none above threshold"
+    elif no_refit:
+        handling = f"{high.size} point(s) not refitted: {no_refit} (PSIS values kept)"
+        refitted = False
     elif engine is None and program is None and ds is None:
         handling = f"{high.size} point(s) not refitted: no data given (PSIS values kept)"
         refitted = False

@@ -155,6 +155,12 @@ def _with_predictions(verdict: Verdict, loglik: xr.Dataset, gate: Gate) -> Verdi
     return replace(verdict, loglik_rhat_max=rhat, loglik_ess_bulk_min=ess, predictions_converged=converged)
 
 
+def _constant(values: xr.DataArray) -> bool:
+    """Every draw of every chain (and fold) holds the same value."""
+    v = np.asarray(values.values, dtype=float)
+    return bool(v.size) and bool(np.all(v == v.flat[0]))
+
+
 def check_folds(posterior: xr.Dataset, sample_stats: xr.Dataset, var_names: list[str] | None = None,
                 gate: Gate = GATE, fold: str | None = "fold") -> list[Verdict]:
     """The gate for every fold of draws with a ``fold`` dimension, in one pass of arviz-stats.
@@ -166,6 +172,9 @@ def check_folds(posterior: xr.Dataset, sample_stats: xr.Dataset, var_names: list
     """
     arviz_stats = import_statistics()
     names = var_names or [v for v in posterior.data_vars if v != "group_offset"]
+    # a derived quantity that fixed values hold constant (σ1 = 0 where ρ1 = 0) has no R-hat: left out
+    # (unless nothing moves at all: that stays a failure)
+    names = [v for v in names if not _constant(posterior[v])] or names if var_names is None else names
     sub = posterior[names]
     rhat = _per_fold(arviz_stats.rhat(sub), np.nanmax, fold)
     ess_bulk = _per_fold(arviz_stats.ess(sub, method="bulk"), np.nanmin, fold)

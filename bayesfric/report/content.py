@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from bayesfric import identifiability
 from bayesfric.report import findings as fd
 from bayesfric.report import sizing as sizing_report
 from bayesfric.report.blocks import FigureRef, Table
@@ -78,6 +79,7 @@ class Report:
     footer: str
     sections: list[tuple[str, str]] = field(default_factory=list)
     structure: Table | None = None
+    identifiability: Table | None = None
 
 
 def _num(x: Any, digits: int = 2) -> str:
@@ -213,6 +215,40 @@ def _structure(t: TreeView) -> Table | None:
                  "differs between the groups, or trends with the column, beyond the noise model.", header, rows, warn)
 
 
+def _identifiability_rows(t: TreeView) -> list[dict[str, str]]:
+    node = t.tree["identifiability"].to_dataset() if "identifiability" in t.tree.children else None
+    return identifiability.checks_of(node)
+
+
+def _identifiability(t: TreeView) -> Table | None:
+    """What the data can determine of each stateful law, measured before fitting
+    (:mod:`bayesfric.identifiability`); None without a stateful law."""
+    rows = _identifiability_rows(t)
+    if not rows:
+        return None
+    return Table("Identifiability from the data, measured before fitting: what each stateful law's parameters "
+                 "need of the data (its notes) against what the data hold, at the law's prior medians on these data. "
+                 "⚠ = the data do not determine those parameters (the posterior keeps their prior along a ridge, or "
+                 "has several modes); where a reduced variant exists the study ranks it as a companion entry "
+                 "([compare] companions).",
+                 ["law", "parameters", "needs", "status", "measured", "companion"],
+                 [[r["law"], r["params"], r["needs"], r["status"], r["measured"], r["companion"]] for r in rows],
+                 [i for i, r in enumerate(rows) if r["status"] == "failed"])
+
+
+def _identifiability_findings(t: TreeView) -> list[fd.Finding]:
+    """One finding per law whose parameters the data do not determine, naming its companion."""
+    out = []
+    rows = [r for r in _identifiability_rows(t) if r["status"] == "failed"]
+    for law in dict.fromkeys(r["law"] for r in rows):
+        own = [r for r in rows if r["law"] == law]
+        companion = own[0]["companion"]
+        out.append(fd.plain(f"{law}: the data do not determine " + "; ".join(f"{r['params']} ({r['measured']})"
+                                                                             for r in own)
+                            + (f"; its reduced variant {companion} is ranked beside it." if companion else ".")))
+    return out
+
+
 def checks_note(t: TreeView) -> str:
     """The sample the checks read when it was a subsample of the rows ("" when every row)."""
     n = int(t.attrs.get("n_obs", 0))
@@ -263,7 +299,7 @@ def build(t: TreeView, parameters: list[dict], figures: list[FigureRef], sizing_
             pair[f.section.split(":", 1)[1]] = f
         else:
             by_section.setdefault(f.section, []).append(f)
-    findings = fd.findings(t)
+    findings = fd.findings(t) + _identifiability_findings(t)
     sections = []
     summary = fd.summary_block(t, sizing, _claim_warnings(claims))
     if sizing is not None:
@@ -288,6 +324,7 @@ def build(t: TreeView, parameters: list[dict], figures: list[FigureRef], sizing_
                        "(dashed), the asked range or point. Read: how fast the laws' bands spread apart beyond the "
                        "tested range — that spread is the sizing risk.",
         sizing=sections, figures=by_section, footer=_footer(t.attrs), structure=_structure(t),
+        identifiability=_identifiability(t),
     )
     present = {"claims": rep.claims is not None, "trajectories": bool(by_section.get("trajectories")),
                "sizing": bool(sections)}

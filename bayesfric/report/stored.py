@@ -168,6 +168,7 @@ def _from_json(d: dict):
                         [_finding(f) for f in s["warnings"]]),
         findings=[_finding(f) for f in d["findings"]], claims=_table(d["claims"]), ranking=_table(d["ranking"]),
         extrapolation=_table(d["extrapolation"]), checks=_table(d["checks"]), structure=_table(d.get("structure")),
+        identifiability=_table(d.get("identifiability")),
         laws=[LawSection(**{**w, "table": _table(w["table"]), "figure": _figure(w["figure"])}) for w in d["laws"]],
         sizing=[Section(x["title"], list(x["lines"]), list(x["warnings"]),
                         [(c, list(h), [list(r) for r in rows]) for c, h, rows in x["tables"]], x["figure"])

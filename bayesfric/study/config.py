@@ -57,7 +57,10 @@ sampler settings, comparison methods and extrapolation folds::
     smc = false                        # also tempered SMC as a reference (opt-in: 3-13x the fit's cost)
     smc_particles = 300                # SMC particles per run (default 300, at least 20)
     smc_runs = 3                       # independent SMC runs (≥ 2); their spread gives the MC error
-    failed_fits = "skip"               # skip | run: CV refits and evidence of a law whose fit failed the gate
+    failed_fits = "skip"               # skip | run: CV refits, exact LOO refits and evidence of a law whose
+                                       # fit failed the gate (skip: its LOO is PSIS only, no refit)
+    companions = true                  # add a stateful law's reduced variant where the data do not identify
+                                       # the full law (LuGre -> lugre_Fs_eq_Fc: F_s = F_c), ranked like any law
 
     [[compare.blocked]]
     axis = "velocity"                  # any input coordinate of the data
@@ -363,4 +366,5 @@ def study_from_raw(path: Path, raw: dict[str, Any]) -> Study:
         smc_particles=compare["smc_particles"],
         smc_runs=compare["smc_runs"], blocked=blocked, include_failed=compare["include_failed"],
         failed_fits=compare["failed_fits"], sizing=sizing, claims=claims, raw=raw, every=data["every"],
+        companions=compare["companions"],
     )

@@ -157,6 +157,8 @@ def _flags(values: dict, verdict: Verdict, loo: LooResult | None, cv: Mapping[st
                    f"([compare] failed_fits = \"{failed_fits}\"; \"run\" computes them anyway)")
     if loo is not None and not loo.reliable:
         why = "the full fit failed the gate" if not loo.fit_passed else loo.handling
+        if not loo.fit_passed and not loo.refitted:  # failed_fits = "skip": no exact refit was spent
+            why += f"; PSIS only, {loo.n_high_k} high-k point(s) not refitted ([compare] failed_fits = \"skip\")"
         out.append(f"LOO unreliable ({why})")
     out += [f"{label}: {r.failure}" for label, r in cv.items() if not r.reliable]  # scores.fold_failure
     if agreement is not None and not agreement.agree:

@@ -9,12 +9,14 @@ been written.
 
 from __future__ import annotations
 
+import copy
+import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from bayesfric import compare, fsutil, limits, sizing
+from bayesfric import compare, fsutil, identifiability, limits, sizing
 from bayesfric.datasets import DataError, load_dataset, resolve, select
 from bayesfric.datasets.views import thin
 from bayesfric.laws.variants import for_data
@@ -26,7 +28,8 @@ from bayesfric.study.claims import ClaimError, basis_problem, check_claim
 from bayesfric.study.config import Study, StudyError, load_study, sampler_settings, walkers_problem
 from bayesfric.study.store import store_folder
 
-__all__ = ["validate_against_data", "sizing_questions", "load_study_data", "QUICK", "QUICK_KFOLD", "QuickRun"]
+__all__ = ["validate_against_data", "sizing_questions", "load_study_data", "QUICK", "QUICK_KFOLD", "QuickRun",
+           "with_identifiability"]
 
 #: ``--quick`` caps per sampler (a setting is lowered to its cap, never raised) and the cap on
 #: K-fold folds: a smoke test of the whole pipeline, not for decisions (reports say so).
@@ -271,13 +274,16 @@ def with_identifiability(study: Study, ds) -> Study:
     companions = true``, the reduced variant of each law whose parameters the data do not
     determine as a companion entry after the study's own (labelled ``<label>_<reduction>``,
     e.g. ``lugre_Fs_eq_Fc``), checked against the data as the study's entries are."""
+    def assess(spec) -> list:
+        law = for_data(spec.build(), ds)
+        program = build_program(law, ds, priors=spec.priors, noise=study.noise)
+        return identifiability.assess(law, spec.law or spec.name, ds, program.resolved)
+
     out = copy.copy(study)
     out.identifiability, added = [], []
     taken = {spec.name for spec in study.laws}
     for spec in study.laws:
-        law = for_data(spec.build(), ds)
-        program = build_program(law, ds, priors=spec.priors, noise=study.noise)
-        checks = identifiability.assess(law, spec.law or spec.name, ds, program.resolved)
+        checks = assess(spec)
         out.identifiability += checks
         companion = _companion(spec, checks, taken) if study.companions and not spec.companion_of else None
         if companion is not None:
@@ -286,6 +292,7 @@ def with_identifiability(study: Study, ds) -> Study:
     if added:
         out.laws = list(study.laws) + added
         validate_against_data(out, ds)
+        out.identifiability += [c for spec in added for c in assess(spec)]  # what the companions still need
     return out
 
 
@@ -303,6 +310,7 @@ def _prepare(path: str | Path | Study, out_root: str | Path, quick: bool):
         raise StudyError(f"{study.path}: run store: {exc}") from None
     ds = load_study_data(study)
     validate_against_data(study, ds)
+    study = with_identifiability(study, ds)  # and the companion entries it adds
     settings, kfold = _run_settings(study, quick)
     schemes = _fold_schemes(study, ds, study.sampler["seed"], kfold)
     _check_claims(study, [label for label, _, _ in schemes], ds)

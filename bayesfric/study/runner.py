@@ -34,7 +34,7 @@ from pathlib import Path
 
 import xarray as xr
 
-from bayesfric import compare, fsutil, sizing
+from bayesfric import compare, fsutil, identifiability, sizing
 from bayesfric.fingerprint import package_fingerprint
 from bayesfric.laws.variants import law_of_fit
 from bayesfric.sizing.store import schemes_of
@@ -286,8 +286,9 @@ def _result_tree(study: Study, ds, schemes: list, fits: dict, scored: dict, rows
     weights, errors = _weights(study, blocked, scored, fits)
     laws = _law_results(study, ds, blocked, scored, fits, weights, rows,
                         "run" if quick is not None else study.failed_fits)
+    checks = identifiability.checks_dataset(study.identifiability, identifiability.companions_of(study.laws))
     return study_tree(study, ds, schemes, laws, fits, sensitivity=_sensitivity(study, scored, fits),
-                      weight_errors=errors, quick=quick)
+                      weight_errors=errors, quick=quick, identifiability=checks)
 
 
 def _write_study(prepared, out_root: Path, quick: bool, fresh: bool, client, timings: list | None,
@@ -303,6 +304,8 @@ def _write_study(prepared, out_root: Path, quick: bool, fresh: bool, client, tim
         return StudyRun(final)
     for stale in fsutil.clean_stale_work(root, study.name):
         print(f"[{study.name}] removed the work folder of an interrupted run: {stale}", flush=True)
+    for line in identifiability.describe(study.identifiability, identifiability.companions_of(study.laws)):
+        print(f"[{study.name}] before fitting, the data do not identify {line}", flush=True)
     work = fsutil.create_work_folder(root, study.name)
     try:
         rows: list = []

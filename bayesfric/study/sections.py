@@ -138,7 +138,11 @@ COMPARE = Schema((
     Field("smc_runs", "int", 3, min=2, doc="independent SMC runs"),
     Field("include_failed", "bool", False, doc="weight fits that failed the gate"),
     Field("failed_fits", "str", "skip", choices=("skip", "run"),
-          doc="a law whose full fit failed the gate: skip its CV refits and evidence, or run them anyway"),
+          doc="a law whose full fit failed the gate: skip its CV refits, LOO refits and evidence, or run them "
+              "anyway"),
+    Field("companions", "bool", True,
+          doc="add a stateful law's reduced variant (e.g. LuGre with F_s = F_c) as a companion entry where the "
+              "data do not identify the full law (bayesfric.identifiability)"),
     Field("blocked", "tables", [], schema=BLOCKED, doc="blocked extrapolation folds"),
 ))
 SIZING = Schema((

@@ -36,6 +36,10 @@ Sizing, the claims and the report read this tree (the report adds its own nodes 
     (``structure_*`` over ``(law, structure_column)``, :mod:`bayesfric.compare.structure`).
 ``/quick``
     only in a ``--quick`` run: the capped sampler settings and K-fold's folds asked and used.
+``/identifiability``
+    with a stateful law: each requirement its parameters have of the data, measured before
+    fitting, over ``requirement`` (``law``, ``params``, ``needs``, ``status``, ``measured``,
+    ``companion``: the reduced entry the study added; :mod:`bayesfric.identifiability`).
 ``/sizing_basis``
     what sizing reads besides ``/weights`` and ``/diagnostics`` (:mod:`bayesfric.sizing.store`).
 ``/ranking_sensitivity``
@@ -342,7 +346,8 @@ def run_attrs(seconds: float, unit_seconds: UnitSeconds | None) -> dict[str, flo
 
 def study_tree(study: Study, data: xr.Dataset, schemes: Sequence[tuple], laws: Sequence[xr.Dataset],
                fits: Mapping[str, xr.DataTree], *, sensitivity: RankingSensitivity | None = None,
-               weight_errors: Sequence[tuple[str, str]] = (), quick: QuickRun | None = None) -> xr.DataTree:
+               weight_errors: Sequence[tuple[str, str]] = (), quick: QuickRun | None = None,
+               identifiability: xr.Dataset | None = None) -> xr.DataTree:
     """The study's results as one DataTree (layout in the module docstring).
 
     Parameters
@@ -364,6 +369,9 @@ def study_tree(study: Study, data: xr.Dataset, schemes: Sequence[tuple], laws: S
         The weightings not computed, and why.
     quick : QuickRun, optional
         The capped settings of a ``--quick`` run.
+    identifiability : xarray.Dataset, optional
+        The laws' identifiability checks (:func:`bayesfric.identifiability.checks_dataset`);
+        a node only where some law has one.
 
     Returns
     -------
@@ -381,4 +389,6 @@ def study_tree(study: Study, data: xr.Dataset, schemes: Sequence[tuple], laws: S
              "weights": _weights(laws, weight_errors), "diagnostics": _diagnostics(laws), "checks": _checks(laws),
              "sizing_basis": basis_node(laws, schemes_of(study, data, blocked))}
     nodes |= _sensitivity(sensitivity) | _quick(quick) | _fits(laws, fits)
+    if identifiability is not None and identifiability.sizes.get("requirement", 0):
+        nodes["identifiability"] = identifiability
     return xr.DataTree.from_dict(nodes)

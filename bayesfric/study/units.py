@@ -17,7 +17,9 @@ law's result (:mod:`bayesfric.study.lawresult`).
 
 The fit's verdict decides the rest: under ``[compare] failed_fits = "skip"`` (the default) a law
 whose full fit failed the diagnostics gate gets no CV refits and no evidence (the costly stages);
-its result lists them in ``skipped`` and its flags say why. That is why every unit of a law waits
+its result lists them in ``skipped`` and its flags say why. Its ``loo`` unit still runs, PSIS
+only: no high-k point is refitted exactly (:data:`NO_REFIT`; the unit's key carries
+``failed_fits = "run"`` where the study asks for the refits). That is why every unit of a law waits
 for its fit, even those that could start without it (blocked CV, importance sampling).
 """
 
@@ -49,6 +51,8 @@ __all__ = ["LawJob", "Unit", "make_job", "plan_law", "compute", "compute_seconds
 
 #: Stages skipped for a law whose full fit failed the gate under ``failed_fits = "skip"``.
 COSTLY = ("cv", "bridge", "importance", "smc")
+#: Why a failed fit's LOO refits no point under ``failed_fits = "skip"`` (its LOO is PSIS only).
+NO_REFIT = 'the fit failed the gate ([compare] failed_fits = "skip": PSIS only, no exact refit)'
 
 
 @dataclass(frozen=True)
@@ -102,8 +106,8 @@ def plan_law(job: LawJob, study, schemes: list[tuple[str, Any, str]]) -> tuple[U
         return Unit(name, stage, label, unit_key(law=job.key, stage=stage, params=params), params)
 
     rest = []
-    if study.loo:
-        rest.append(unit("loo", "loo"))
+    if study.loo:  # refits of high-k points on a fit that failed the gate only under failed_fits = "run"
+        rest.append(unit("loo", "loo", **({"failed_fits": "run"} if study.failed_fits == "run" else {})))
     for label, folds, kind in schemes:
         rest.append(unit("cv", label, kind=kind, train=folds.train, heldout=folds.heldout,
                          scheme=folds.scheme, labels=list(folds.labels)))
@@ -234,8 +238,11 @@ def _compute_rest(job: LawJob, unit: Unit, fit: xr.DataTree) -> xr.Dataset:
     """The Dataset of a unit after the fit (its scorer's result)."""
     passed = compare.verdict_of(fit).passed
     if unit.stage == "loo":
-        # refits that drop one point start from the full fit's draws when it passed the gate
-        return loo_dataset(compare.psis_loo(fit, engine=lambda: _engine(job, fit, warm=passed), seed=job.seed))
+        # refits that drop one point start from the full fit's draws when it passed the gate; a
+        # failed fit gets PSIS only unless the study runs failed fits' costly stages (issue 50)
+        refit = passed or unit.params.get("failed_fits") == "run"
+        return loo_dataset(compare.psis_loo(fit, engine=lambda: _engine(job, fit, warm=passed), seed=job.seed,
+                                            no_refit="" if refit else NO_REFIT))
     if unit.stage == "cv":
         # random K-fold drops a few points (warm start); grouped and blocked folds start cold
         p = unit.params

@@ -98,6 +98,7 @@ CASES = [
     S("dataset-int", {"data.dataset": 5}, "[data] dataset", "got integer 5"),
     S("draws-float", {"sampler.draws": 1.5}, "[sampler] draws", "integer"),
     S("loo-string", {"compare.loo": "yes"}, "[compare] loo", "true or false"),
+    S("companions-string", {"compare.companions": "no"}, "[compare] companions", "true or false"),
     S("select-not-table", {"data.select": 5}, "[data] select", "must be a table"),
     S("select-nested", {"data.select": {"series": {"a": 1}}}, "[data] select.series"),
     S("laws-not-array", {"laws": "coulomb"}, "[laws]", "array of tables"),
