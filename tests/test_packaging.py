@@ -37,5 +37,5 @@ def test_an_installed_wheel_finds_the_builtin_data_and_studies(tmp_path):
     assert module.startswith(str(tmp_path / "site")) and data_root.startswith(str(tmp_path / "site"))
     assert names == ["asym_joint", "dahl_duplex", "drum_campaigns", "drum_rollout", "gms_loops", "pitch_bearing",
                      "robot_joint", "tribo_loops", "unwinder"]
-    assert studies == ["dahl_duplex.toml", "drum_rollout.toml", "pitch_bearing.toml", "robot_joint.toml",
-                       "unwinder.toml"]
+    assert studies == ["dahl_duplex.toml", "drum_campaigns.toml", "drum_rollout.toml", "pitch_bearing.toml",
+                       "robot_joint.toml", "unwinder.toml"]

@@ -283,13 +283,14 @@ def _claim_warnings(records: list[dict]) -> list[fd.Finding]:
 
 
 def build(t: TreeView, parameters: list[dict], figures: list[FigureRef], sizing_figures: dict[int, str],
-          claims: list[dict] | None = None, sizing: SizingResult | None = None) -> Report:
+          claims: list[dict] | None = None, sizing: SizingResult | None = None,
+          service: tuple[list, list] | None = None) -> Report:
     """The report's content model, from the study's result tree (``t``: ranking, findings, checks,
     law sections, data lines and footer read it alone, :mod:`bayesfric.study.tree`), the
     parameter and claim rows the tree keeps as ``/parameters`` and ``/claims``
     (:func:`parameter_records`, :func:`claim_records`), the figures drawn and the sizing result
     (``sizing_figures``: question index -> the fan's reference as the rendering wants it, a file
-    name or an encoded image)."""
+    name or an encoded image); ``service`` the time-to-exceed questions' sections and headlines."""
     claims = claims or []
     ranking, order = ranking_table(t)
     by_section: dict[str, list[FigureRef]] = {}
@@ -307,6 +308,10 @@ def build(t: TreeView, parameters: list[dict], figures: list[FigureRef], sizing_
         findings += headlines
         summary.answers += headlines  # the sizing answer belongs to the decision block too
         sections = sizing_report.sections(sizing, sizing_figures)
+    if service is not None:  # time-to-exceed questions (bayesfric.report.service): (sections, headlines)
+        sections += service[0]
+        findings += service[1]
+        summary.answers += service[1]
     rep = Report(
         title=str(t.attrs["title"]), banner=provenance_text(t.data),
         reconstructed=t.data.get("provenance") == "reconstructed",

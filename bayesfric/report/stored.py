@@ -171,7 +171,8 @@ def _from_json(d: dict):
         identifiability=_table(d.get("identifiability")),
         laws=[LawSection(**{**w, "table": _table(w["table"]), "figure": _figure(w["figure"])}) for w in d["laws"]],
         sizing=[Section(x["title"], list(x["lines"]), list(x["warnings"]),
-                        [(c, list(h), [list(r) for r in rows]) for c, h, rows in x["tables"]], x["figure"])
+                        [(c, list(h), [list(r) for r in rows]) for c, h, rows in x["tables"]], x["figure"],
+                        x.get("caption", ""))
                 for x in d["sizing"]],
         figures={k: [_figure(f) for f in v] for k, v in d["figures"].items()},
         sections=[(k, h) for k, h in d["sections"]],

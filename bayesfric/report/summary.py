@@ -31,6 +31,7 @@ from markupsafe import Markup, escape
 from bayesfric.csvout import write_csv
 from bayesfric.errors import UserError
 from bayesfric.fsutil import PathError, apply_umask, check_output_folder
+from bayesfric.report import service as service_report
 from bayesfric.report import sizing as sizing_report
 from bayesfric.report.content import Table, TreeView, build, claim_records, parameter_records, ranking_records
 from bayesfric.report.findings import Finding
@@ -168,8 +169,12 @@ def write_reports(tree: xr.DataTree, folder: Path, data: xr.Dataset, fits: Mappi
     """
     view = TreeView(tree)
     figures, fans = draw(view, data, fits, folder, sizing)
+    service = tree["service"] if "service" in tree.children else None
+    served = {i: f"figures/{p.name}" for i, p in service_report.draw(service, data, folder).items()}
     parameters, claimed = parameter_records(view), claim_records(claims or [])
-    content = build(view, parameters, figures, {i: f"figures/{p.name}" for i, p in fans.items()}, claimed, sizing)
+    content = build(view, parameters, figures, {i: f"figures/{p.name}" for i, p in fans.items()}, claimed, sizing,
+                    (service_report.sections(service, served, len(sizing.answers) if sizing is not None else 0),
+                     service_report.headlines(service)))
     tables: dict = {"ranking": ranking_records(view), "parameters": parameters}
     if claimed:
         tables["claims"] = claimed

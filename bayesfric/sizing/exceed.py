@@ -27,7 +27,6 @@ Example
 from __future__ import annotations
 
 import dataclasses
-import re
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -36,7 +35,7 @@ import jax.numpy as jnp
 import numpy as np
 import xarray as xr
 
-from bayesfric.sizing.points import SizingError, parse_capacity, parse_value
+from bayesfric.sizing.points import SizingError, parse_capacity, parse_horizon, parse_value
 from bayesfric.sizing.steady import steady_note
 
 __all__ = ["GRID", "QUANTILES", "time_to_exceed", "combine", "crossing_times", "parse_horizon"]
@@ -45,36 +44,6 @@ __all__ = ["GRID", "QUANTILES", "time_to_exceed", "combine", "crossing_times", "
 GRID = 241
 #: Quantiles of the crossing time and of the fan.
 QUANTILES = (0.05, 0.25, 0.5, 0.75, 0.95)
-
-
-def parse_horizon(horizon: Any, unit: str = "") -> float:
-    """The horizon as a number in the service coordinate's ``unit``: a number as it is, or a text
-    ``"20000 h"`` converted to ``unit`` (when the data declare one).
-
-    Raises
-    ------
-    SizingError
-        Not a positive number, or a unit that cannot be converted to ``unit``.
-    """
-    if isinstance(horizon, int | float) and not isinstance(horizon, bool):
-        value = float(horizon)
-    else:
-        match = re.fullmatch(r"\s*([-+0-9.eE]+)\s*(.*?)\s*", str(horizon))
-        try:
-            value, written = float(match.group(1)), match.group(2)
-        except (AttributeError, ValueError):
-            raise SizingError("horizon", f"cannot read {horizon!r}: give a service time, e.g. \"20000 h\"") from None
-        if written and unit and written != unit:
-            from bayesfric.quantities import ureg
-
-            try:
-                value = float(ureg.Quantity(value, written).to(unit).magnitude)
-            except Exception:  # pint's errors: undefined unit, other dimension
-                raise SizingError("horizon", f"{horizon!r} cannot be expressed in {unit!r}, the unit of the "
-                                  "service coordinate") from None
-    if not np.isfinite(value) or value <= 0:
-        raise SizingError("horizon", f"must be a positive service time, got {horizon!r}")
-    return value
 
 
 def _points(law, at: Mapping[str, Any]) -> dict[str, np.ndarray]:
@@ -281,3 +250,43 @@ def combine(results: Mapping[str, xr.Dataset], weights: Mapping[str, float], see
         "campaign_q": sum(wi * results[n]["campaign_q"].values for wi, n in zip(w, names, strict=True)),
         "curve": curve}).assign_attrs(law="model average", weights=repr(dict(zip(names, w.round(4), strict=True))),
                                       p_within_horizon=float(np.isfinite(crossing).mean()))
+
+
+def forecast_weights(tree: xr.DataTree) -> tuple[dict[str, float], str]:
+    """The weights a time-to-exceed average uses, from a study's ``/weights`` node: stacking on its
+    leave-future-out scheme (how well each law forecast the campaigns it had not seen), else on
+    LOO; and the weighting's name."""
+    node = tree["weights"].to_dataset()
+    names = [str(w) for w in node["weighting"].values]
+    label = next((w for w in names if w.startswith("stacking leave-future-")), "stacking LOO")
+    if label not in names:
+        return {}, label
+    values = node["weight"].sel(weighting=label).values
+    return {str(law): float(v) for law, v in zip(node["law"].values, values, strict=True) if np.isfinite(v)}, label
+
+
+def answer_study(questions: Sequence[Any], fits: Mapping[str, xr.DataTree], tree: xr.DataTree, *, unit: str = "",
+                 seed: int = 0) -> xr.DataTree:
+    """Every time-to-exceed question of a study (``[[sizing]]`` with ``horizon``), per law with a
+    trend and as their weighted average (:func:`forecast_weights`), as one DataTree: ``q<i>/<law>``
+    and ``q<i>/average`` (each :func:`time_to_exceed`'s Dataset without its curves). Laws without a
+    trend are listed in ``q<i>``'s attrs (``no_trend``): they cannot forecast service time."""
+    from bayesfric.laws.variants import law_of_fit
+
+    weights, basis = forecast_weights(tree)
+    nodes = {}
+    for i, q in enumerate(questions):
+        at = {k: v.lo for k, v in q.at.items()}
+        trending = {n: f for n, f in fits.items() if law_of_fit(f.attrs).trending}
+        results = {n: time_to_exceed(f, at, q.capacity.lo, q.horizon, seed=seed, unit=unit)
+                   for n, f in trending.items()}
+        used = {n: weights.get(n, 0.0) for n in results}
+        nodes[f"q{i}"] = xr.Dataset(attrs={
+            "label": q.label, "point": q.describe(), "capacity": q.capacity.text, "horizon": q.horizon,
+            "unit": unit, "weighting": basis, "weights": repr({n: round(w, 4) for n, w in used.items()}),
+            "no_trend": ", ".join(n for n in fits if n not in trending)})
+        for name, result in results.items():
+            nodes[f"q{i}/{name}"] = result.drop_vars("curve").assign_attrs(weight=used[name])
+        if sum(used.values()) > 0:
+            nodes[f"q{i}/average"] = combine(results, used, seed=seed).drop_vars("curve")
+    return xr.DataTree.from_dict(nodes)

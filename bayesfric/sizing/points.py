@@ -193,7 +193,8 @@ class SizingQuestion:
 
     ``at`` maps every input to its :class:`Value` (at most one range); ``capacity`` is the
     available drive torque or force; ``energy_rotation`` the angle of one rotation whose friction
-    energy is asked (torque responses only).
+    energy is asked (torque responses only); ``horizon`` the latest service time of a *time to
+    exceed* question (the capacity, at one point, for laws with a trend: :mod:`bayesfric.sizing.exceed`).
     """
 
     label: str
@@ -202,6 +203,7 @@ class SizingQuestion:
     capacity_text: str | None = None
     energy_rotation: Value | None = None
     capacity: Value | None = None  # parsed against the data's response by check_question
+    horizon: str | None = None  # a time-to-exceed question: the latest service time ("20000 h")
 
     @property
     def axis(self) -> str | None:
@@ -231,7 +233,8 @@ def _key(keys: Mapping[str, str] | None, name: str, sub: str | None = None) -> s
 
 
 def make_question(at: Mapping[str, object], confidence: float, *, label: str = "", capacity: object = None,
-                  energy_rotation: object = None, keys: Mapping[str, str] | None = None) -> SizingQuestion:
+                  energy_rotation: object = None, keys: Mapping[str, str] | None = None,
+                  horizon: object = None) -> SizingQuestion:
     """Parse a question's values (data-independent checks). ``keys`` renames the keys errors name
     (:data:`CLI_KEYS` for the command line); by default they are the study file's."""
     if not at:
@@ -256,7 +259,22 @@ def make_question(at: Mapping[str, object], confidence: float, *, label: str = "
         if not rotation.lo > 0:
             raise SizingError(_key(keys, "energy_rotation"), f"must be a positive angle, got {rotation.text!r}")
     label = label or ", ".join(f"{k} {v.text}" for k, v in values.items())
-    return SizingQuestion(label, values, float(confidence), capacity, rotation)
+    if horizon is not None:
+        _check_horizon(horizon, capacity, ranges, keys)
+    return SizingQuestion(label, values, float(confidence), capacity, rotation,
+                          horizon=None if horizon is None else str(horizon))
+
+
+def _check_horizon(horizon: object, capacity: object, ranges: list[str], keys: Mapping[str, str] | None) -> None:
+    """A time-to-exceed question: a service time, a capacity to exceed, one operating point."""
+    try:
+        parse_horizon(horizon)
+    except SizingError as exc:
+        raise SizingError(_key(keys, "horizon"), exc.problem) from None
+    if capacity is None:
+        raise SizingError(_key(keys, "capacity"), "a horizon asks when friction exceeds the capacity: give it")
+    if ranges:
+        raise SizingError(_key(keys, "at"), f"a horizon asks about one operating point, not a range of {ranges[0]}")
 
 
 def check_question(question: SizingQuestion, inputs: Iterable[str], required: Iterable[str], response: str,
@@ -280,4 +298,34 @@ def check_question(question: SizingQuestion, inputs: Iterable[str], required: It
         raise SizingError(_key(keys, "energy_rotation"),
                           f"the energy of a rotation needs a torque response, the data has {response}")
     return SizingQuestion(question.label, question.at, question.confidence, question.capacity_text,
-                          question.energy_rotation, capacity)
+                          question.energy_rotation, capacity, question.horizon)
+
+
+def parse_horizon(horizon: object, unit: str = "") -> float:
+    """The horizon as a number in the service coordinate's ``unit``: a number as it is, or a text
+    ``"20000 h"`` converted to ``unit`` (when the data declare one).
+
+    Raises
+    ------
+    SizingError
+        Not a positive number, or a unit that cannot be converted to ``unit``.
+    """
+    if isinstance(horizon, int | float) and not isinstance(horizon, bool):
+        value = float(horizon)
+    else:
+        match = re.fullmatch(r"\s*([-+0-9.eE]+)\s*(.*?)\s*", str(horizon))
+        try:
+            value, written = float(match.group(1)), match.group(2)
+        except (AttributeError, ValueError):
+            raise SizingError("horizon", f"cannot read {horizon!r}: give a service time, e.g. \"20000 h\"") from None
+        if written and unit and written != unit:
+            from bayesfric.quantities import ureg
+
+            try:
+                value = float(ureg.Quantity(value, written).to(unit).magnitude)
+            except Exception:  # pint's errors: undefined unit, other dimension
+                raise SizingError("horizon", f"{horizon!r} cannot be expressed in {unit!r}, the unit of the "
+                                  "service coordinate") from None
+    if not np.isfinite(value) or value <= 0:
+        raise SizingError("horizon", f"must be a positive service time, got {horizon!r}")
+    return value

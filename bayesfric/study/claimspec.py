@@ -132,9 +132,11 @@ def make_claim(entry: Mapping[str, Any], laws: Mapping[str, Law] | None = None) 
     kind, expect = entry["kind"], entry.get("expect")
     law = _law(entry["law"], "law", laws)
     reference = _law(entry["reference"], "reference", laws).name if entry.get("reference") else ""
-    if kind == "parameter" and entry["parameter"] not in law.params:
+    sites = (list(law.params) + [f"{p}_sd" for p in law.varying]  # a group term's spread, a trend's slope
+             + ([f"{p}_trend" for p in law.trending] if law.trend_form != "walk" else []))
+    if kind == "parameter" and entry["parameter"] not in sites:
         raise ClaimError("parameter", f"law {law.name!r} has no parameter {entry['parameter']!r} "
-                                      f"(parameters: {', '.join(law.params)})")
+                                      f"(parameters: {', '.join(sites)})")
     if entry.get("metric") and entry["metric"] not in METRICS:
         raise ClaimError("metric", f"unknown metric {entry['metric']!r} (metrics: {', '.join(METRICS)})")
     for name in entry.get("fixed") or {}:

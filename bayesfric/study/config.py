@@ -75,6 +75,8 @@ sampler settings, comparison methods and extrapolation folds::
     confidence = 0.99                  # in (0, 1): size for this quantile of |T| (default 0.99)
     capacity = "40 N*m"                # optional: available drive torque (or force): P(|T| > it)
     # energy_rotation = "90 deg"       # optional (torque data): friction energy of one rotation
+    # horizon = "20000 h"              # optional (laws with a trend, one point, a capacity): when does
+                                       # |friction| first exceed the capacity, forecast up to this service time
 
     [[claims]]                         # optional, repeatable: a claim of the source paper
     text = "Eq. 41 predicts above 0.5 rad/s"
@@ -247,7 +249,7 @@ def _sizing_question(path: Path, i: int, entry: dict[str, Any]) -> SizingQuestio
     """Data-independent checks of a parsed ``[[sizing]]`` entry: values, units, ranges, bounds."""
     try:
         return make_question(entry["at"], entry["confidence"], label=entry["label"], capacity=entry["capacity"],
-                             energy_rotation=entry["energy_rotation"])
+                             energy_rotation=entry["energy_rotation"], horizon=entry["horizon"])
     except SizingError as exc:
         raise StudyError(f"{path}: sizing[{i}].{exc}") from None
 

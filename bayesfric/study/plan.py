@@ -163,6 +163,9 @@ def sizing_questions(study: Study, ds, questions: list[sizing.SizingQuestion] | 
                                                  keys=sizing.CLI_KEYS if cli else keys))
         except sizing.SizingError as exc:
             raise StudyError(str(exc) if cli or keys is not None else f"{where}: sizing[{i}].{exc}") from None
+        if question.horizon is not None and not any(spec.trend for spec in study.laws):
+            raise StudyError(f"{where}: sizing[{i}].horizon: no law follows a trend over a service coordinate "
+                             "(trend = { hours = [...] }), so none can forecast when the capacity is exceeded")
     return checked
 
 

@@ -37,6 +37,7 @@ import xarray as xr
 from bayesfric import compare, fsutil, identifiability, sizing
 from bayesfric.fingerprint import package_fingerprint
 from bayesfric.laws.variants import law_of_fit
+from bayesfric.sizing import exceed
 from bayesfric.sizing.store import schemes_of
 from bayesfric.study import units
 from bayesfric.study.claims import evaluate_claims
@@ -283,7 +284,8 @@ def _result_tree(study: Study, ds, schemes: list, fits: dict, scored: dict, rows
     """The study's result tree (:func:`bayesfric.study.tree.study_tree`) from its laws' results:
     their weights, the ranking's prior sensitivity and each law's result Dataset."""
     blocked = [label for label, _, kind in schemes if kind == "blocked"]
-    weights, errors = _weights(study, blocked, scored, fits)
+    forecast = [label for label, _, kind in schemes if kind == "forecast"]  # time to exceed weighs by these
+    weights, errors = _weights(study, blocked + forecast, scored, fits)
     laws = _law_results(study, ds, blocked, scored, fits, weights, rows,
                         "run" if quick is not None else study.failed_fits)
     checks = identifiability.checks_dataset(study.identifiability, identifiability.companions_of(study.laws))
@@ -317,11 +319,16 @@ def _write_study(prepared, out_root: Path, quick: bool, fresh: bool, client, tim
         tree = _result_tree(study, ds, schemes, fits, scored, rows, QuickRun(settings, (study.kfold, kfold))
                             if quick else None)  # built once: sizing, the claims and the report read it
         sized = None
-        if questions:
-            print(f"[{study.name}] sizing {len(questions)} question(s) ...", flush=True)
-            held = {name: tree[f"fits/{name}"] for name in fits}
-            sized = sizing.size_study(questions, ds, sizing.sources(tree, work, list(held), fits=held),
+        held = {name: tree[f"fits/{name}"] for name in fits}
+        if at_point := [q for q in questions if q.horizon is None]:
+            print(f"[{study.name}] sizing {len(at_point)} question(s) ...", flush=True)
+            sized = sizing.size_study(at_point, ds, sizing.sources(tree, work, list(held), fits=held),
                                       sizing.basis_schemes(tree), study_name=study.name, seed=seed)
+        if service := [q for q in questions if q.horizon is not None]:
+            print(f"[{study.name}] time to exceed, {len(service)} question(s) ...", flush=True)
+            column = next(c for spec in study.laws for c in spec.trend)
+            tree["service"] = exceed.answer_study(service, held, tree, unit=ds[column].attrs.get("units", ""),
+                                                  seed=seed)
         claims = evaluate_claims(study.claims, tree)
         tree.attrs.update(run_attrs(time.perf_counter() - start, unit_seconds(rows)))
         from bayesfric.report.summary import write_reports  # here: bayesfric.report reads bayesfric.study

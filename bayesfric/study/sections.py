@@ -152,6 +152,8 @@ SIZING = Schema((
     Field("confidence", "number", 0.99, gt=0, lt=1, doc="size for this quantile of |T| with noise"),
     Field("capacity", "str", None, doc="available drive torque or force, with its unit"),
     Field("energy_rotation", "str", None, doc="angle of one rotation whose friction energy is asked (torque)"),
+    Field("horizon", "str", None, doc='time to exceed the capacity, forecast up to this service time ("20000 h"; '
+                                      "laws with a trend)"),
 ))
 
 
