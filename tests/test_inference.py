@@ -1,6 +1,7 @@
 """Both backends return the same DataTree contract; the gate; saving; noise models."""
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import arviz as az
@@ -39,7 +40,8 @@ def test_datatree_contract(small_ds, sampler, tmp_path):
     assert set(dt["prior"].data_vars) >= {"T_C", "c_v", "sigma"}
     assert "series" in dt["observed_data"].coords
     # verdict stored with the fit equals a fresh check
-    assert verdict_of(dt) == check(dt)
+    # the stored verdict is the gate's, with why chains that disagree are not modes (inference.modes)
+    assert replace(verdict_of(dt), mode_note="") == check(dt)
     path = save_fit(dt, tmp_path / "sub" / "fit.nc")
     assert not list(path.parent.glob(".*.tmp"))
     plain = xr.open_datatree(path)

@@ -35,16 +35,11 @@ from numpyro.infer import Predictive
 from scipy.special import logsumexp
 from scipy.stats import multivariate_normal
 
+from bayesfric.inference.modes import by_mode, is_multimodal
 from bayesfric.limits import CHUNK_NUMBERS
 from bayesfric.model import Program
 
-__all__ = [
-    "Evidence",
-    "EstimatorAgreement",
-    "bridge_log_evidence",
-    "smc_log_evidence",
-    "compare_estimators",
-]
+__all__ = ["Evidence", "EstimatorAgreement", "bridge_log_evidence", "smc_log_evidence", "compare_estimators"]
 
 
 @dataclass(frozen=True)
@@ -141,7 +136,13 @@ def bridge_log_evidence(
     Var(f1)/(N2 E[f1]²) + Var(f2)/(ESS(f2) E[f2]²) (Frühwirth-Schnatter 2004); ``bridgesampling``
     gets the autocorrelation factor of f2 from an AR spectral density at zero, here it is the
     arviz ESS of f2 over the chains (the same quantity, N / integrated autocorrelation time).
+
+    A multimodal fit (:mod:`bayesfric.inference.modes`): per mode, on its own chains
+    (``posterior_chains``) with its own proposal, log Z = log Σ_k Z_k (:func:`~bayesfric.inference.modes.by_mode`);
+    not on the combined draws, whose modes are in stacking proportions, not posterior mass.
     """
+    if is_multimodal(dt):
+        return by_mode(dt, lambda part: bridge_log_evidence(program, part, seed=seed, max_iter=max_iter, tol=tol))
     density = program.density(seed)
     x = _unconstrained_draws(program, density, dt)
     n_chains, n_draws = x.shape[:2]

@@ -16,7 +16,7 @@ from numpyro.infer import Predictive, log_likelihood
 
 from bayesfric.datasets.loader import OBS_DIM
 from bayesfric.exported import program_jit
-from bayesfric.inference import pointwise
+from bayesfric.inference import modes, pointwise
 from bayesfric.inference.diagnostics import check
 from bayesfric.model import OBS_SITE, Program, program_data, program_record
 
@@ -120,7 +120,9 @@ def assemble(
 ) -> xr.DataTree:
     """Build the fit's DataTree: posterior, sample_stats, log_likelihood, log_prior,
     posterior_predictive, prior, prior_predictive, observed_data, constant_data, with provenance
-    and the gate verdict.
+    and the gate verdict. A fit whose chains each sampled their own mode well is combined by
+    stacking (:func:`bayesfric.inference.modes.resolve`): its draws are then the combined draws,
+    its verdict multimodal, and the chains as sampled are kept as ``posterior_chains``.
 
     ``samples`` are constrained draws shaped (chain, draw, ...); every latent site of the
     program must be present. ``tables`` is the program's compiled tables for this fit's
@@ -168,7 +170,11 @@ def assemble(
     _finish(dt, program, ds, info, log_prior, n_chains)
     dt.attrs.update(provenance(program, ds, sampler, settings, seed))
     dt.attrs["pointwise_storage"] = info.to_json(dtypes)
-    dt.attrs["diagnostics"] = check(dt).to_json()
+    # chains that each sampled their own mode well are combined by stacking, not failed (modes)
+    verdict = check(dt)
+    if not verdict.passed:
+        dt, verdict = modes.resolve(dt, verdict, seed)
+    dt.attrs["diagnostics"] = verdict.to_json()
     return dt
 
 

@@ -53,7 +53,17 @@ GATE = Gate()
 
 @dataclass
 class Verdict:
-    """Outcome of the gate. ``passed`` is False if any check failed; ``problems`` says which."""
+    """Outcome of the gate. ``passed`` is False if any check failed; ``problems`` says which.
+
+    A **multimodal** verdict (:mod:`bayesfric.inference.modes`) is the third state: the chains
+    disagree (``problems`` keeps the mixing problems of the chains as sampled) but each chain is
+    healthy on its own and the chains sit in distinct regions, so the fit is *used*: ``passed``
+    is True, ``multimodal`` True, ``modes`` the chains of each mode, ``weights`` the stacking
+    weight of each mode, ``mode_ranges`` each variable's 5-95 % range per mode, and the fit's
+    ``posterior`` holds the combined draws (the chains as sampled are kept in
+    ``posterior_chains``). ``mode_note`` says why a fit whose chains disagree was *not* taken
+    as multimodal (empty otherwise).
+    """
 
     passed: bool
     rhat_max: float
@@ -68,6 +78,20 @@ class Verdict:
     loglik_rhat_max: float | None = None
     loglik_ess_bulk_min: float | None = None
     predictions_converged: bool | None = None
+    multimodal: bool = False
+    modes: tuple[tuple[int, ...], ...] = ()
+    weights: tuple[float, ...] = ()
+    mode_ranges: dict[str, list[list[float]]] = field(default_factory=dict)
+    mode_note: str = ""
+
+    @property
+    def mode_summary(self) -> str:
+        """``"multimodal: 2 modes, weights 0.62, 0.38 (chains 0,1 | 2,3)"``; ``""`` for one mode."""
+        if not self.multimodal:
+            return ""
+        chains = " | ".join(",".join(str(c) for c in m) for m in self.modes)
+        weights = ", ".join(f"{w:.2f}" for w in self.weights)
+        return f"multimodal: {len(self.modes)} modes, stacking weights {weights} (chains {chains})"
 
     @property
     def predictions_note(self) -> str:
@@ -89,10 +113,18 @@ class Verdict:
 
     @staticmethod
     def from_json(text: str) -> Verdict:
-        return Verdict(**json.loads(text))
+        return Verdict.from_dict(json.loads(text))
+
+    @staticmethod
+    def from_dict(values: dict) -> Verdict:
+        """A verdict from :func:`dataclasses.asdict`'s dict, or its JSON read back (lists to tuples)."""
+        values = dict(values)
+        values["modes"] = tuple(tuple(int(c) for c in m) for m in values.get("modes", ()))
+        values["weights"] = tuple(float(w) for w in values.get("weights", ()))
+        return Verdict(**values)
 
     def __str__(self) -> str:
-        head = "PASSED" if self.passed else "FAILED"
+        head = "MULTIMODAL" if self.multimodal else "PASSED" if self.passed else "FAILED"
         parts = [f"R-hat max {self.rhat_max:.3f}", f"ESS bulk min {self.ess_bulk_min:.0f}",
                  f"ESS tail min {self.ess_tail_min:.0f}"]
         if self.divergences is not None:
@@ -106,6 +138,10 @@ class Verdict:
             text += " -- " + "; ".join(self.problems)
         if note := self.predictions_note:
             text += f" ({note})"
+        if self.multimodal:
+            text += f" ({self.mode_summary})"
+        elif self.mode_note:
+            text += f" (not multimodal: {self.mode_note})"
         return text
 
 

@@ -171,7 +171,7 @@ def _checks(t: TreeView) -> Table:
         psense = str(c["psense"].values)
         sensitivity = ("psense flags " + psense if psense else "no parameter flagged by power-scaling (psense)")
         implausible = float(c["prior_implausible"])
-        rows.append([name, "passed" if t.passed(name) else "FAILED", _num(loo["p_loo"], 2),
+        rows.append([name, t.gate(name), _num(loo["p_loo"], 2),
                      f"{loo['n_high_k']} (max {_num(loo['pareto_k_max'])})",
                      _num(float(c["loo_pit_pvalue"]), 2) + ("" if pit_ok else f" ⚠ {shape}"),
                      f"{implausible:.1%}" if math.isfinite(implausible) else "–",

@@ -98,7 +98,7 @@ def ranking_table(tree: xr.DataTree | TreeView) -> tuple[Table, list[str]]:
     header.append(f"weight ({weight_key})")
     rows, warn = [], []
     for i, name in enumerate(order):
-        row = [cells[name], name, "passed" if t.passed(name) else "FAILED"]
+        row = [cells[name], name, t.gate(name)]
         row += [score_text(sc.value(table, name, c.metric, c.scheme)) for c in crits]
         row += [score_text(sc.value(table, name, "penalty", s)) for s in t.blocked]
         w = sc.value(table, name, "weight", weight_key)

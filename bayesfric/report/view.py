@@ -71,6 +71,14 @@ class TreeView:
         """The law's full fit passed the diagnostics gate."""
         return bool(self.law(name)["passed"])
 
+    def gate(self, name: str) -> str:
+        """The law's gate in one word: ``passed``, ``multimodal`` (chains in separate modes, used as
+        their stacked combination: :mod:`bayesfric.inference.modes`) or ``FAILED``."""
+        law = self.law(name)
+        if "multimodal" in law and bool(law["multimodal"]):
+            return "multimodal"
+        return "passed" if bool(law["passed"]) else "FAILED"
+
     def flag(self, name: str, variable: str) -> Any:
         """One value of the law's ``/diagnostics`` or ``/checks`` (``variable``), as a Python scalar."""
         node = self.diag if variable in self.diag else self.checks

@@ -10,6 +10,10 @@ Variables (0-d unless a dimension is named; attrs ``law``, ``fit_file``, ``faile
 
 - the gate: ``passed``, ``problems``, ``verdict`` (as the report writes it), ``rhat_max``,
   ``ess_bulk_min``, ``n_params``, ``skipped`` (stages not run), ``flags`` (one line per problem);
+  ``multimodal`` and ``modes`` (``"multimodal: k modes, stacking weights …"``, or ``""``): a fit
+  whose chains found separate modes, used as their stacked combination
+  (:mod:`bayesfric.inference.modes`), and then over ``mode``: ``mode_weight``, ``mode_chains``,
+  and over ``(mode, mode_parameter)`` each posterior variable's range ``mode_q05``, ``mode_q95``;
 - PSIS-LOO (``loo_computed``): ``elpd_loo``, ``elpd_loo_se``, ``p_loo``, ``loo_reliable``,
   ``loo_fit_passed``, ``loo_refitted``, ``loo_handling``, ``n_high_k`` (−1: no LOO),
   ``pareto_k_max``, ``loo_rows_scored``/``loo_rows``/``loo_subsampling_se``/``loo_subsampled``
@@ -52,7 +56,7 @@ if TYPE_CHECKING:
     from bayesfric.laws.base import Law
     from bayesfric.sizing.calibration import Miss
 
-__all__ = ["Weight", "law_result"]
+__all__ = ["Weight", "law_result", "mode_node"]
 
 
 @dataclass(frozen=True)
@@ -66,7 +70,32 @@ class Weight:
 def _gate(verdict: Verdict, law: Law, skipped: Sequence[str]) -> dict:
     return {"passed": bool(verdict.passed), "problems": "; ".join(verdict.problems), "verdict": str(verdict),
             "rhat_max": float(verdict.rhat_max), "ess_bulk_min": float(verdict.ess_bulk_min),
-            "n_params": sum(max(1, math.prod(p.shape)) for p in law.params.values()), "skipped": ", ".join(skipped)}
+            "n_params": sum(max(1, math.prod(p.shape)) for p in law.params.values()), "skipped": ", ".join(skipped),
+            "multimodal": bool(verdict.multimodal), "modes": verdict.mode_summary} | _modes(verdict)
+
+
+def _modes(verdict: Verdict) -> dict:
+    """A multimodal fit's modes (:mod:`bayesfric.inference.modes`): stacking weight per ``mode``,
+    each variable's 5-95 % range per (``mode``, ``mode_parameter``); nothing for one mode."""
+    if not verdict.multimodal:
+        return {}
+    ranges = np.array(list(verdict.mode_ranges.values()), dtype=float).reshape(len(verdict.mode_ranges), -1, 2)
+    return {"mode_weight": ("mode", np.asarray(verdict.weights, dtype=float)),
+            "mode_chains": ("mode", np.array([",".join(map(str, m)) for m in verdict.modes], dtype=str)),
+            "mode_q05": (("mode", "mode_parameter"), ranges[..., 0].T),
+            "mode_q95": (("mode", "mode_parameter"), ranges[..., 1].T)}
+
+
+def _mode_line(verdict: Verdict, most: int = 6) -> str:
+    """The flag of a multimodal fit: its modes, weights and the ranges of the variables (at most
+    ``most``) whose 5-95 % ranges do not overlap between some two modes."""
+    apart = [name for name, r in verdict.mode_ranges.items()
+             if max(lo for lo, _ in r) > min(hi for _, hi in r)][:most]
+    ranges = "; ".join(f"mode {k + 1}: " + ", ".join(f"{name} {verdict.mode_ranges[name][k][0]:.3g}…"
+                                                      f"{verdict.mode_ranges[name][k][1]:.3g}" for name in apart)
+                       for k in range(len(verdict.modes))) if apart else ""
+    return (f"{verdict.mode_summary}; used as their stacked combination (5–95 % ranges: {ranges})" if ranges
+            else f"{verdict.mode_summary}; used as their stacked combination")
 
 
 def _loo(loo: LooResult | None) -> dict:
@@ -148,7 +177,7 @@ def _misses(misses: Mapping[str, Miss | None]) -> dict:
 def _flags(values: dict, verdict: Verdict, loo: LooResult | None, cv: Mapping[str, CVResult],
            agreement: EstimatorAgreement | None, failed_fits: str) -> list[str]:
     """One line per problem found in the law's results, in the order the stages ran."""
-    out = []
+    out = [_mode_line(verdict)] if verdict.multimodal else []
     if not verdict.passed:
         note = verdict.predictions_note
         out.append("diagnostics FAILED: " + "; ".join(verdict.problems) + (f" ({note})" if note else ""))
@@ -163,7 +192,8 @@ def _flags(values: dict, verdict: Verdict, loo: LooResult | None, cv: Mapping[st
     out += [f"{label}: {r.failure}" for label, r in cv.items() if not r.reliable]  # scores.fold_failure
     if agreement is not None and not agreement.agree:
         importance = agreement.b
-        why = (f"importance weights heavy-tailed (Pareto k = {importance.diagnostics['pareto_k']:.2f})"
+        why = (f"importance sampling {importance.diagnostics['multimodal']}" if "multimodal" in importance.diagnostics
+               else f"importance weights heavy-tailed (Pareto k = {importance.diagnostics['pareto_k']:.2f})"
                if not importance.diagnostics.get("reliable", True) else f"> {agreement.threshold:.2f} nat")
         out.append(f"evidence estimators disagree by {abs(agreement.difference):.2f} nat ({why}); "
                    "not ranked by evidence")
@@ -223,6 +253,8 @@ def law_result(law: Law, fit_file: str, verdict: Verdict, *, loo: LooResult | No
     values["flags"] = "\n".join(_flags(values, verdict, loo, cv, agreement, failed_fits) + structure)
     coords = {"scheme": list(cv), "estimator": list(evidence), "weighting": list(weights), "stage": list(timings),
               "miss_scheme": list(misses or {})}
+    if verdict.multimodal:
+        coords |= {"mode": [str(k + 1) for k in range(len(verdict.modes))], "mode_parameter": list(verdict.mode_ranges)}
     if checks is not None and DIM in checks.dims:
         coords[DIM] = [str(c) for c in checks[DIM].values]
     ds = xr.Dataset(values, coords={k: np.array(v, dtype=str) for k, v in coords.items()},
@@ -230,3 +262,20 @@ def law_result(law: Law, fit_file: str, verdict: Verdict, *, loo: LooResult | No
     if "pit_band" in ds:
         ds = ds.assign_coords(band_edge=["point", "lower", "upper"])
     return ds
+
+
+def mode_node(laws: Sequence[xr.Dataset]) -> dict[str, xr.Dataset]:
+    """The result tree's ``/modes`` node: one row per multimodal law, mode and posterior variable
+    (``law``, ``mode``, ``parameter``, ``weight``, ``chains``, ``q05``, ``q95``); none without one."""
+    rows = [(str(w.attrs["law"]), str(m), str(p), float(w["mode_weight"].sel(mode=m)),
+             str(w["mode_chains"].sel(mode=m).values), float(w["mode_q05"].sel(mode=m, mode_parameter=p)),
+             float(w["mode_q95"].sel(mode=m, mode_parameter=p)))
+            for w in laws if "mode_weight" in w for m in w["mode"].values for p in w["mode_parameter"].values]
+    if not rows:
+        return {}
+    names = ("law", "mode", "parameter", "weight", "chains", "q05", "q95")
+    columns = dict(zip(names, zip(*rows, strict=True), strict=True))
+    node = xr.Dataset({k: ("mode_row", np.array(v, dtype=float if k in ("weight", "q05", "q95") else str))
+                       for k, v in columns.items()})
+    node.attrs["description"] = "modes of multimodal fits: stacking weight and 5-95 % range of each variable"
+    return {"modes": node}

@@ -29,11 +29,14 @@ Sizing, the claims and the report read this tree (the report adds its own nodes 
     ``not_computed`` over ``failed_weighting``: why a weighting was not computed at all.
 ``/diagnostics``, ``/checks``
     over ``law``: the gate's verdict (``passed``, ``problems``, ``verdict`` as the report writes
-    it), the law's ``flags`` (one line each), ``p_loo``, ``n_high_k``, ``cv_reliable`` (every fold
-    passed), ``seconds`` and ``timing`` over ``(law, stage)``; the checks unit's LOO-PIT (``pit``
-    over ``(law, pit_row)``, its ECDF band ``pit_band``, p-value, band coverage ``ci_prob``,
-    direction), prior checks (``checked``: the unit ran) and the residual-structure tests
-    (``structure_*`` over ``(law, structure_column)``, :mod:`bayesfric.compare.structure`).
+    it, ``multimodal`` and ``modes``: chains in separate modes, stacked), the law's ``flags`` (one
+    line each), ``p_loo``, ``n_high_k``, ``cv_reliable`` (every fold passed), ``seconds`` and
+    ``timing`` over ``(law, stage)``; the checks unit's LOO-PIT (``pit`` over ``(law, pit_row)``,
+    its ECDF band ``pit_band``, p-value, band coverage ``ci_prob``, direction), prior checks
+    (``checked``: the unit ran) and the residual-structure tests (``structure_*`` over ``(law,
+    structure_column)``, :mod:`bayesfric.compare.structure`).
+``/modes``
+    multimodal fits' modes (:func:`bayesfric.study.lawresult.mode_node`: weight, chains, ranges).
 ``/quick``
     only in a ``--quick`` run: the capped sampler settings and K-fold's folds asked and used.
 ``/identifiability``
@@ -70,6 +73,7 @@ from bayesfric._version import __version__
 from bayesfric.compare.checks import PARETO_K_RELIABLE, RankingSensitivity
 from bayesfric.compare.structure import DIM, stack_structure
 from bayesfric.sizing.store import basis_node, schemes_of
+from bayesfric.study.lawresult import mode_node
 from bayesfric.study.scores import criteria, score_table
 
 if TYPE_CHECKING:
@@ -197,6 +201,7 @@ def weight_errors(tree: xr.DataTree) -> list[tuple[str, str]]:
 
 #: ``/diagnostics`` variables: copied from each law's result (:mod:`bayesfric.study.lawresult`).
 DIAGNOSTICS = ("passed", "problems", "evidence_agree", "cv_reliable", "skipped", "seconds", "verdict", "flags",
+               "multimodal", "modes",
                "p_loo", "n_high_k", "rhat_max", "ess_bulk_min", "n_params", "evidence_compared",
                "evidence_disagreement", "pareto_k_max", "loo_rows_scored", "loo_rows", "loo_subsampling_se",
                "loo_subsampled", "group_coverage_50", "group_coverage_90")
@@ -388,7 +393,7 @@ def study_tree(study: Study, data: xr.Dataset, schemes: Sequence[tuple], laws: S
              "pointwise": _pointwise(laws, int(data.sizes["obs"]), schemes, axes),
              "weights": _weights(laws, weight_errors), "diagnostics": _diagnostics(laws), "checks": _checks(laws),
              "sizing_basis": basis_node(laws, schemes_of(study, data, blocked))}
-    nodes |= _sensitivity(sensitivity) | _quick(quick) | _fits(laws, fits)
+    nodes |= _sensitivity(sensitivity) | _quick(quick) | _fits(laws, fits) | mode_node(laws)
     if identifiability is not None and identifiability.sizes.get("requirement", 0):
         nodes["identifiability"] = identifiability
     return xr.DataTree.from_dict(nodes)

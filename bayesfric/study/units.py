@@ -20,7 +20,9 @@ whose full fit failed the diagnostics gate gets no CV refits and no evidence (th
 its result lists them in ``skipped`` and its flags say why. Its ``loo`` unit still runs, PSIS
 only: no high-k point is refitted exactly (:data:`NO_REFIT`; the unit's key carries
 ``failed_fits = "run"`` where the study asks for the refits). That is why every unit of a law waits
-for its fit, even those that could start without it (blocked CV, importance sampling).
+for its fit, even those that could start without it (blocked CV, importance sampling). A
+multimodal fit (:mod:`bayesfric.inference.modes`) passes: every unit runs, on its combined draws
+(bridge sampling per mode, importance sampling marked approximate).
 """
 
 from __future__ import annotations
@@ -28,7 +30,7 @@ from __future__ import annotations
 import json
 import time
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
@@ -40,6 +42,7 @@ from bayesfric.compare.loo import loo_from_values
 from bayesfric.fingerprint import data_fingerprint, law_fingerprint, unit_key
 from bayesfric.inference import MAPPINGS_BUDGET, SAMPLERS, release_compiled_code
 from bayesfric.inference.diagnostics import Verdict
+from bayesfric.inference.modes import single_mode_note
 from bayesfric.model import Noise, build_program
 from bayesfric.study.store import Result
 
@@ -253,8 +256,11 @@ def _compute_rest(job: LawJob, unit: Unit, fit: xr.DataTree) -> xr.Dataset:
     program = _program(job)
     if unit.stage == "bridge":
         return evidence_dataset(compare.bridge_log_evidence(program, fit, seed=job.seed))
-    if unit.stage == "importance":
-        return evidence_dataset(compare.laplace_is_log_evidence(program, seed=job.seed))
+    if unit.stage == "importance":  # one proposal at one mode: approximate on a multimodal fit (modes)
+        result = compare.laplace_is_log_evidence(program, seed=job.seed)
+        if note := single_mode_note(fit):
+            result = replace(result, diagnostics={**result.diagnostics, "multimodal": note})
+        return evidence_dataset(result)
     if unit.stage == "smc":
         return evidence_dataset(compare.smc_log_evidence(program, seed=job.seed, particles=unit.params["particles"],
                                                          runs=unit.params["runs"]))
