@@ -155,6 +155,8 @@ def _add_size(sub) -> None:
     q.add_argument("--capacity", help='available drive torque or force, e.g. "40 kN*m" (with --at)')
     q.add_argument("--energy-rotation", help='friction energy of one rotation through this angle, e.g. "90 deg" '
                                              "(with --at; torque)")
+    q.add_argument("--horizon", help='time to exceed --capacity, forecast up to this service time, e.g. "20000 h" '
+                                     "(a fit of a law with a trend; one point)")
     q.add_argument("--reports", default="reports", help="reports root folder of the study (default reports)")
     q.set_defaults(func=commands.cmd_size)
 

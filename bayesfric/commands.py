@@ -239,6 +239,8 @@ def _size_question(args: argparse.Namespace):
 def cmd_size(args: argparse.Namespace) -> None:
     from bayesfric.report.sizing import text_report
 
+    if args.horizon is not None:
+        return _time_to_exceed(args)
     question = _size_question(args)
     if args.target.endswith(".toml"):  # the study's stored fits and weights (bayesfric.study.resize)
         from bayesfric.study import load_study
@@ -258,6 +260,22 @@ def cmd_size(args: argparse.Namespace) -> None:
     else:
         raise UserError(f"{args.target}: give a study file (.toml) or a fit (.nc)")
     print(text_report(result))
+
+
+def _time_to_exceed(args: argparse.Namespace) -> None:
+    """``size FIT.nc --at ... --capacity ... --horizon ...``: when the capacity is first exceeded."""
+    from bayesfric.api.sizing import time_to_exceed
+    from bayesfric.report.service import text
+
+    if not args.target.endswith(".nc"):
+        raise UserError(f"--horizon: give a fit (.nc) of a law with a trend, not {args.target} (a study answers its "
+                        "own [[sizing]] horizon questions in its report)")
+    for option, value in (("--at", args.at), ("--capacity", args.capacity)):
+        if value is None:
+            raise UserError(f"{option}: required with --horizon")
+    if args.confidence is not None or args.energy_rotation is not None:
+        raise UserError("--horizon: asks a time to exceed; --confidence and --energy-rotation do not apply")
+    print(text(time_to_exceed(args.target, args.at, capacity=args.capacity, horizon=args.horizon)))
 
 
 def _checked_out(path: str | None) -> None:

@@ -202,3 +202,19 @@ def test_a_saved_trend_fit_forecasts_the_same(trend_fit, tmp_path):
     a = time_to_exceed(trend_fit, {"velocity": 1.0}, 5.0, 20000.0)
     b = time_to_exceed(again, {"velocity": 1.0}, 5.0, 20000.0)
     np.testing.assert_array_equal(a["crossing"].values, b["crossing"].values)
+
+
+def test_the_api_and_the_cli_answer_the_same_time_to_exceed(trend_fit, tmp_path, capsys):
+    import bayesfric
+    from bayesfric.cli import main
+    from bayesfric.report.service import text
+
+    path = inference.save_fit(trend_fit, tmp_path / "fit.nc")
+    out = bayesfric.time_to_exceed(trend_fit, {"velocity": "1 rad/s"}, capacity="5 N*m", horizon="20 kh", unit="h")
+    assert out.attrs["horizon"] == 20000.0 and "curve" not in out
+    assert main(["size", str(path), "--at", "velocity=1 rad/s", "--capacity", "5 N*m", "--horizon", "20000 h"]) == 0
+    printed = capsys.readouterr().out
+    assert printed == text(bayesfric.time_to_exceed(path, "velocity=1 rad/s", capacity="5 N*m", horizon="20000 h")) + "\n"
+    assert "90 % interval" in printed and "typical campaign" in printed
+    assert main(["size", str(path), "--at", "velocity=1 rad/s", "--horizon", "20000 h"]) == 2
+    assert "--capacity: required with --horizon" in capsys.readouterr().err

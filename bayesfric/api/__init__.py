@@ -23,10 +23,11 @@ from bayesfric.api.fitfile import load_fit
 from bayesfric.api.fitting import compare_laws, fit, law, load_data
 from bayesfric.api.predicting import predict, score
 from bayesfric.api.reports import write_report
-from bayesfric.api.sizing import size
+from bayesfric.api.sizing import size, time_to_exceed
 from bayesfric.api.studies import Study, StudyResult, run
 from bayesfric.laws.base import Param
 from bayesfric.priors import Prior
 
-__all__ = ["load_data", "law", "Param", "Prior", "fit", "load_fit", "compare_laws", "size", "predict", "score", "Study",
+__all__ = ["load_data", "law", "Param", "Prior", "fit", "load_fit", "compare_laws", "size", "time_to_exceed",
+           "predict", "score", "Study",
            "StudyResult", "run", "write_report"]

@@ -17,7 +17,7 @@ import xarray as xr
 from bayesfric.errors import UserError
 from bayesfric.sizing import SizingError, SizingQuestion, SizingResult
 
-__all__ = ["size", "question"]
+__all__ = ["size", "question", "time_to_exceed"]
 
 _NO_KEYS: dict[str, str] = {}  # errors name the keys as the arguments: at.velocity, capacity, confidence
 
@@ -143,3 +143,64 @@ def _size_fit(fit: xr.DataTree, asked: SizingQuestion | None, name: str, seed: i
     if asked is None:
         raise UserError("at: required with a fit, e.g. at={'velocity': (2, 'rad/s')}")
     return answer_fit(fit, asked, name=name, keys=_NO_KEYS, where=f"fit {name}", seed=seed)
+
+
+def time_to_exceed(source: xr.DataTree | str | Path, at: Mapping[str, Any] | str, *, capacity: Any, horizon: Any,
+                   unit: str = "", seed: int = 0) -> xr.Dataset:
+    """When will friction at an operating point first exceed the drive's capacity, for a law whose
+    parameters follow a trend over service time (:meth:`Law.trend <bayesfric.laws.base.Law.trend>`)?
+
+    Parameters
+    ----------
+    source : xarray.DataTree, str or Path
+        A fit (:func:`bayesfric.fit`) of a law with a trend, or its file (``.nc``).
+    at : mapping or str
+        One operating point: ``{"velocity": "1400 rpm"}`` or ``"velocity=1400 rpm"``.
+    capacity : str or (number, unit)
+        The drive's torque or force.
+    horizon : str or number
+        The latest service time to forecast to: ``"20000 h"``, or a number in the service
+        coordinate's unit.
+    unit : str
+        The service coordinate's unit (the data column's ``unit``), to convert ``horizon`` into;
+        default the unit the horizon is written in.
+    seed : int
+        Seed of a random walk's paths and of the new campaigns' scatter.
+
+    Returns
+    -------
+    xarray.Dataset
+        ``crossing_q`` (quantiles of the time to exceed, ``inf`` beyond the horizon), ``p_exceed``
+        over ``service`` time, the fans ``fan`` (the typical campaign) and ``fan_new`` (a new
+        campaign), ``campaign_q`` (the fitted campaigns) and each draw's ``crossing``
+        (:func:`bayesfric.sizing.exceed.time_to_exceed`). Attrs say what the answer is for.
+
+    Raises
+    ------
+    SizingError
+        One line naming the argument: a point without a unit, a bad capacity or horizon, a law
+        without a trend.
+
+    Examples
+    --------
+    >>> import bayesfric
+    >>> oring = bayesfric.law("coastdown_oring_closed_form").trend("hours", "T_C", "c_v")  # doctest: +SKIP
+    >>> f = bayesfric.fit(oring, "drum_campaigns")                                      # doctest: +SKIP
+    >>> out = bayesfric.time_to_exceed(f, {"velocity": "1400 rpm"}, capacity="1.8 N*m",
+    ...                                horizon="20000 h")                               # doctest: +SKIP
+    >>> out["crossing_q"].sel(quantile=[0.05, 0.5, 0.95]).values                         # doctest: +SKIP
+    """
+    from bayesfric.sizing.exceed import time_to_exceed as answer
+    from bayesfric.sizing.points import value_text
+
+    if isinstance(source, str | Path):
+        from bayesfric.sizing.single import read_fit
+
+        source = read_fit(source)
+    asked = question(at, capacity=capacity)
+    if asked.axis is not None:
+        raise SizingError("at", f"a time to exceed is asked at one point, not a range of {asked.axis}")
+    written = str(horizon).split(maxsplit=1)[1].strip() if isinstance(horizon, str) and " " in horizon.strip() else ""
+    cap = value_text(capacity, "capacity", "torque") if not isinstance(capacity, str) else capacity
+    return answer(source, {k: v.lo for k, v in asked.at.items()}, cap, horizon, unit=unit or written,
+                  seed=seed).drop_vars("curve")

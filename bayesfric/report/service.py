@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import numpy as np
 import xarray as xr
 from matplotlib.figure import Figure
 
@@ -18,7 +19,7 @@ from bayesfric.report.findings import Finding, _f
 from bayesfric.report.sizing import Section
 from bayesfric.report.typeset import fmt
 
-__all__ = ["CAPTION", "draw", "sections", "headlines"]
+__all__ = ["CAPTION", "draw", "sections", "headlines", "text"]
 
 CAPTION = ("|friction| at the operating point against service time. Dots with bars: each tested campaign as "
            "fitted (median, 5–95 %); shaded: the forecast of the typical campaign (50 % and 90 % bands; a random "
@@ -137,3 +138,29 @@ def headlines(node: xr.DataTree | None) -> list[Finding]:
                       f" for the typical campaign; P(within {q.attrs['horizon']}) "
                       f"{float(res.attrs['p_within_horizon']):.2f} ({basis})."))
     return out
+
+
+def text(result: xr.Dataset) -> str:
+    """One fit's time-to-exceed answer as ``bayesfric size --horizon`` prints it.
+
+    Examples
+    --------
+    >>> print(text(result))                                                   # doctest: +SKIP
+    time to exceed 1.8 N*m at {'velocity': 146.6}: coastdown_oring_closed_form_trend_hours (linear trend) ...
+    """
+    unit = str(result.attrs.get("unit", ""))
+    lo, mid, hi = (float(result["crossing_q"].sel(quantile=p)) for p in (0.05, 0.5, 0.95))
+    lines = [f"time to exceed {float(result.attrs['capacity']):g} (SI) at {result.attrs['at']} (SI): "
+             f"{result.attrs['law']} ({result.attrs['form']} trend)",
+             f"answer for: {result.attrs['curve']}",
+             f"median {_time(mid, unit)}; 90 % interval {_time(lo, unit)} – {_time(hi, unit)}; "
+             f"P(exceeded by {_time(float(result.attrs['horizon']), unit)}) "
+             f"{float(result.attrs['p_within_horizon']):.2f}"]
+    if result.attrs.get("steady"):
+        lines.append(f"note: {result.attrs['steady']}")
+    service = result["service"].values
+    marks = np.linspace(0, service.size - 1, 6).astype(int)
+    lines.append("service time  P(exceeded)  median |friction| (typical)")
+    lines += [f"{_time(float(service[k]), unit):>12}  {float(result['p_exceed'][k]):11.2f}  "
+              f"{float(result['fan'].sel(quantile=0.5)[k]):.4g}" for k in marks]
+    return "\n".join(lines)
