@@ -53,10 +53,11 @@ import numpyro.distributions as dist
 
 from bayesfric.laws.base import Law
 from bayesfric.priors import Prior, PriorError
-from bayesfric.trend import coordinates, forecast_u, sample_levels, span
+from bayesfric.trend import centred_or_not, coordinates, forecast_u, sample_levels, span
 
 __all__ = ["Grouping", "NEW_LEVEL", "SPREAD", "CENTRED_ROWS", "REAL_SPREAD", "hyperprior", "site_names",
-           "group_sites", "law_mean", "elementwise", "spread_of", "level_values", "mean_draws", "groupings_of"]
+           "group_sites", "observed_levels", "centred_or_not", "law_mean", "elementwise", "spread_of", "level_values",
+           "mean_draws", "groupings_of"]
 
 #: Label of the one level of a program moved to new points (:meth:`bayesfric.model.Program.at`).
 NEW_LEVEL = "new"
@@ -188,24 +189,36 @@ def _bijection(prior: Prior):
     return dist.biject_to(_support(prior))
 
 
+def observed_levels(groupings: Mapping[str, Grouping], mask) -> dict[str, Any]:
+    """Per column, whether each level has a row in the likelihood ``mask`` (None: every level has)."""
+    if mask is None:
+        return {}
+    rows = jnp.asarray(mask, dtype=jnp.int32)
+    return {c: jax.ops.segment_max(rows, jnp.asarray(g.index), num_segments=g.size) > 0 for c, g in groupings.items()}
+
+
 def group_sites(law: Law, resolved: Mapping[str, Prior], groupings: Mapping[str, Grouping],
-                params: Mapping[str, Any]) -> dict[str, Any]:
-    """Inside a numpyro model: sample each varying parameter's spread and standardised levels and
-    return ``params`` with every varying parameter replaced by its per-level values ``(G,)``."""
+                params: Mapping[str, Any], observed: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """Inside a numpyro model: sample each varying parameter's spread and levels and return
+    ``params`` with every varying parameter replaced by its per-level values ``(G,)``.
+
+    ``observed`` (:func:`observed_levels` of the likelihood mask) makes a centred column's levels
+    without data non-centred (:func:`centred_or_not`): a fold that holds a whole level out."""
     out = dict(params)
     for p, (sd_site, level, values_site) in site_names(law, groupings).items():
         column = law.varying[p]
+        seen = (observed or {}).get(column, True)
         sd = numpyro.sample(sd_site, resolved[sd_site].to_numpyro())
         t = _bijection(resolved[p])
         if p in law.trending:
             tau = coordinates(groupings[column].labels) / span(coordinates(groupings[column].labels))
             u = sample_levels(resolved[p], law.trend_form, (f"{p}_trend", level, column),
-                              resolved.get(f"{p}_trend"), params[p], sd, tau, _centred(law, p, groupings))
+                              resolved.get(f"{p}_trend"), params[p], sd, tau, _centred(law, p, groupings), seen)
             out[p] = numpyro.deterministic(values_site, t(u))
             continue
         with numpyro.plate(column, groupings[column].size):
             if groupings[column].centred:
-                u = numpyro.sample(level, dist.Normal(t.inv(params[p]), sd))
+                u = centred_or_not(level, t.inv(params[p]), sd, seen)
             else:
                 u = t.inv(params[p]) + sd * numpyro.sample(level, dist.Normal(0.0, 1.0))
         out[p] = numpyro.deterministic(values_site, t(u))

@@ -47,7 +47,16 @@ import xarray as xr
 from bayesfric.datasets.loader import OBS_DIM, DataError
 from bayesfric.datasets.views import data_scale, law_inputs, response_se, response_values, trajectory_starts
 from bayesfric.density import OBS_SITE, Density, build_density
-from bayesfric.hierarchy import NEW_LEVEL, Grouping, group_sites, groupings_of, hyperprior, law_mean, site_names
+from bayesfric.hierarchy import (
+    NEW_LEVEL,
+    Grouping,
+    group_sites,
+    groupings_of,
+    hyperprior,
+    law_mean,
+    observed_levels,
+    site_names,
+)
 from bayesfric.laws.base import TRAJECTORY_START, Law
 from bayesfric.laws.plugins import law_files
 from bayesfric.laws.variants import for_data, law_of_fit
@@ -185,7 +194,7 @@ class Program:
         with jax.ensure_compile_time_eval():
             arrays = {k: jnp.asarray(v) for k, v in inputs.items()}
         if law.varying:  # group terms: each row reads its level's values (bayesfric.hierarchy)
-            params = group_sites(law, self.resolved, self.groupings, params)
+            params = group_sites(law, self.resolved, self.groupings, params, observed_levels(self.groupings, mask))
         mu = law_mean(law, arrays, params, self.constants, {c: g.index for c, g in self.groupings.items()})
         if self.noise.group is not None:
             n_groups = len(self.group_labels)

@@ -48,6 +48,7 @@ import numpyro.distributions as dist
 from bayesfric.priors import Prior
 
 __all__ = ["FORMS", "FLOOR", "coordinates", "span", "support", "trend_prior", "centre", "walk_levels", "paths",
+           "centred_or_not",
            "sample_levels", "forecast_u", "trend_of"]
 
 #: Trend forms (module docstring).
@@ -119,23 +120,35 @@ def walk_levels(u0, sd, z, tau):
     return u0 + sd * jnp.cumsum(steps * z, axis=-1)
 
 
+def centred_or_not(site: str, mid, sd, observed=True):
+    """Sample a plate of levels about ``mid`` with spread ``sd``: centred where a level is
+    ``observed`` (its data pin it: the site holds its unconstrained value), non-centred where it is
+    not (a level a fold holds out, pinned by nothing: the site holds a standard-normal draw, so the
+    held-out level adds no funnel between ``sd`` and it). Same model either way; returns the values."""
+    v = numpyro.sample(site, dist.Normal(jnp.where(observed, mid, 0.0), jnp.where(observed, sd, 1.0)))
+    return jnp.where(observed, v, mid + sd * v)
+
+
 def sample_levels(prior: Prior, form: str, sites: tuple[str, str, str], slope_prior: Prior | None, value, sd,
-                  tau: np.ndarray, centred: bool):
+                  tau: np.ndarray, centred: bool, observed=True):
     """Inside a numpyro model: sample ``<p>_trend`` and the levels; return the levels' unconstrained values.
 
     ``sites``: (trend site, level site, plate name: the column); ``slope_prior`` the trend site's
     resolved prior (None for a walk); ``tau`` the levels' scaled coordinates (strictly increasing).
-    A centred walk samples the levels after the first jointly (site ``<p>_w``, dimension
-    ``<column>_step``); a non-centred one its standardised increments (``<p>_z``).
+    A centred walk samples its increments after the first level (site ``<p>_w``, dimension
+    ``<column>_step``); a non-centred one their standardised values (``<p>_z``). ``observed`` (per
+    level, :func:`bayesfric.hierarchy.observed_levels`): a level without data is sampled
+    non-centred even in a centred column (:func:`centred_or_not`).
     """
     trend_site, level_site, plate = sites
     if form == "walk":
         u0 = dist.biject_to(support(prior)).inv(value)
-        if centred:  # the later levels jointly: Brownian covariance sd² min(τ_i − τ_0, τ_j − τ_0)
-            lag = np.asarray(tau[1:], dtype=float) - float(tau[0])
-            chol = np.linalg.cholesky(np.minimum.outer(lag, lag) + 1e-12 * np.eye(lag.size))
-            later = numpyro.sample(level_site, dist.MultivariateNormal(u0 * jnp.ones(lag.size), scale_tril=sd * chol))
-            return jnp.concatenate([jnp.reshape(u0, (1,)), later])
+        if centred:  # increments u_g − u_{g−1} ~ Normal(0, sd √Δτ_g), g ≥ 1
+            scale = sd * jnp.sqrt(jnp.maximum(jnp.diff(jnp.asarray(tau)), 1e-12))
+            with numpyro.plate(f"{plate}_step", len(tau) - 1):
+                steps = centred_or_not(level_site, 0.0, scale, jnp.asarray(observed)[1:] if jnp.ndim(observed)
+                                       else observed)
+            return jnp.concatenate([jnp.reshape(u0, (1,)), u0 + jnp.cumsum(steps)])
         with numpyro.plate(plate, len(tau)):
             z = numpyro.sample(level_site, dist.Normal(0.0, 1.0))
         return walk_levels(u0, sd, z, tau)
@@ -143,7 +156,7 @@ def sample_levels(prior: Prior, form: str, sites: tuple[str, str, str], slope_pr
     mid = centre(prior, form, value, slope, jnp.asarray(tau))
     with numpyro.plate(plate, len(tau)):
         if centred:
-            return numpyro.sample(level_site, dist.Normal(mid, sd))
+            return centred_or_not(level_site, mid, sd, observed)
         return mid + sd * numpyro.sample(level_site, dist.Normal(0.0, 1.0))
 
 

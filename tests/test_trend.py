@@ -105,13 +105,32 @@ def test_a_walk_adds_increments_with_the_square_root_of_the_elapsed_span():
     assert "T_C_trend" not in program.priors
 
 
-def test_a_centred_walk_samples_the_later_levels_with_the_brownian_covariance():
+def test_a_centred_walk_samples_its_increments():
     ds, _ = _campaigns(hours=[0, 1000, 4000])  # 10 rows a campaign: centred
     law = get_law("coulomb_viscous").trend("hours", "T_C", form="walk")
-    w = np.log([2.2, 2.5])
+    w = np.log([2.2 / 2.0, 2.5 / 2.2])
     sites, program = _trace(law, ds, {"T_C": 2.0, "T_C_sd": 0.2, "T_C_w": w, "c_v": 1.0})
     np.testing.assert_allclose(sites["T_C_hours"], [2.0, 2.2, 2.5], rtol=1e-10)
     assert program.site_dims()["T_C_w"] == ["hours_step"]
+
+
+@pytest.mark.parametrize("form", ["linear", "walk"])
+def test_a_level_a_fold_holds_out_is_sampled_non_centred(form):
+    """Its data masked out, a centred column's level holds a standard-normal draw: no funnel."""
+    ds, _ = _campaigns(hours=[0, 1000, 4000])
+    law = get_law("coulomb_viscous").trend("hours", "T_C", form=form)
+    program = build_program(law, ds)
+    mask = ds["hours"].values != "4000"
+    level = "T_C_w" if form == "walk" else "T_C_u"
+    values = {"T_C": 2.0, "T_C_trend": 0.0, "T_C_sd": 0.2, "c_v": 1.0,
+              level: np.array([0.1, 1.0]) if form == "walk" else np.array([np.log(2.0), np.log(2.1), 1.0])}
+    with handlers.trace() as tr, handlers.seed(rng_seed=0), handlers.substitute(data=values):
+        program.model(**program.model_kwargs, mask=mask)
+    got = np.asarray(tr["T_C_hours"]["value"])
+    if form == "walk":  # the step to 4000 h: sd · sqrt(Δτ) · 1.0, Δτ = 3000 / 4000
+        np.testing.assert_allclose(np.log(got), [np.log(2.0), np.log(2.0) + 0.1, np.log(2.0) + 0.1 + 0.2 * np.sqrt(0.75)])
+    else:
+        np.testing.assert_allclose(np.log(got), [np.log(2.0), np.log(2.1), np.log(2.0) + 0.2 * 1.0])
 
 
 # -- forecasts --------------------------------------------------------------------------------------
