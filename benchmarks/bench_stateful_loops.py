@@ -16,6 +16,9 @@ gate passed, its R-hat / ESS / divergences, leapfrog steps per draw and the fit'
 to Dahl's on the same data (the issue's budget: ≤ 3×). Seconds move with the shared machine's
 load, printed with each row.
 
+A law name ``<law>_<reduction>`` (``lugre_Fs_eq_Fc``) fits the companion a study would add on the
+data (issue 50 item 2, :mod:`bayesfric.identifiability`).
+
 Run: ``PYTHONPATH=. .venv/bin/python benchmarks/bench_stateful_loops.py [--design 800] [--laws dahl lugre]
 [--limit 1800] [--init pathfinder] [--seeds 1 2 3 4]``. ``--seeds`` runs every law on each data seed in
 turn (Dahl first on each, so each ratio is to Dahl on the same data; issue 50's target is four seeds × the
@@ -60,8 +63,9 @@ def child(law_name: str, design: str, seed: int, init: str = "median") -> dict:
             ds = tt._write(Path(tmp), truth_law, tt.DAHL, seed=seed)
         finally:
             tt._loops = original
+        law = _law(law_name, ds)
         start = time.perf_counter()
-        dt = fit(get_law(law_name), ds, seed=1, **({} if init == "median" else {"init": init}))
+        dt = fit(law, ds, seed=1, **({} if init == "median" else {"init": init}))
         seconds = time.perf_counter() - start
     verdict = verdict_of(dt)
     steps = float(np.asarray(dt["sample_stats"]["n_steps"]).mean()) if "n_steps" in dt["sample_stats"] else None
@@ -71,6 +75,25 @@ def child(law_name: str, design: str, seed: int, init: str = "median") -> dict:
             "steps_per_draw": steps, "problems": list(verdict.problems),
             "loglik_rhat_max": verdict.loglik_rhat_max, "loglik_ess_bulk_min": verdict.loglik_ess_bulk_min,
             "predictions_converged": verdict.predictions_converged}
+
+
+def _law(name: str, ds):
+    """A registered law, or ``<law>_<reduction>``: the companion a study would add on ``ds``
+    (its reduced variant, :mod:`bayesfric.identifiability`), e.g. ``lugre_Fs_eq_Fc``."""
+    from bayesfric import identifiability
+    from bayesfric.laws import get_law
+    from bayesfric.laws.variants import for_data, vary
+    from bayesfric.model import Noise, build_program
+
+    base = next((b for b in LAWS if name.startswith(b + "_")), None)
+    if base is None:
+        return get_law(name)
+    law = for_data(get_law(base), ds)
+    checks = identifiability.assess(law, base, ds, build_program(law, ds, noise=Noise()).resolved)
+    suffix, fixed = identifiability.reduction(checks)
+    if f"{base}_{suffix}" != name:
+        raise SystemExit(f"{name}: on these data the companion of {base} is {base}_{suffix or '(none)'}")
+    return vary(get_law(base), fixed=fixed)
 
 
 def run_one(law_name: str, design: str, seed: int, limit: float, init: str = "median") -> dict:
