@@ -45,7 +45,8 @@ class ProgramLike(Protocol):
     observations. :class:`bayesfric.model.Program` is one; the type is declared here, below
     :mod:`bayesfric.model`, which builds each program's density (no import back)."""
 
-    def model(self, inputs: Any, group_index: Any = None, response: Any = None, mask: Any = None) -> None: ...
+    def model(self, inputs: Any, group_index: Any = None, response: Any = None, mask: Any = None,
+              seen: Any = None) -> None: ...
 
     @property
     def model_kwargs(self) -> dict[str, Any]: ...

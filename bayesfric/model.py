@@ -178,8 +178,14 @@ class Program:
             dims.update(group_z=["group"], group_offset=["group"])
         return dims
 
-    def model(self, inputs, group_index=None, response=None, mask=None):
-        """The numpyro program (see the module docstring for its sites)."""
+    def model(self, inputs, group_index=None, response=None, mask=None, seen=None):
+        """The numpyro program (see the module docstring for its sites).
+
+        ``mask`` keeps observations in the likelihood; ``seen`` (a fold's training mask) marks
+        the rows whose group levels are sampled centred: a level without such rows, one the fold
+        holds out, is sampled non-centred (:func:`bayesfric.trend.centred_or_not`). A separate
+        argument, so that the prior, the constrained draws and the pointwise likelihood of a
+        fold's draws read them as its sampler did; None: every level as its column says."""
         law = self.law
         params = {}
         for name, declared in law.params.items():
@@ -194,7 +200,7 @@ class Program:
         with jax.ensure_compile_time_eval():
             arrays = {k: jnp.asarray(v) for k, v in inputs.items()}
         if law.varying:  # group terms: each row reads its level's values (bayesfric.hierarchy)
-            params = group_sites(law, self.resolved, self.groupings, params, observed_levels(self.groupings, mask))
+            params = group_sites(law, self.resolved, self.groupings, params, observed_levels(self.groupings, seen))
         mu = law_mean(law, arrays, params, self.constants, {c: g.index for c, g in self.groupings.items()})
         if self.noise.group is not None:
             n_groups = len(self.group_labels)

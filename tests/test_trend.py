@@ -116,7 +116,8 @@ def test_a_centred_walk_samples_its_increments():
 
 @pytest.mark.parametrize("form", ["linear", "walk"])
 def test_a_level_a_fold_holds_out_is_sampled_non_centred(form):
-    """Its data masked out, a centred column's level holds a standard-normal draw: no funnel."""
+    """Its data out of the fold's training rows (``seen``), a centred column's level holds a
+    standard-normal draw: no funnel; the engine passes each fold's mask as ``seen``."""
     ds, _ = _campaigns(hours=[0, 1000, 4000])
     law = get_law("coulomb_viscous").trend("hours", "T_C", form=form)
     program = build_program(law, ds)
@@ -125,7 +126,7 @@ def test_a_level_a_fold_holds_out_is_sampled_non_centred(form):
     values = {"T_C": 2.0, "T_C_trend": 0.0, "T_C_sd": 0.2, "c_v": 1.0,
               level: np.array([0.1, 1.0]) if form == "walk" else np.array([np.log(2.0), np.log(2.1), 1.0])}
     with handlers.trace() as tr, handlers.seed(rng_seed=0), handlers.substitute(data=values):
-        program.model(**program.model_kwargs, mask=mask)
+        program.model(**program.model_kwargs, mask=mask, seen=mask)
     got = np.asarray(tr["T_C_hours"]["value"])
     if form == "walk":  # the step to 4000 h: sd · sqrt(Δτ) · 1.0, Δτ = 3000 / 4000
         np.testing.assert_allclose(np.log(got), [np.log(2.0), np.log(2.0) + 0.1, np.log(2.0) + 0.1 + 0.2 * np.sqrt(0.75)])
@@ -237,3 +238,18 @@ def test_the_api_and_the_cli_answer_the_same_time_to_exceed(trend_fit, tmp_path,
     assert "90 % interval" in printed and "typical campaign" in printed
     assert main(["size", str(path), "--at", "velocity=1 rad/s", "--horizon", "20000 h"]) == 2
     assert "--capacity: required with --horizon" in capsys.readouterr().err
+
+
+def test_a_forecast_fold_reads_its_held_out_campaign_as_its_sampler_did():
+    """The engine's constrained draws and lpd of a leave-future-out fold use the fold's own
+    parametrisation: the held-out campaign's forecast lies about the trend, not at a standard
+    normal (a forecast of T_C about exp(N(0, 1)) would be the bug this guards against)."""
+    from bayesfric.inference.engine import NutsEngine
+
+    ds, truth_values = _campaigns()
+    program = build_program(get_law("coulomb_viscous").trend("hours", "T_C"), ds)
+    hours = ds["hours"].values.astype(float)
+    fold = NutsEngine(program, draws=300, tune=300, chains=2, seed=0).run((hours < 3000)[None], seed=0)
+    forecast = fold.samples["T_C_hours"][0].reshape(-1, 7)[:, 6]
+    assert np.quantile(forecast, 0.05) > 2.5 and np.quantile(forecast, 0.95) < 3.6  # truth at 3000 h: 3.0
+    assert np.quantile(forecast, 0.05) < truth_values["T_C"][6] < np.quantile(forecast, 0.95)

@@ -51,7 +51,7 @@ class ChunkedSampler:
     vmap : callable
         :func:`bayesfric.inference.batching.vmap_or_squeeze`.
     finish : callable
-        ``finish(positions (F, C, D, dim), response)`` -> ``(constrained, lpd)``.
+        ``finish(positions (F, C, D, dim), masks (F, n_obs), response)`` -> ``(constrained, lpd)``.
     parts : dict
         The engine's disk-cache key parts (each program adds what it is).
     example : tuple
@@ -92,7 +92,7 @@ class ChunkedSampler:
                                                  advance_args, ahead=True)
         dim = starts.shape[-1]
         positions = jax.ShapeDtypeStruct((n_folds, n_chains, self.rows - tune, dim), starts.dtype)
-        self.finish, _ = exported_jit(finish, parts | dict(what="chunked finish"), (positions, response),
+        self.finish, _ = exported_jit(finish, parts | dict(what="chunked finish"), (positions, masks, response),
                                       ahead=True)
 
     @property
@@ -110,8 +110,8 @@ class ChunkedSampler:
         data = self.data_of(response)
 
         def one_fold(fold_keys, mask):
-            def logdensity(x):
-                return self.density.log_joint(x, mask, data)
+            def logdensity(x):  # the fold's levels without data sampled non-centred (Program.model ``seen``)
+                return self.density.log_joint(x, mask, dict(data, seen=mask))
 
             def one_chain(key, x0):
                 return chain_start(x0, logdensity, init_imm, self.auto), step_keys(key, self.rows)
@@ -131,7 +131,7 @@ class ChunkedSampler:
 
         def one_fold(fold_carry, fold_keys, mask):
             def logdensity(x):
-                return self.density.log_joint(x, mask, data)
+                return self.density.log_joint(x, mask, dict(data, seen=mask))
 
             def one_chain(c, k):
                 return chain_steps(c, k, rows, logdensity, target_accept, self.depth, self.auto, dense_above)
@@ -165,5 +165,5 @@ class ChunkedSampler:
                 report(min(lo + self.chunk, self.rows), np.asarray(out["diverging"])[:, :, sampling].sum(axis=-1))
         kept = {k: np.concatenate([np.asarray(o[k]) for o in outs], axis=2)[:, :, self.tune:self.rows]
                 for k in outs[0]}
-        constrained, lpd = self.finish(kept.pop("position"), response)
+        constrained, lpd = self.finish(kept.pop("position"), masks, response)
         return jax.tree.map(np.asarray, constrained), kept, np.asarray(lpd)

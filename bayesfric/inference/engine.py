@@ -305,20 +305,22 @@ class NutsEngine:
         p = self.program  # its inputs: constants of the compiled code (see the module notes)
         return dict(inputs=p.inputs, group_index=p.group_index, response=response)
 
-    def _finish_batch(self, positions, response):
+    def _finish_batch(self, positions, masks, response):
         """Constrained draws and lpd of every observation from the kept unconstrained draws
-        ``(fold, chain, draw, dim)`` of one call."""
+        ``(fold, chain, draw, dim)`` of one call, each fold with its training mask (which levels
+        of a group column its draws hold centred: ``Program.model``'s ``seen``)."""
         density = self._density  # the program's one log density
         data = self._data(response)
 
-        def one_fold(position):
-            constrained = jax.vmap(jax.vmap(lambda v: density.constrain(v, data)))(position)
+        def one_fold(position, mask):
+            fold = dict(data, seen=mask)
+            constrained = jax.vmap(jax.vmap(lambda v: density.constrain(v, fold)))(position)
             flat = {k: v.reshape((-1,) + v.shape[2:]) for k, v in constrained.items()}
             # draws × rows at once for small data, else in chunks of draws (bounded memory)
-            lpd = log_mean_likelihood(lambda c: density.pointwise(c, data), flat, self.program.n_obs)
+            lpd = log_mean_likelihood(lambda c: density.pointwise(c, fold), flat, self.program.n_obs)
             return constrained, lpd
 
-        return vmap_or_squeeze(one_fold)(positions)
+        return vmap_or_squeeze(one_fold)(positions, masks)
 
     # -- public ---------------------------------------------------------------------------
     def run(self, train_masks: np.ndarray, seed: int = 0) -> FoldFits:
