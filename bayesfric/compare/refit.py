@@ -88,6 +88,7 @@ class CVResult:
     settings: dict = field(default_factory=dict)
     predictive: HeldOut | None = None
     coverage: dict[str, float] | None = None  # joint (grouped) schemes: central 50/90 % bands' share of rows
+    elpd_fold: np.ndarray | None = None  # joint schemes: each fold's held-out rows' joint log density
 
     @property
     def failed_folds(self) -> list[int]:
@@ -213,5 +214,6 @@ def cross_validate(engine: RefitEngine, folds: Folds, *, seed: int = 0, predicti
                                     "scored": "each held-out group's rows jointly" if joint else "pointwise"},
         predictive=kept if predictive else None,
         coverage=group_coverage(engine.program, kept, engine.program.response) if joint else None,
+        elpd_fold=scored if joint else None,
     )
 

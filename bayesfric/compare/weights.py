@@ -130,6 +130,10 @@ def model_weights(
         Law -> full fit; a fit whose stored verdict failed excludes its law (needed for CV
         results, which do not carry the full fit's verdict).
 
+    Stacking on a joint CV scheme (each held-out group's rows scored together:
+    :attr:`CVResult.elpd_fold`) weighs the folds' joint densities, one per fold, as the scheme
+    ranks; otherwise the held-out rows one at a time.
+
     Raises
     ------
     ValueError
@@ -171,7 +175,11 @@ def model_weights(
     if arviz_method != "stacking" or CVResult not in kinds:
         return Weights(weights, arviz_method, basis, excluded, table)
     names = list(kept)
-    lpd = np.column_stack([np.asarray(kept[k].elpd_i.values, dtype=float) for k in names])
+    joint = [results[k].elpd_fold for k in names]
+    # a joint scheme (leave-one-group-out, leave-future-out) ranks by each held-out group's rows
+    # together: its stacking weighs those joint densities, one per fold, not the rows one at a time
+    lpd = (np.column_stack([np.asarray(v, dtype=float) for v in joint]) if all(v is not None for v in joint)
+           else np.column_stack([np.asarray(kept[k].elpd_i.values, dtype=float) for k in names]))
     mean = bootstrap_stacking(lpd).mean(axis=0)
     return Weights(dict(zip(names, map(float, mean / mean.sum()), strict=True)), "Bayesian-bootstrap stacking",
                    basis, excluded, table, point=weights)

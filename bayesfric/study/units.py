@@ -197,6 +197,7 @@ def cv_dataset(cv: compare.CVResult) -> xr.Dataset:
                     attrs={"elpd": float(cv.elpd), "se": float(cv.se), "seconds": float(cv.seconds), "law": cv.law,
                            "scheme": cv.scheme, "verdicts": _text([asdict(v) for v in cv.verdicts]),
                            "coverage": _text(cv.coverage),
+                           "elpd_fold": _text(None if cv.elpd_fold is None else [float(v) for v in cv.elpd_fold]),
                            "settings": _text(cv.settings)})
     if kept is not None:
         ds = ds.assign(heldout_index=("kept", kept.index), heldout_fold=("kept", kept.fold),
@@ -347,4 +348,6 @@ def _cv(ds: xr.Dataset) -> compare.CVResult:
                             elpd_i=ds["elpd_i"].values.astype(float), heldout=ds["heldout"].values.astype(bool),
                             verdicts=[Verdict(**v) for v in json.loads(a["verdicts"])], seconds=float(a["seconds"]),
                             settings=json.loads(a["settings"]), predictive=kept,
-                            coverage=json.loads(a["coverage"]) if "coverage" in a else None)
+                            coverage=json.loads(a["coverage"]) if "coverage" in a else None,
+                            elpd_fold=(None if json.loads(a.get("elpd_fold", "null")) is None
+                                       else np.asarray(json.loads(a["elpd_fold"]), dtype=float)))

@@ -107,3 +107,17 @@ def test_averaged_predictive_mixes_draws_by_weight():
     assert draws.mean() == pytest.approx(0.25)  # 250 of the 1000 draws come from "ones"
     single = averaged_predictive(fits, {"zeros": 1.0, "ones": 0.0})
     assert float(single["posterior_predictive"]["response"].mean()) == 0.0
+
+
+def test_a_joint_scheme_stacks_the_folds_joint_densities_not_the_rows():
+    """Leave-future-out / leave-one-group-out rank by each held-out group's rows together; their
+    stacking weighs those joint densities: here the rows favour "a" one at a time, the groups
+    favour "b" as wholes, and the weights follow the groups."""
+    rng = np.random.default_rng(0)
+    heldout = np.ones(40, dtype=bool)
+    rows_a, rows_b = rng.normal(-1.0, 0.1, 40), rng.normal(-1.5, 0.1, 40)
+    a, b = cv("a", rows_a, heldout), cv("b", rows_b, heldout)
+    assert model_weights({"a": a, "b": b}).weights["a"] > 0.9  # pointwise
+    a.elpd_fold, b.elpd_fold = np.array([-30.0, -32.0, -29.0, -31.0]), np.array([-20.0, -21.0, -19.0, -22.0])
+    weights = model_weights({"a": a, "b": b})
+    assert weights.weights["b"] > 0.9 and sum(weights.weights.values()) == pytest.approx(1.0)
