@@ -253,3 +253,25 @@ def test_a_forecast_fold_reads_its_held_out_campaign_as_its_sampler_did():
     forecast = fold.samples["T_C_hours"][0].reshape(-1, 7)[:, 6]
     assert np.quantile(forecast, 0.05) > 2.5 and np.quantile(forecast, 0.95) < 3.6  # truth at 3000 h: 3.0
     assert np.quantile(forecast, 0.05) < truth_values["T_C"][6] < np.quantile(forecast, 0.95)
+
+
+def test_a_model_average_is_the_weighted_mixture(trend_fit):
+    from bayesfric.sizing.exceed import combine
+
+    one = time_to_exceed(trend_fit, {"velocity": 1.0}, 5.0, 20000.0, seed=1)
+    two = time_to_exceed(trend_fit, {"velocity": 3.0}, 7.0, 20000.0, seed=2)  # 2 N*m above: a separate mode
+    mix = combine({"one": one, "two": two}, {"one": 0.25, "two": 0.75})
+    np.testing.assert_allclose(mix["p_exceed"], 0.25 * one["p_exceed"] + 0.75 * two["p_exceed"])
+    share = np.mean(np.isin(mix["crossing"].values, one["crossing"].values))
+    assert abs(share - 0.25) < 0.05  # draws in proportion to the weights
+    pooled = np.abs(np.concatenate([one["curve_new"].values, two["curve_new"].values]))
+    weights = np.concatenate([np.full(one.sizes["draw"], 0.25 / one.sizes["draw"]),
+                              np.full(two.sizes["draw"], 0.75 / two.sizes["draw"])])
+    from bayesfric.sizing.compute import weighted_quantiles
+
+    exact = weighted_quantiles(pooled, weights, (0.05, 0.95))
+    for q in (0.05, 0.95):  # the resampled mixture's quantiles, within Monte Carlo error of the exact ones
+        gap = np.abs(mix["fan_new"].sel(quantile=q).values - exact[q]) / exact[q]
+        averaged = 0.25 * one["fan_new"].sel(quantile=q).values + 0.75 * two["fan_new"].sel(quantile=q).values
+        off = np.abs(averaged - exact[q]) / exact[q]  # averaging the quantiles instead
+        assert np.median(gap) < 0.03 and np.median(gap) < 0.5 * np.median(off)

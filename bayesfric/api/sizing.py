@@ -203,4 +203,4 @@ def time_to_exceed(source: xr.DataTree | str | Path, at: Mapping[str, Any] | str
     written = str(horizon).split(maxsplit=1)[1].strip() if isinstance(horizon, str) and " " in horizon.strip() else ""
     cap = value_text(capacity, "capacity", "torque") if not isinstance(capacity, str) else capacity
     return answer(source, {k: v.lo for k, v in asked.at.items()}, cap, horizon, unit=unit or written,
-                  seed=seed).drop_vars("curve")
+                  seed=seed).drop_vars(["curve", "curve_new"])

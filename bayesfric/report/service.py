@@ -57,7 +57,8 @@ def _plot(q: xr.DataTree, data: xr.Dataset, path: Path) -> Path:
     top.errorbar(c, mid, yerr=[mid - cq.sel(quantile=0.05).values, cq.sel(quantile=0.95).values - mid], fmt="o",
                  color="k", ms=4, label="tested campaigns (fitted)")
     top.axhline(cap, color="C3", lw=1.5, label=f"capacity {q.attrs.get('capacity', '')}")
-    top.set_ylabel(f"|{res.attrs.get('response', 'friction')}| (SI)")
+    response = str(res.attrs.get("response", "friction"))
+    top.set_ylabel(f"|{response}| ({ {'torque': 'N·m', 'force': 'N'}.get(response, 'SI') })")
     top.set_title(f"{q.attrs.get('label', '')}: {name}", fontsize=10)
     top.legend(fontsize=7, loc="upper left")
     low.plot(t, res["p_exceed"].values, color="C3")

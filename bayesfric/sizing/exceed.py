@@ -174,8 +174,8 @@ def time_to_exceed(fit: xr.DataTree, at: Mapping[str, Any], capacity: Any, horiz
         ``crossing`` (draw): each draw's time to exceed (``inf``: not by the horizon);
         ``crossing_q`` (quantile); ``p_exceed`` (service): P(crossed by t); ``fan`` and ``fan_new``
         (quantile, service): the typical campaign's and a new campaign's friction; ``campaign_q``
-        (campaign, quantile): each fitted campaign's; ``curve`` (draw, service): the typical
-        curves (drop it before storing). Attrs say what the answer is for.
+        (campaign, quantile): each fitted campaign's; ``curve`` and ``curve_new`` (draw, service):
+        the typical and the new campaigns' curves (drop them before storing). Attrs say what the answer is for.
 
     Raises
     ------
@@ -212,7 +212,8 @@ def time_to_exceed(fit: xr.DataTree, at: Mapping[str, Any], capacity: Any, horiz
          "p_exceed": ("service", (crossing[:, None] <= times[None, :]).mean(axis=0)),
          "fan": (("quantile", "service"), np.quantile(np.abs(curve), QUANTILES, axis=0)),
          "fan_new": (("quantile", "service"), np.quantile(np.abs(new), QUANTILES, axis=0)),
-         "campaign_q": (("campaign", "quantile"), np.abs(campaign_q)), "curve": (("draw", "service"), curve)},
+         "campaign_q": (("campaign", "quantile"), np.abs(campaign_q)), "curve": (("draw", "service"), curve),
+         "curve_new": (("draw", "service"), new)},
         coords={"service": times, "quantile": list(QUANTILES), "campaign": where},
         attrs={"law": fitted.name, "capacity": cap, "horizon": end, "column": column, "unit": unit,
                "form": fitted.trend_form, "at": repr(dict(at)), "response": law.response,
@@ -225,8 +226,10 @@ def time_to_exceed(fit: xr.DataTree, at: Mapping[str, Any], capacity: Any, horiz
 def combine(results: Mapping[str, xr.Dataset], weights: Mapping[str, float], seed: int = 0) -> xr.Dataset:
     """The weighted mixture of several laws' :func:`time_to_exceed` answers (same times).
 
-    Each law contributes draws in proportion to its weight (resampled, seeded); ``p_exceed`` is
-    the weighted mean of the laws' (exact). Laws with zero weight are left out.
+    Each law contributes draws in proportion to its weight (resampled, seeded: the crossing
+    times, both fans); ``p_exceed`` is the weighted mean of the laws' (exact), the fitted
+    campaigns' quantiles the weighted mean of the laws' (approximate: they differ little between
+    laws fitted to the same campaigns). Laws with zero weight are left out.
     """
     names = [n for n in results if weights.get(n, 0.0) > 0]
     if not names:
@@ -238,18 +241,20 @@ def combine(results: Mapping[str, xr.Dataset], weights: Mapping[str, float], see
     picks = rng.choice(len(names), size=size, p=w)
     draws = [results[n]["crossing"].values[rng.integers(0, results[n].sizes["draw"], (picks == i).sum())]
              for i, n in enumerate(names)]
-    curves = [results[n]["curve"].values[rng.integers(0, results[n].sizes["draw"], (picks == i).sum())]
-              for i, n in enumerate(names)]
-    crossing, curve = np.concatenate(draws), np.concatenate(curves)
+    rows = [rng.integers(0, results[n].sizes["draw"], (picks == i).sum()) for i, n in enumerate(names)]
+    curve = np.concatenate([results[n]["curve"].values[r] for n, r in zip(names, rows, strict=True)])
+    new = np.concatenate([results[n]["curve_new"].values[r] for n, r in zip(names, rows, strict=True)])
+    crossing = np.concatenate(draws)
     first = results[names[0]]
     return first.copy(data={
         "crossing": crossing, "crossing_q": np.quantile(crossing, QUANTILES, method="inverted_cdf"),
         "p_exceed": sum(wi * results[n]["p_exceed"].values for wi, n in zip(w, names, strict=True)),
         "fan": np.quantile(np.abs(curve), QUANTILES, axis=0),
-        "fan_new": sum(wi * results[n]["fan_new"].values for wi, n in zip(w, names, strict=True)),
+        "fan_new": np.quantile(np.abs(new), QUANTILES, axis=0),
         "campaign_q": sum(wi * results[n]["campaign_q"].values for wi, n in zip(w, names, strict=True)),
-        "curve": curve}).assign_attrs(law="model average", weights=repr(dict(zip(names, w.round(4), strict=True))),
-                                      p_within_horizon=float(np.isfinite(crossing).mean()))
+        "curve": curve, "curve_new": new}).assign_attrs(
+            law="model average", weights=repr(dict(zip(names, w.round(4), strict=True))),
+            p_within_horizon=float(np.isfinite(crossing).mean()))
 
 
 def forecast_weights(tree: xr.DataTree) -> tuple[dict[str, float], str]:
@@ -286,7 +291,7 @@ def answer_study(questions: Sequence[Any], fits: Mapping[str, xr.DataTree], tree
             "unit": unit, "weighting": basis, "weights": repr({n: round(w, 4) for n, w in used.items()}),
             "no_trend": ", ".join(n for n in fits if n not in trending)})
         for name, result in results.items():
-            nodes[f"q{i}/{name}"] = result.drop_vars("curve").assign_attrs(weight=used[name])
+            nodes[f"q{i}/{name}"] = result.drop_vars(["curve", "curve_new"]).assign_attrs(weight=used[name])
         if sum(used.values()) > 0:
-            nodes[f"q{i}/average"] = combine(results, used, seed=seed).drop_vars("curve")
+            nodes[f"q{i}/average"] = combine(results, used, seed=seed).drop_vars(["curve", "curve_new"])
     return xr.DataTree.from_dict(nodes)
