@@ -4,10 +4,11 @@ cover the truth?
 Usage::
 
     .venv/bin/python benchmarks/bench_trend_forecast.py [--replicates 120] [--cases linear accelerating walk]
+        [--scatter 0.03]
 
 SIMULATED data. Each replicate simulates 8 test campaigns of ``coulomb_viscous`` at 0, 500, …,
 3500 service hours (10 speeds 0.1–2 rad/s each, noise sd 0.05 N·m), the Coulomb level following
-a true trend and scattering between campaigns by a factor ``exp(0.03 z)``
+a true trend and scattering between campaigns by a factor ``exp(s z)`` (``--scatter s``, 0.03)
 (:func:`bayesfric.datasets.synthetic.simulate_campaigns`); ``c_v = 1 N·m·s/rad`` throughout.
 The law ``coulomb_viscous.trend("hours", "T_C", form=...)`` is fitted (NUTS, 4 × 500 after 500
 warm-up) on the first 7 campaigns; the 8th (3500 h) is masked out of the likelihood, so its level
@@ -73,13 +74,13 @@ def typical_curves(post: dict, form: str, labels, rng) -> np.ndarray:
     return np.exp(last + post["T_C_sd"].reshape(-1)[:, None] * np.cumsum(steps, axis=1)) + c_v
 
 
-def run_case(name: str, replicates: int) -> dict:
+def run_case(name: str, replicates: int, scatter: float = SCATTER) -> dict:
     truth_name, form = CASES[name]
     truth = TRUTHS[truth_name]
     law = get_law("coulomb_viscous")
 
     def data(r):
-        return simulate_campaigns(law, {"velocity": SPEEDS}, {"T_C": truth, "c_v": C_V}, HOURS, {"T_C": SCATTER},
+        return simulate_campaigns(law, {"velocity": SPEEDS}, {"T_C": truth, "c_v": C_V}, HOURS, {"T_C": scatter},
                                   sigma=SIGMA, seed=r)
 
     first, _ = data(0)
@@ -115,14 +116,15 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--replicates", type=int, default=120)
     ap.add_argument("--cases", nargs="+", default=list(CASES), choices=list(CASES))
+    ap.add_argument("--scatter", type=float, default=SCATTER, help="sd of the campaigns' log scatter")
     args = ap.parse_args()
     n = args.replicates
     print(f"SIMULATED: 8 campaigns at 0-3500 h x {SPEEDS.size} speeds, trained on the first 7, forecast the 8th; "
-          f"scatter {SCATTER} (log), noise sd {SIGMA} N*m, capacity {CAPACITY} N*m at 1 rad/s, {n} replicates")
+          f"scatter {args.scatter} (log), noise sd {SIGMA} N*m, capacity {CAPACITY} N*m at 1 rad/s, {n} replicates")
     print("case (truth / candidate)         cover@0.1/1/2 rad/s   whole curve  IS@1  crossing cover  "
           "median 90% width h  true crossing h  gate failed  s/fit")
     for name in args.cases:
-        row = run_case(name, n)
+        row = run_case(name, n, args.scatter)
         cover = np.mean(row["cover"], axis=0)
         print(f"{name:10s} ({CASES[name][0]} / {CASES[name][1]})".ljust(33)
               + " / ".join(f"{c:.3f}" for c in cover) + f"   {np.mean(np.all(row['cover'], axis=1)):.3f}"
