@@ -5,6 +5,7 @@ Usage::
 
     .venv/bin/python benchmarks/bench_trend_forecast.py [--replicates 120] [--cases linear accelerating walk]
         [--scatter 0.03]
+    .venv/bin/python benchmarks/bench_trend_forecast.py --drum-cost   # a trend fit's cost
 
 SIMULATED data. Each replicate simulates 8 test campaigns of ``coulomb_viscous`` at 0, 500, …,
 3500 service hours (10 speeds 0.1–2 rad/s each, noise sd 0.05 N·m), the Coulomb level following
@@ -112,12 +113,31 @@ def run_case(name: str, replicates: int, scatter: float = SCATTER) -> dict:
     return row
 
 
+def drum_cost() -> None:
+    """A trend law's fit against the pooled law's on drum_campaigns (1008 rows, 4 × 500), each
+    fitted twice in this process; the second call is compiled (its seconds are the ones to read)."""
+    from bayesfric.datasets import load_dataset, resolve
+    from bayesfric.inference import fit
+
+    ds = load_dataset(resolve("drum_campaigns"))
+    oring = get_law("coastdown_oring_closed_form")
+    for law in (oring.trend("hours", "T_C", "c_v"), oring):
+        for rep in range(2):
+            start = time.perf_counter()
+            dt = fit(law, ds, seed=rep, draws=500, tune=500, chains=4)
+            print(f"{law.name}: {time.perf_counter() - start:.1f} s, "
+                  f"{float(dt['sample_stats']['n_steps'].mean()):.1f} leapfrog steps per draw", flush=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--replicates", type=int, default=120)
     ap.add_argument("--cases", nargs="+", default=list(CASES), choices=list(CASES))
     ap.add_argument("--scatter", type=float, default=SCATTER, help="sd of the campaigns' log scatter")
+    ap.add_argument("--drum-cost", action="store_true", help="only time a trend fit against the pooled one")
     args = ap.parse_args()
+    if args.drum_cost:
+        return drum_cost()
     n = args.replicates
     print(f"SIMULATED: 8 campaigns at 0-3500 h x {SPEEDS.size} speeds, trained on the first 7, forecast the 8th; "
           f"scatter {args.scatter} (log), noise sd {SIGMA} N*m, capacity {CAPACITY} N*m at 1 rad/s, {n} replicates")
