@@ -23,6 +23,10 @@ tested point the measured mean should lie within the generator's own noise of th
 The generators are imported by path (``importlib.util.spec_from_file_location``); their numbers
 are never copied here. Units are converted with :mod:`bayesfric.quantities` (pint).
 
+A study whose questions all ask a time to exceed (``horizon``) is checked against its data set's
+``truth.json`` instead: the generator's true crossing time inside the 90 % interval of the model
+average that the study's ``results.nc`` keeps (``/service``).
+
 Exit status: 2 if a study's ``sizing.csv`` is missing (or its data set has no truth adapter):
 the check is incomplete; otherwise 1 if the truth lies outside the calibrated band at any point;
 otherwise 0 (also when the calibrated columns are absent or NaN: printed as NOT CHECKED).
@@ -448,6 +452,7 @@ class Study:
     select: dict
     questions: list[str] = field(default_factory=list)
     inputs: list[str] = field(default_factory=list)
+    horizons: list[str] = field(default_factory=list)  # time-to-exceed questions' labels
 
 
 def read_study(path: Path) -> Study:
@@ -468,7 +473,8 @@ def read_study(path: Path) -> Study:
     return Study(name=str(spec.get("study", {}).get("name", path.stem)), dataset=str(data.get("dataset", "")),
                  select=dict(data.get("select") or {}),
                  questions=[str(q.get("label", "")) for q in spec.get("sizing", [])],
-                 inputs=list(dict.fromkeys(k for q in spec.get("sizing", []) for k in q.get("at", {}))))
+                 inputs=list(dict.fromkeys(k for q in spec.get("sizing", []) for k in q.get("at", {}))),
+                 horizons=[str(q.get("label", "")) for q in spec.get("sizing", []) if "horizon" in q])
 
 
 def _float(text: str | None) -> float:
@@ -642,6 +648,8 @@ def check_study(study: Study, reports: Path) -> int:
         2: report missing or no truth adapter; 1: truth outside the calibrated band; 0: otherwise.
     """
     print(f"\n=== {study.name} (data set {study.dataset}) ===")
+    if study.horizons and len(study.horizons) == len(study.questions):
+        return check_service(study, reports)
     if study.dataset not in ADAPTERS:
         print(f"NO TRUTH ADAPTER for data set {study.dataset!r} (known: {', '.join(ADAPTERS)}): cannot check")
         return 2
@@ -663,6 +671,33 @@ def check_study(study: Study, reports: Path) -> int:
         print(f"model average: {rows[0].get('basis') or rows[0].get('law', '?')} ({len(rows)} points, {path})")
     print_points(checks, unit, header)
     return summarise(checks, header)
+
+
+def check_service(study: Study, reports: Path) -> int:
+    """Time-to-exceed questions: the generator's true crossing time (``data/<dataset>/truth.json``,
+    ``query.crossing_hours``) against the 90 % interval of the model average in the study's
+    ``results.nc`` (``/service/q<i>/average``); the exit status as :func:`check_study`'s."""
+    import json
+
+    import xarray as xr
+
+    truth_file = ROOT / "data" / study.dataset / "truth.json"
+    path = reports / study.name / "results.nc"
+    if not truth_file.is_file() or not path.is_file():
+        print(f"MISSING: {truth_file if not truth_file.is_file() else path}: cannot check")
+        return 2
+    truth = json.loads(truth_file.read_text())["query"]
+    status = 0
+    with xr.open_datatree(path) as tree:
+        for name, q in sorted(tree["service"].children.items()):
+            res = q["average"] if "average" in q.children else next(iter(q.children.values()))
+            lo, mid, hi = (float(res["crossing_q"].sel(quantile=p)) for p in (0.05, 0.5, 0.95))
+            inside = lo <= truth["crossing_hours"] <= hi
+            print(f"{name} {q.attrs['label']!r}: true crossing {truth['crossing_hours']:g} h "
+                  f"({truth['crossing_definition']}); {res.attrs['law']} median {mid:g} h, 90 % {lo:g} – {hi:g} h: "
+                  f"{'inside' if inside else 'OUTSIDE'}")
+            status = max(status, 0 if inside else 1)
+    return status
 
 
 def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
