@@ -128,7 +128,14 @@ def _run(path: Path, out: Path, *extra: str, quick: bool = True) -> subprocess.P
     env = {k: v for k, v in os.environ.items() if k != STORE_ENV}  # the store under --out
     return subprocess.Popen([sys.executable, "-m", "bayesfric", "study", str(path), "--out", str(out),
                              *(["--quick"] if quick else []), *extra], cwd=REPO, stdout=subprocess.PIPE,
-                            stderr=subprocess.STDOUT, text=True, env=env, start_new_session=True)
+                            stderr=subprocess.STDOUT, text=True, env=env, start_new_session=True,
+                            preexec_fn=_interruptible)
+
+
+def _interruptible() -> None:
+    """In the child before exec: SIGINT as a terminal would deliver it. A suite started as a
+    shell's background job inherits SIGINT ignored, and Python then installs no handler for it."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def _entries(store: Path) -> list[Path]:
