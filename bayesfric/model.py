@@ -467,6 +467,9 @@ def program_of_fit(fit: xr.DataTree) -> Program:
     ValueError
         A fit of an older version that used a known noise sigma without recording it.
     """
+    # x64 before any of the program runs: a fit read from its file in a fresh process would
+    # otherwise be evaluated in float32 and answer differently from the same fit in memory
+    configure()
     attrs = fit.attrs
     law, noise = law_of_fit(attrs), _noise_of(attrs)
     declared = {k: Prior.from_dict(v) for k, v in json.loads(attrs["priors"]).items()}
