@@ -1,7 +1,7 @@
 """What each ``bayesfric`` command does with its parsed options (:mod:`bayesfric.cli` defines the
 options, reports errors and exits): each ``cmd_<command>`` turns options into library calls
 (:mod:`bayesfric.api.fitting`, :mod:`bayesfric.sizing.single`, :mod:`bayesfric.study.resize`,
-:func:`bayesfric.study.runner.run_study` ...) and prints what they return. A problem is a
+:func:`bayesfric.pipeline.runner.run_study` ...) and prints what they return. A problem is a
 :class:`~bayesfric.errors.UserError` naming the option. Heavy modules are imported inside each
 command, so ``bayesfric fit`` imports no plotting or study-runner code.
 """
@@ -106,13 +106,15 @@ def _option(key: str) -> str:
     return "--sampler" if key == "name" else f"--{key.replace('_', '-')}"
 
 
-def _fit_settings(args: argparse.Namespace) -> dict[str, object]:
-    """Sampler options of ``fit``, validated against the study schema's ``[sampler]`` table."""
+def _fit_settings(args: argparse.Namespace):
+    """The sampler configuration of ``fit``'s options (:class:`~bayesfric.inference.config.SamplerConfig`,
+    checked as a study's ``[sampler]`` table is, errors naming the options)."""
     from bayesfric.api.fitting import sampler_options
 
     return sampler_options(args.sampler, args.seed, {"draws": args.draws, "tune": args.tune, "chains": args.chains,
                                                      "walkers": args.walkers, "init": args.init, "metric": args.metric,
-                                                     "retry_target_accept": args.retry_target_accept}, key=_option)
+                                                     "retry_target_accept": args.retry_target_accept,
+                                                     "progress": not args.quiet}, key=_option)
 
 
 def _load_selected(data: str, items: list[str] | None):
@@ -125,12 +127,12 @@ def _load_selected(data: str, items: list[str] | None):
         raise UserError(f"--select {' '.join(items or [])}: {exc}") from None
 
 
-def _checked_program(law, ds, priors: dict[str, Prior], noise, sampler: str, settings: dict[str, object]):
+def _checked_program(law, ds, priors: dict[str, Prior], noise, config):
     """The fit's program, its priors, walkers and memory checked before sampling
     (:func:`bayesfric.api.fitting.checked_program`, errors naming the options)."""
     from bayesfric.api.fitting import checked_program
 
-    return checked_program(law, ds, priors, noise, sampler, settings, key=_option, prior_key="--prior {}".format)
+    return checked_program(law, ds, priors, noise, config, key=_option, prior_key="--prior {}".format)
 
 
 def cmd_fit(args: argparse.Namespace) -> None:
@@ -140,7 +142,7 @@ def cmd_fit(args: argparse.Namespace) -> None:
     from bayesfric.laws.variants import for_data
     from bayesfric.model import Noise
 
-    settings = _fit_settings(args)
+    config = _fit_settings(args)
     if args.out is not None:
         try:
             check_output_file(args.out)
@@ -157,9 +159,8 @@ def cmd_fit(args: argparse.Namespace) -> None:
     if args.group is not None and args.group not in ds.coords:
         raise UserError(f"--group {args.group}: not a coordinate of the data ({', '.join(ds.coords)})")
     priors = parse_priors(args.prior, list(law.params) + list(noise.sites()), law.name)
-    _checked_program(law, ds, priors, noise, args.sampler, settings)  # checked before sampling
-    dt = fit(law, ds, sampler=args.sampler, priors=priors, noise=noise, seed=args.seed, progress=not args.quiet,
-             **settings)
+    _checked_program(law, ds, priors, noise, config)  # checked before sampling
+    dt = fit(law, ds, priors=priors, noise=noise, config=config)
     from bayesfric.report.tables import fit_report  # after the fit: it imports arviz-stats (see diagnostics)
 
     print(fit_report(dt, law))
@@ -209,7 +210,7 @@ def _executor(args: argparse.Namespace) -> dict:
 
 
 def cmd_study(args: argparse.Namespace) -> None:
-    from bayesfric.study.runner import run_study
+    from bayesfric.pipeline.runner import run_study
 
     _check_reports_root(args.out)
     run_study(args.file, out_root=args.out, quick=args.quick, **_executor(args))
@@ -325,7 +326,7 @@ def cmd_score(args: argparse.Namespace) -> None:
 
 def cmd_main(args: argparse.Namespace) -> None:
     from bayesfric.limits import process_problem
-    from bayesfric.study.mainjob import run_flagship
+    from bayesfric.pipeline.mainjob import run_flagship
 
     _check_reports_root(args.out)
     if args.jobs is not None and args.jobs < 1:

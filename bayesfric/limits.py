@@ -25,7 +25,7 @@ every particle of every run, with every row of each (``chains = runs``, ``kept =
 claim at most :data:`SHARE` of the memory available now (:func:`available_memory`). A process
 (a study of ``--jobs``, a Dask worker of ``--workers``) takes :data:`PROCESS_BYTES`, and
 :data:`RESERVED_BYTES` stay with the rest of the machine (the same budget
-:func:`bayesfric.study.mainjob.default_jobs` uses).
+:func:`bayesfric.pipeline.mainjob.default_jobs` uses).
 """
 
 from __future__ import annotations

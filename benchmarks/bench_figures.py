@@ -16,8 +16,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from bayesfric.pipeline.runner import run_study
 from bayesfric.report import summary
-from bayesfric.study.runner import run_study
 
 
 def main(study: str) -> None:

@@ -70,8 +70,8 @@ def write_grid(folder: Path, n: int) -> list[Path]:
 
 def phase(name: str, folder: Path, n: int, workers: int) -> dict:
     """Run one phase in this process; return its timings and peak memory."""
+    from bayesfric.pipeline.runner import run_study
     from bayesfric.study.executor import open_client
-    from bayesfric.study.runner import run_study
 
     studies = sorted(folder.glob("grid*.toml"))[:n]
     out = folder / ("reports-dask" if name == "dask" else "reports")

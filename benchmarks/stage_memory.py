@@ -31,7 +31,7 @@ STAGES = [
     ("bayesfric.study.runner", "_law_results"),
     ("bayesfric.study.tree", "score_table"),
     ("bayesfric.study.runner", "study_tree"),
-    ("bayesfric.study.runner", "evaluate_claims"),
+    ("bayesfric.pipeline.runner", "evaluate_claims"),
     ("bayesfric.compare", "loo_pit_check"),
     ("bayesfric.compare", "prior_sensitivity"),
     ("bayesfric.compare", "prior_predictive_check"),

@@ -233,7 +233,7 @@ def test_study_on_reduction_ranks_laws_as_on_raw_log(tmp_path, monkeypatch):
     their order there is a coin toss that changed with the installed package versions (2026-11-26);
     the test asks only that the reduction does not reverse them by more than one standard error.
     """
-    from bayesfric.study.runner import run_study
+    from bayesfric.pipeline.runner import run_study
 
     monkeypatch.setenv("BAYESFRIC_STORE_DIR", str(tmp_path / "store"))
     csv, _ = raw_log(tmp_path, signs=(1,), plateau=100)

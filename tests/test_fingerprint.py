@@ -13,8 +13,9 @@ RUN_BY_UNITS = ("study/units.py", "study/spec.py", "study/config.py", "inference
                 "inference/diagnostics.py", "compare/loo.py", "compare/refit.py", "compare/heldout.py",
                 "compare/checks.py", "model.py", "density.py", "exported.py", "fingerprint.py", "laws/base.py",
                 "laws/variants.py", "sizing/points.py")
-RUN_AFTER_UNITS = ("study/runner.py", "study/lawresult.py", "study/tree.py", "study/scores.py", "study/claims.py",
-                   "study/executor.py", "study/store.py", "study/mainjob.py", "report/summary.py", "report/view.py",
+RUN_AFTER_UNITS = ("study/runner.py", "pipeline/runner.py", "study/lawresult.py", "study/tree.py", "study/scores.py",
+                   "study/claims.py", "study/executor.py", "study/store.py", "pipeline/mainjob.py", "report/summary.py",
+                   "report/view.py",
                    "api/studies.py", "cli.py", "commands.py")
 
 

@@ -13,9 +13,9 @@ import pytest
 import xarray as xr
 
 from bayesfric.inference.diagnostics import verdict_of
+from bayesfric.pipeline.runner import run_study
 from bayesfric.study import STUDIES_DIR
 from bayesfric.study import scores as sc
-from bayesfric.study.runner import run_study
 
 STUDY = STUDIES_DIR / "examples" / "gms_loops.toml"
 

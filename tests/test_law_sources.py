@@ -11,7 +11,7 @@ import pytest
 from bayesfric import codegraph, fingerprint
 from bayesfric.laws import REGISTRY, get_law
 from bayesfric.laws.plugins import _LOADED
-from bayesfric.study.runner import run_study
+from bayesfric.pipeline.runner import run_study
 from tests.test_study import data_csv  # noqa: F401 - the fixture is used by name
 
 PACKAGE = Path(fingerprint.__file__).resolve().parent

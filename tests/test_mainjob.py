@@ -10,8 +10,8 @@ from pathlib import Path
 import pytest
 
 from bayesfric.cli import main
+from bayesfric.pipeline.mainjob import run_flagship, study_order
 from bayesfric.study import StudyError
-from bayesfric.study.mainjob import run_flagship, study_order
 from bayesfric.study.store import STORE_ENV
 from tests.test_study import data_csv, study_text, write_bench_data  # noqa: F401 -- the fixture is used by name
 
@@ -69,7 +69,7 @@ def test_studies_in_two_processes_give_the_serial_numbers(tmp_path, main_command
 def test_an_unchanged_rerun_starts_no_process(tmp_path, studies, capsys, monkeypatch):
     """Current reports are recognised before any process starts (a spawned process spends
     seconds importing); a changed study is rerun, in this process when it is the only one."""
-    from bayesfric.study import mainjob
+    from bayesfric.pipeline import mainjob
 
     first = run_flagship(tmp_path / "reports", studies=studies, jobs=2)
     capsys.readouterr()
@@ -144,7 +144,7 @@ def test_a_studies_folder_that_is_not_one_is_a_one_line_error(tmp_path, capsys):
     (8, 3, 5, 1),  # never below 1
 ])
 def test_default_jobs_is_bounded_by_cores_memory_and_studies(monkeypatch, cores, gib, studies, jobs):
-    from bayesfric.study import mainjob
+    from bayesfric.pipeline import mainjob
 
     monkeypatch.setattr(mainjob.os, "cpu_count", lambda: cores)
     monkeypatch.setattr(mainjob, "_memory_bytes", lambda: gib * 1024**3)
@@ -154,6 +154,6 @@ def test_default_jobs_is_bounded_by_cores_memory_and_studies(monkeypatch, cores,
 @pytest.mark.parametrize(("jobs", "cpus", "threads"),
                          [(2, 2, 1), (1, 2, 2), (4, 2, 1), (2, 16, 2), (3, 7, 2), (5, 1, 1)])
 def test_study_processes_share_the_cores_for_compiling(jobs, cpus, threads):
-    from bayesfric.study.mainjob import compile_threads_per_study
+    from bayesfric.pipeline.mainjob import compile_threads_per_study
 
     assert compile_threads_per_study(jobs, cpus) == threads

@@ -79,7 +79,8 @@ def test_the_fit_command_imports_only_what_it_uses():
     code = ("import sys; import bayesfric.cli, bayesfric.inference, bayesfric.datasets, bayesfric.laws; "
             "from bayesfric.study.config import SAMPLER; "
             "print(sorted(m for m in ('matplotlib', 'arviz', 'arviz_plots', 'diffrax', 'bayesfric.study.runner', "
-            "'bayesfric.compare', 'emcee', 'arviz_stats', 'scipy.stats') if m in sys.modules))")
+            "'bayesfric.pipeline.runner', 'bayesfric.compare', 'emcee', 'arviz_stats', 'scipy.stats') "
+            "if m in sys.modules))")
     assert _run(code) == "[]"
     code = ("import sys; from bayesfric.report.tables import fit_report; "
             "print(sorted(m for m in ('matplotlib', 'arviz', 'diffrax', 'bayesfric.compare') if m in sys.modules))")

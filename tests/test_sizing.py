@@ -281,7 +281,7 @@ def test_tiny_study_end_to_end_and_size_without_refitting(bench, monkeypatch, ca
 
     from bayesfric import compare, inference
     from bayesfric.cli import main
-    from bayesfric.study.runner import run_study
+    from bayesfric.pipeline.runner import run_study
 
     (bench / "s.toml").write_text(tiny_study())
     folder = run_study(bench / "s.toml", out_root=bench / "reports")

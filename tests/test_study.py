@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from bayesfric.cli import main
+from bayesfric.pipeline.runner import run_study
 from bayesfric.study import STUDIES_DIR, StudyError, load_study
-from bayesfric.study.runner import run_study
 from tests.bench_data import write_bench
 
 

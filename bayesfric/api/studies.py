@@ -4,7 +4,7 @@
 adds constructors): ``Study(...)`` assembles the TOML file's tables from its arguments and
 validates them with the same schema and checks (:func:`~bayesfric.study.config.study_from_raw`),
 so every error names the key as a study file would, prefixed ``Study('<name>')``.
-:func:`run` is :func:`bayesfric.study.runner.execute_study`; it returns a :class:`StudyResult`
+:func:`run` is :func:`bayesfric.pipeline.runner.execute_study`; it returns a :class:`StudyResult`
 that holds the report folder, the result tree the run saved as ``results.nc`` and every law's fit,
 as the run held them in memory (an unchanged rerun reads them from the earlier run's folder). The
 report itself (``summary.md``, ``report.html``, CSV tables, figures) is written by :func:`run`
@@ -348,7 +348,7 @@ def run(study: Study | str | Path, out: str | Path = "reports", *, quick: bool =
     """
     from bayesfric.fsutil import PathError, check_output_folder
     from bayesfric.limits import process_problem
-    from bayesfric.study.runner import execute_study
+    from bayesfric.pipeline.runner import execute_study
 
     chosen = as_study(study)
     try:

@@ -7,9 +7,7 @@ from __future__ import annotations
 import os
 import tempfile
 import textwrap
-from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
 
 import matplotlib as mpl
 import numpy as np
@@ -17,25 +15,11 @@ import xarray as xr
 from matplotlib.figure import Figure
 from matplotlib.text import Text
 
+from bayesfric.datasets.provenance import provenance_label, provenance_text
 from bayesfric.report.typeset import unit as unit_text
 
+#: The provenance labels are :mod:`bayesfric.datasets.provenance`'s, re-exported for the report.
 __all__ = ["plot_sizing_fan", "provenance_label", "provenance_text", "banner", "save"]
-
-
-def provenance_label(ds: xr.Dataset) -> str:
-    """The label every figure and table of a dataset carries (reconstructed / measured / simulated)."""
-    return provenance_text(ds.attrs)
-
-
-def provenance_text(attrs: Mapping[str, Any]) -> str:
-    """:func:`provenance_label` from a data set's attributes (``provenance``, ``source``)."""
-    prov = attrs.get("provenance", "?")
-    source = attrs.get("source", "")
-    if prov == "reconstructed":
-        return f"RECONSTRUCTED data (not measured) — reconstructed from {source}"
-    if prov == "simulated":
-        return f"SIMULATED data — {source}"
-    return f"measured data — {source}"
 
 
 def banner(fig: Figure, ds: xr.Dataset) -> None:

@@ -20,6 +20,7 @@ from collections.abc import Sequence
 import numpy as np
 import xarray as xr
 
+from bayesfric.datasets.provenance import provenance_label
 from bayesfric.quantities import QUANTITIES, conversion
 from bayesfric.sizing.answer import answer, answer_question
 from bayesfric.sizing.basis import LOO, NO_EXTRAPOLATION, Basis, choose_basis
@@ -76,8 +77,6 @@ def size_study(questions: Sequence[SizingQuestion], ds: xr.Dataset, law_sources:
     :func:`sources`) and its blocked ``schemes`` (:func:`basis_schemes`). Stateful laws answer from
     their steady state (:mod:`bayesfric.sizing.steady`); coast-down laws' is a torque, where the
     data's response is speed: the answer is then of torque, and the measured speed its tested range."""
-    from bayesfric.report.figures import provenance_label
-
     measured = ds.attrs["response"]
     response = sized_response([s.fit for s in law_sources], measured)
     unit, scale = _response_display(response, ds[response].attrs.get("original_unit") if response in ds else None)
@@ -101,8 +100,6 @@ def sized_response(fits: Sequence[xr.DataTree], default: str) -> str:
 
 def provenance_of_fit(fit: xr.DataTree) -> str:
     """The provenance label of the data a fit was made from (its attrs)."""
-    from bayesfric.report.figures import provenance_label
-
     attrs = {"provenance": fit.attrs.get("data_provenance", "?"), "source": fit.attrs.get("data_source", "")}
     return provenance_label(xr.Dataset(attrs=attrs))
 

@@ -1,10 +1,11 @@
 """Studies: TOML files under studies/ that run comparisons and write reports/<study>/.
 
-A study is run by :func:`bayesfric.study.runner.run_study` (the public :func:`bayesfric.run`),
-the seed studies by :func:`bayesfric.study.mainjob.run_flagship`. This package's ``__init__``
-imports neither: the runner imports :mod:`bayesfric.report`, which imports this package (its
-scores and result tree), and commands that only read the study schema (``bayesfric fit``) should not
-pay for importing every comparison, report and sizing module.
+A study is run by :func:`bayesfric.pipeline.runner.run_study` (the public :func:`bayesfric.run`),
+the seed studies by :func:`bayesfric.pipeline.mainjob.run_flagship`: both are above the report,
+which reads this package's scores and result tree, so this package never imports the report.
+This package's ``__init__`` imports only the study file's types and loader: commands that only
+read the study schema (``bayesfric fit``) should not pay for importing every comparison, report
+and sizing module.
 """
 
 from __future__ import annotations

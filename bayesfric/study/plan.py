@@ -2,7 +2,7 @@
 data and laws (:func:`validate_against_data`), its sizing questions, its CV schemes, the run's
 settings (``--quick``), its claims, and each law's units (:func:`_plan_laws`).
 
-:func:`bayesfric.study.runner.run_study` calls :func:`_prepare` first; a problem is a
+:func:`bayesfric.pipeline.runner.run_study` calls :func:`_prepare` first; a problem is a
 :class:`~bayesfric.study.config.StudyError` naming the study file and the key, and nothing has
 been written.
 """

@@ -21,7 +21,7 @@ import bayesfric
 from bayesfric import fsutil
 from bayesfric.cli import main
 from bayesfric.inference import save_fit
-from bayesfric.study.runner import run_study
+from bayesfric.pipeline.runner import run_study
 
 
 def _mode(path: Path) -> int:

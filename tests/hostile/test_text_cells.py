@@ -23,9 +23,9 @@ import pytest
 
 import bayesfric
 from bayesfric.csvout import FORMULA_START, neutralise, write_csv
+from bayesfric.pipeline.runner import run_study
 from bayesfric.report.summary import md_text
 from bayesfric.report.tables import format_table
-from bayesfric.study.runner import run_study
 
 INJECTIONS = ["=cmd|' /C calc'!A0", "+1+1", "-2+3", "@SUM(1+1)", "\t=1", "\r=1", "=HYPERLINK(\"http://x\",\"y\")"]
 NUMBERS = ["-0.5", "-1e3", "+2", "-0.500", "12.345", "-.5"]

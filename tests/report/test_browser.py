@@ -14,8 +14,8 @@ from pathlib import Path
 
 import pytest
 
+from bayesfric.pipeline.runner import run_study
 from bayesfric.study import load_study
-from bayesfric.study.runner import run_study
 from tests.report.browser import PHONE, WIDTH, find_chromium, inspect_page
 from tests.report.fakes import outcome, write_bench_study, write_outcome
 

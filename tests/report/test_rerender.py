@@ -12,9 +12,9 @@ import xarray as xr
 
 from bayesfric.cli import main
 from bayesfric.compare import RankingSensitivity
+from bayesfric.pipeline.runner import run_study
 from bayesfric.study import load_study
 from bayesfric.study.claims import evaluate_claims
-from bayesfric.study.runner import run_study
 from tests.report.fakes import checks, outcome, tree_of, write_bench_study, write_outcome
 
 #: The files the Done-when names, plus the other CSV tables and the figures.

@@ -13,7 +13,7 @@ parallel uses the rest. Measured on the 2-core machine, ``benchmarks/bench_main.
 compilation cache, 234 → 184 s with a warm one (0.81× and 0.79×). Each process holds its own
 compiled programs (1.3-1.7 GB peak per study process), hence the memory bound of
 :func:`default_jobs`. A rerun whose reports are all current starts no process: the reports are
-checked here first (:func:`bayesfric.study.runner.current_report`).
+checked here first (:func:`bayesfric.pipeline.runner.current_report`).
 
 The longest studies start first (largest total of the previous report's ``timings.csv``; the
 number of laws for a study not run before), so the last one to finish is a short one. Progress
@@ -84,7 +84,7 @@ def _current_reports(files: list[Path], out_root: Path, quick: bool) -> dict[Pat
     checked here, so a rerun starts no process (each would spend seconds importing). Each study
     to run checks again in its own process; this pass cost 0.47 s for the five seed studies with
     no reports (imports included, 0.05 s on a second pass), against ~2.5 s to start a process."""
-    from bayesfric.study.runner import current_report
+    from bayesfric.pipeline.runner import current_report
 
     return {path: folder for path in files if (folder := current_report(path, out_root, quick)) is not None}
 
@@ -102,7 +102,7 @@ def compile_threads_per_study(jobs: int, cpus: int | None = None) -> int:
 def _run_in_child(path: Path, out_root: Path, quick: bool, fresh: bool, compile_threads: int) -> tuple[Path, list]:
     """One study in a spawned process: its report folder and timing rows."""
     from bayesfric.exported import set_compile_threads
-    from bayesfric.study.runner import run_study
+    from bayesfric.pipeline.runner import run_study
 
     set_compile_threads(compile_threads)
     rows: list = []
@@ -140,7 +140,7 @@ def run_flagship(out_root: str | Path = "reports", quick: bool = False, *, fresh
     Parameters
     ----------
     out_root, quick, fresh, workers, scheduler
-        As in :func:`bayesfric.study.run_study`; one Dask cluster serves every study, and with
+        As in :func:`bayesfric.pipeline.runner.run_study`; one Dask cluster serves every study, and with
         ``workers`` or ``scheduler`` the studies run one after the other (Dask spreads the units).
     jobs : int, optional
         Studies run at once, each in its own process (see the module notes); default
@@ -158,9 +158,9 @@ def run_flagship(out_root: str | Path = "reports", quick: bool = False, *, fresh
 
     Prints one per-stage timing table over all studies and the total wall time.
     """
+    from bayesfric.pipeline.runner import run_study
     from bayesfric.study import STUDIES_DIR
     from bayesfric.study.executor import open_client, timing_table
-    from bayesfric.study.runner import run_study
 
     start = time.perf_counter()
     folder = STUDIES_DIR if studies is None else Path(studies)
