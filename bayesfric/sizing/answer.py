@@ -14,7 +14,7 @@ import numpy as np
 
 from bayesfric.inference.diagnostics import verdict_of
 from bayesfric.sizing.basis import LOO, Basis, choose_basis
-from bayesfric.sizing.calibration import OFFSET, Scheme, discrepancy, natural, widen
+from bayesfric.sizing.calibration import OFFSET, Scheme, discrepancy, widen
 from bayesfric.sizing.compute import (
     EXTRAPOLATION_WARN,
     FAN_POINTS,
@@ -31,6 +31,7 @@ from bayesfric.sizing.compute import (
     predict,
 )
 from bayesfric.sizing.compute import levels as quantile_levels
+from bayesfric.sizing.distance import point_distance
 from bayesfric.sizing.misfit import LocalMisfit, local_misfit
 from bayesfric.sizing.points import SizingQuestion
 
@@ -167,8 +168,7 @@ def answer_question(question: SizingQuestion, sources: Sequence[LawSource], data
     qs = quantile_levels(question.confidence)
     grid = question.grid()
     tested = {k: (float(np.min(v)), float(np.max(v))) for k, v in data.items() if k in grid}
-    distance = {k: sum(natural(k, data[k], side).distance(grid[k], *natural(k, data[k], side).tested(data[k]))
-                       for side in ("upper", "lower")) for k in grid if k in data}
+    distance = {k: point_distance(grid[k], data[k]) for k in grid if k in data}  # per direction
     draws = {s.name: predict(s.fit, grid, seed) for s in sources}
     answers = [law_answer(s, draws[s.name], question, qs) for s in sources]
     used = [a for a in answers if a.excluded is None]
