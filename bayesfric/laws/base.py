@@ -213,11 +213,13 @@ class Law:
 
     # composition: variants (bayesfric.laws.variants) of laws found by name, as objects
     def fix(self, **values: float) -> Law:
-        """This law with parameters held at ``values`` (SI) instead of sampled, e.g. ``.fix(delta=1)``."""
+        """This law with parameters held at ``values`` (SI) instead of sampled, e.g. ``.fix(delta=1)``,
+        named after them (``stribeck_delta_eq_1``: :func:`bayesfric.laws.variants.variant_name`)."""
         return self._vary(fixed=values)
 
     def asymmetric(self, *names: str) -> Law:
-        """This law with one value of each named parameter per direction of motion (``T_C_pos``, ``T_C_neg``)."""
+        """This law with one value of each named parameter per direction of motion (``T_C_pos``,
+        ``T_C_neg``), named after them (``coulomb_asym_T_C``)."""
         return self._vary(asymmetric=names)
 
     def vary_by(self, group: str, *names: str) -> Law:

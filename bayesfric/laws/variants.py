@@ -72,7 +72,7 @@ from bayesfric.laws.transforms import TRANSLATIONAL, translation_problem, transl
 
 __all__ = [
     "VariantError", "TERMS", "TRANSLATIONAL", "vary", "build", "for_data", "translation_problem",
-    "translational_unit", "law_of_fit", "describe", "alias", "term_names",
+    "translational_unit", "law_of_fit", "describe", "alias", "term_names", "variant_name",
 ]
 
 
@@ -207,7 +207,8 @@ def vary(law: Law, *, name: str | None = None, add: Sequence[str] = (), offset: 
     law : Law
         A registered law or a variant (its recipe is extended).
     name : str, optional
-        The variant's name (the label of a study entry); default the law's name.
+        The variant's name (the label of a study entry); default the law's name with every
+        modification asked (:func:`variant_name`), so no two different variants share a name.
     add, offset, asymmetric, fixed, without, motion, vary_by, trend, trend_form
         As in the module docstring.
     """
@@ -223,7 +224,37 @@ def vary(law: Law, *, name: str | None = None, add: Sequence[str] = (), offset: 
     if not asked and (name is None or name == law.name):
         return law
     return build(_merge(law.recipe or {"base": law.name}, asked) | {"base": law.recipe.get("base", law.name)},
-                 name or law.name)
+                 name or variant_name(law.name, asked))
+
+
+def variant_name(name: str, asked: Mapping[str, Any]) -> str:
+    """The default name of the variant of law ``name`` with the modifications ``asked`` (a recipe's
+    keys): each one written out, parts added last, so a name shows everything that was changed
+    (``.asymmetric("c_v") + "offset"`` is not just ``<law>+offset``).
+
+    ``_asym_<p>...`` direction-dependent parameters, ``_<p>_eq_<value>`` fixed values,
+    ``_by_<column>`` group terms, ``_trend_<column>`` trends, ``_without_<input>...``, ``_<motion>``,
+    ``+<part>`` each added part. A name that already ends with a group or trend suffix keeps it once.
+
+    Examples
+    --------
+    >>> variant_name("armstrong_helouvry", {"asymmetric": ["dT_s", "c_v"], "add": ["offset"]})
+    'armstrong_helouvry_asym_dT_s_c_v+offset'
+    >>> variant_name("stribeck", {"fixed": {"delta": 1.0}})
+    'stribeck_delta_eq_1'
+    """
+    out = name
+    if asked.get("asymmetric"):
+        out += "_asym_" + "_".join(asked["asymmetric"])
+    for key, value in asked.get("fixed", {}).items():
+        out += f"_{key}_eq_{format(float(value), 'g').replace('+', '')}"
+    for prefix, table in (("_by_", asked.get("vary_by", {})), ("_trend_", asked.get("trend", {}))):
+        out += "".join(prefix + str(c) for c in table if not out.endswith(prefix + str(c)))
+    if asked.get("without"):
+        out += "_without_" + "_".join(asked["without"])
+    if asked.get("motion"):
+        out += f"_{asked['motion']}"
+    return out + "".join(f"+{part}" for part in asked.get("add", ()))
 
 
 def for_data(law: Law, ds) -> Law:
@@ -240,7 +271,7 @@ def for_data(law: Law, ds) -> Law:
     without = [i for i in law.optional if i not in inputs]
     if motion is None and not without:
         return law
-    return vary(law, without=without, motion=motion)
+    return vary(law, name=law.name, without=without, motion=motion)  # the same law, run on these data
 
 
 def alias(name: str, recipe: Mapping[str, Any], notes: str = "") -> Law:

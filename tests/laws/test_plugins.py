@@ -88,6 +88,9 @@ def test_composition_on_objects():
     stribeck = get_law("stribeck")
     fixed = stribeck.fix(delta=1.0)
     assert "delta" not in fixed.params and fixed.constants["delta"].value == 1.0
+    assert fixed.name == "stribeck_delta_eq_1"  # a variant's name shows every modification
+    asym = get_law("armstrong_helouvry").asymmetric("dT_s", "c_v") + "offset"
+    assert asym.name == "armstrong_helouvry_asym_dT_s_c_v+offset"
     both = get_law("coulomb") + get_law("coulomb_viscous")
     assert both.name == "coulomb+coulomb_viscous" and set(both.params) == {"T_C", "T_C_coulomb_viscous", "c_v"}
     assert list((get_law("coulomb") + "offset").params) == ["T_C", "offset"]
@@ -230,7 +233,7 @@ def test_a_study_takes_law_objects_that_are_not_registered(tmp_path, data_csv): 
     study = bayesfric.Study("objects", str(tmp_path / "bench.csv"), laws=[mine, variant, "coulomb"])
     own, var = study.laws[0], study.laws[1]
     assert own.modules == (str((tmp_path / "unreg.py").resolve()),) and own.build() is mine
-    assert var.name == "coulomb_viscous_offset" and var.law == "coulomb_viscous"  # a plain label
+    assert var.name == "coulomb_viscous_c_v_eq_0.5_offset" and var.law == "coulomb_viscous"  # a plain label
     assert list(var.build().params) == ["T_C", "offset"] and var.build().recipe == dict(variant.recipe)
     # a variant of the unregistered law, as an object: its recipe names the law, its file travels
     fixed = bayesfric.Study("fixed", str(tmp_path / "bench.csv"), laws=[mine.fix(c_v=0.5) + "offset"]).laws[0]
