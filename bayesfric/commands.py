@@ -168,7 +168,10 @@ def cmd_fit(args: argparse.Namespace) -> None:
 
 
 def cmd_data(args: argparse.Namespace) -> None:
-    """``bayesfric data list | check | reduce``: data files only (no JAX, numpyro or report import)."""
+    """``bayesfric data list | check | reduce``: data files only (no JAX, numpyro, report or dask import)."""
+    from bayesfric.runtime import without_dask
+
+    without_dask()  # xarray would import dask at its first array: about 0.5 s of a light command
     if args.data_cmd == "reduce":
         from bayesfric.datasets.reduce import run_command
 

@@ -10,14 +10,17 @@ The cache lives in ``$BAYESFRIC_CACHE_DIR`` if set, else ``$XDG_CACHE_HOME/bayes
 ``~/.cache/bayesfric/jax``). ``BAYESFRIC_NO_CACHE=1`` switches it off. It may be deleted at any
 time; it is bounded to :data:`CACHE_MAX_BYTES` (JAX evicts the least recently used entries).
 A user who set ``jax_compilation_cache_dir`` already keeps their choice.
+
+:func:`without_dask` keeps dask out of a light command's process (``bayesfric data``).
 """
 
 from __future__ import annotations
 
 import os
+import sys
 from pathlib import Path
 
-__all__ = ["configure", "cache_dir", "CACHE_MAX_BYTES"]
+__all__ = ["configure", "cache_dir", "CACHE_MAX_BYTES", "without_dask"]
 
 #: Upper bound of the on-disk compilation cache (JAX evicts least recently used entries).
 CACHE_MAX_BYTES = 2 * 1024**3
@@ -61,3 +64,27 @@ def configure() -> None:
             # without a folder; make the next compilation initialise it again with ours.
             compilation_cache.reset_cache()
     _configured = True
+
+
+def without_dask() -> bool:
+    """Mark dask absent for the rest of this process, unless it is imported already; True if marked.
+
+    Installed with the ``dask`` extra, dask is imported by xarray the first time it wraps an array
+    (every ``Variable`` is checked against ``dask.array.Array``) and by pint's ``compat``: about
+    half a second of what ``bayesfric data list|check|reduce`` took, for data never chunked. The
+    light data commands call this first: ``sys.modules["dask"] = None`` makes ``import dask`` fail
+    as if it were not installed, so xarray and pint take it as absent. Only for a process that
+    will not use dask afterwards (a study with ``--workers`` needs it).
+
+    Examples
+    --------
+    >>> import subprocess, sys
+    >>> code = ("from bayesfric.runtime import without_dask; without_dask(); import xarray as xr, sys; "
+    ...         "xr.Dataset({'a': ('x', [1.0])}); print('dask' in sys.modules and sys.modules['dask'] is not None)")
+    >>> subprocess.run([sys.executable, "-c", code], capture_output=True, text=True).stdout.strip()
+    'False'
+    """
+    if "dask" in sys.modules:
+        return False
+    sys.modules["dask"] = None  # type: ignore[assignment]  # import dask -> ModuleNotFoundError
+    return True

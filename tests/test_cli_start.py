@@ -1,7 +1,7 @@
 """The light commands answer without JAX (issue 48 item 5): ``--version``, ``--help``, ``laws``,
-``data list|check|reduce`` import neither JAX nor numpyro (the import list of each, measured in a
-fresh process), and ``bayesfric laws`` reads a stored catalogue that is current and prints what
-the registry prints. Their time is measured by ``benchmarks/bench_cli_start.py``, not here.
+``data list|check|reduce`` import neither JAX nor numpyro nor dask (the import list of each,
+measured in a fresh process), and ``bayesfric laws`` reads a stored catalogue that is current and
+prints what the registry prints. Their time is measured by ``benchmarks/bench_cli_start.py``, not here.
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ try:
     code = main(sys.argv[1:])
 except SystemExit as exc:  # --version, --help
     code = exc.code
-print("\\nMODULES " + json.dumps(sorted({m.split(".")[0] for m in sys.modules})))
+print("\\nMODULES " + json.dumps(sorted({m.split(".")[0] for m, mod in sys.modules.items() if mod is not None})))
 sys.exit(code or 0)
 """
 SIDECAR = """[dataset]
@@ -81,6 +81,7 @@ def test_light_commands_import_no_jax_or_numpyro(tmp_path, args):
     done, modules = _imports([a.format(**names) for a in args], tmp_path)
     assert done.returncode == 0, done.stderr[-2000:]
     assert not modules & set(HEAVY), sorted(modules & set(HEAVY))
+    assert "dask" not in modules  # xarray and pint import it when installed: runtime.without_dask
     if args[0] in ("--version", "--help", "laws") or args[-1] == "--help":  # nor numpy, xarray, pint
         assert not modules & {"numpy", "xarray", "pandas", "pint", "scipy"}, sorted(modules)
 
