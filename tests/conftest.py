@@ -28,6 +28,7 @@ FAST_FILES = frozenset(f"tests/{name}.py" for name in (
     "test_sizing_truth", "test_asymmetry", "test_drive_dynamics", "test_structure", "test_density", "test_errors",
     "test_fingerprint", "test_readme", "test_thin", "test_modes", "test_drum_campaigns_data", "test_identifiability",
     "test_sizing_distance",
+    "test_sizing_result",
 ))
 
 

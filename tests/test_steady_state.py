@@ -227,18 +227,17 @@ def test_sizing_a_stateful_fit_answers_its_long_run_at_that_speed(name, truth, a
     np.testing.assert_allclose(draws.mu.reshape(-1, speeds.size), simulated, rtol=1e-8, atol=1e-12)
 
     result = bayesfric.size(fit, at={"velocity": (0.5, "rad/s")}, confidence=0.9)
-    answer = result.answers[0]
-    (a,) = answer.laws
-    assert a.steady == STEADY_NOTE
+    a = result.dataset.sel(law=fitted.name, point=0)
+    assert a["steady_state"].item() == STEADY_NOTE and result.dataset.attrs["steady_state"] == STEADY_NOTE
     sim = np.abs(_long_runs(fitted, post, 0.5, {}))
     for level in (0.05, 0.5, 0.9, 0.95):  # the same draws: the curve's quantiles are the simulated ones'
-        np.testing.assert_allclose(a.mean_fn.q(level)[0], np.quantile(sim, level), rtol=1e-8)
+        np.testing.assert_allclose(a["mean_fn"].sel(quantile=level), np.quantile(sim, level), rtol=1e-8)
     # with noise: the fraction of (simulated value + the draw's noise) below each sized quantile is
     # its level, within Monte Carlo error (many noise replicates per draw; S draws sized)
     sigma = np.asarray(post["sigma"].values).reshape(-1)
     replicate = np.abs(sim[:, None] * np.sign(0.5) + sigma[:, None] * rng.normal(size=(sim.size, 400)))
     for level in (0.05, 0.5, 0.9):
-        below = float(np.mean(replicate <= a.noisy.q(level)[0]))
+        below = float(np.mean(replicate <= float(a["noisy"].sel(quantile=level))))
         assert abs(below - level) < 5 * math.sqrt(level * (1 - level) / sim.size), (level, below)
     text = sizing_text(result)
     assert "steady state" in text and STEADY_NOTE in text
@@ -281,11 +280,14 @@ def test_a_coastdown_fit_is_sized_in_torque_with_parameter_uncertainty_only():
     fit = hand_fit("coastdown_coulomb_viscous_closed_form", draws,
                    {"time": np.linspace(0, 20, 6), "initial_velocity": np.full(6, 120.0)})
     result = bayesfric.size(fit, at={"velocity": (1400, "rpm")}, capacity=(1.8, "N*m"), confidence=0.9)
-    (a,) = result.answers[0].laws
+    (name,) = [str(k) for k, r in zip(result["law"].values, result["role"].values, strict=True) if r == "law"]
+    a = result.dataset.sel(law=name, point=0)
     w = 1400 * 2 * np.pi / 60
     torque = draws["T_C"][0] + draws["c_v"][0] * w
-    assert result.response == "torque" and a.steady.startswith(STEADY_NOTE) and "parameter uncertainty only" in a.steady
-    np.testing.assert_allclose(a.mean_fn.mean[0], torque.mean(), rtol=1e-12)
-    np.testing.assert_allclose(a.noisy.q(0.5)[0], a.mean_fn.q(0.5)[0])  # no speed noise on a torque
-    np.testing.assert_allclose(a.p_exceed[0], np.mean(torque > 1.8))
-    assert result.answers[0].distance["velocity"][0] > 0  # the measured speeds are its tested range
+    steady = a["steady_state"].item()
+    assert result.response == "torque" and steady.startswith(STEADY_NOTE) and "parameter uncertainty only" in steady
+    np.testing.assert_allclose(np.nanmean(result["draws_mean_fn"].sel(component=name, point=0)), torque.mean(),
+                               rtol=1e-12)
+    np.testing.assert_allclose(a["noisy"].sel(quantile=0.5), a["mean_fn"].sel(quantile=0.5))  # no speed noise
+    np.testing.assert_allclose(a["p_exceed"], np.mean(torque > 1.8))
+    assert a["distance_velocity"] > 0  # the measured speeds are its tested range

@@ -7,7 +7,8 @@
 :func:`fit`              one law on one data set -> arviz ``DataTree``
 :func:`load_fit`         a saved fit -> ``(DataTree, Program)``: the program that produced it
 :func:`compare_laws`     fits ranked by PSIS-LOO with stacking weights -> ``pandas.DataFrame``
-:func:`size`             friction a drive must deliver at untested points (+ P(|T| > capacity))
+:func:`size`             friction a drive must deliver at untested points (+ P(|T| > capacity)),
+                         one Dataset law × point × quantile (:class:`SizingAnswer`)
 :func:`predict`          every row of a new log predicted by a study's laws and average, or a fit
 :func:`score`            the laws scored on a new log: elpd, RMS error, band coverage
 :class:`Study`, `run`    a full comparison study (blocked extrapolation, evidence, sizing,
@@ -27,7 +28,8 @@ from bayesfric.api.sizing import size, time_to_exceed
 from bayesfric.api.studies import Study, StudyResult, run
 from bayesfric.laws.base import Param
 from bayesfric.priors import Prior
+from bayesfric.sizing.result import SizingAnswer
 
 __all__ = ["load_data", "law", "Param", "Prior", "fit", "load_fit", "compare_laws", "size", "time_to_exceed",
-           "predict", "score", "Study",
+           "SizingAnswer", "predict", "score", "Study",
            "StudyResult", "run", "write_report"]

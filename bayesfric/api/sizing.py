@@ -15,7 +15,8 @@ from typing import Any
 import xarray as xr
 
 from bayesfric.errors import UserError
-from bayesfric.sizing import SizingError, SizingQuestion, SizingResult
+from bayesfric.sizing import SizingError, SizingQuestion
+from bayesfric.sizing.result import SizingAnswer
 
 __all__ = ["size", "question", "time_to_exceed"]
 
@@ -65,7 +66,7 @@ def question(at: Mapping[str, Any] | str, *, capacity: Any = None, confidence: f
 
 def size(source: Any, at: Mapping[str, Any] | str | None = None, *, capacity: Any = None,
          confidence: float | None = None, energy_rotation: Any = None, reports: str | Path = "reports",
-         seed: int = 0) -> SizingResult:
+         seed: int = 0) -> SizingAnswer:
     """The friction torque (or force) a drive must deliver at operating points, and how sure that is.
 
     Parameters
@@ -92,10 +93,14 @@ def size(source: Any, at: Mapping[str, Any] | str | None = None, *, capacity: An
 
     Returns
     -------
-    SizingResult
-        ``answers[0].laws[i]`` per law (``required``, ``p_exceed`` ... arrays over the points);
-        ``answers[0].average`` the model average of a study; ``bayesfric.report.sizing.text_report``
-        prints it as ``bayesfric size`` does.
+    SizingAnswer
+        One Dataset (``.dataset``, SI) over ``law`` (every law, then ``average`` and
+        ``average_loo``) × ``point`` (every point of every question) × ``quantile``: ``required``,
+        ``p_exceed`` (± ``p_exceed_se``), the quantiles ``mean_fn`` and ``noisy`` and their
+        ``calibrated_`` forms; attrs say what the answer is for.
+        ``.to_dataframe()`` gives one row per law and point, ``.q(p)`` the quantile at any level
+        from the kept draws; ``bayesfric.report.sizing.text_report`` prints it as ``bayesfric
+        size`` does (:class:`~bayesfric.sizing.result.SizingAnswer`).
 
     Raises
     ------
@@ -109,9 +114,11 @@ def size(source: Any, at: Mapping[str, Any] | str | None = None, *, capacity: An
     >>> import bayesfric
     >>> f = bayesfric.fit("coulomb_viscous", "robot_joint", draws=100, tune=100, chains=2)
     >>> result = bayesfric.size(f, at={"velocity": (5, "rad/s")}, capacity=(40, "N*m"))
-    >>> answer = result.answers[0].laws[0]
-    >>> bool(0 <= answer.p_exceed[0] <= 1), bool(answer.required[0] > 0)
+    >>> answer = result.dataset.sel(law="coulomb_viscous", point=0)
+    >>> bool(0 <= answer["p_exceed"] <= 1), bool(answer["required"] > 0)
     (True, True)
+    >>> bool(result.q(0.999).sel(law="coulomb_viscous", point=0) > answer["required"])  # any level
+    True
     """
     from bayesfric.api.studies import StudyResult, as_study
 
@@ -137,7 +144,7 @@ def size(source: Any, at: Mapping[str, Any] | str | None = None, *, capacity: An
                             run_hint=f"bayesfric.run(study, out={str(reports)!r})")
 
 
-def _size_fit(fit: xr.DataTree, asked: SizingQuestion | None, name: str, seed: int) -> SizingResult:
+def _size_fit(fit: xr.DataTree, asked: SizingQuestion | None, name: str, seed: int) -> SizingAnswer:
     from bayesfric.sizing.single import answer_fit
 
     if asked is None:

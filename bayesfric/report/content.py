@@ -26,7 +26,7 @@ from bayesfric.report.view import TreeView
 from bayesfric.study.tree import sensitivity_of
 
 if TYPE_CHECKING:
-    from bayesfric.sizing import SizingResult
+    from bayesfric.sizing.result import SizingAnswer
     from bayesfric.study.claimspec import ClaimResult
 
 __all__ = ["Table", "FigureRef", "LawSection", "Report", "build", "SECTIONS", "ranking_records", "parameter_records",
@@ -283,7 +283,7 @@ def _claim_warnings(records: list[dict]) -> list[fd.Finding]:
 
 
 def build(t: TreeView, parameters: list[dict], figures: list[FigureRef], sizing_figures: dict[int, str],
-          claims: list[dict] | None = None, sizing: SizingResult | None = None,
+          claims: list[dict] | None = None, sizing: SizingAnswer | None = None,
           service: tuple[list, list] | None = None) -> Report:
     """The report's content model, from the study's result tree (``t``: ranking, findings, checks,
     law sections, data lines and footer read it alone, :mod:`bayesfric.study.tree`), the

@@ -5,7 +5,7 @@ headline number); the Markdown and HTML renderings decide how emphasis looks, so
 written here and parsed back. Every verdict comes from the law × metric table
 (:mod:`bayesfric.study.scores`) or a flag of the study's result tree (:mod:`bayesfric.study.tree`,
 read through :class:`bayesfric.report.view.TreeView`), never from text. The sizing answer's basis
-comes from the sizing result itself (:class:`bayesfric.sizing.SizingResult`).
+comes from the sizing result itself (:class:`bayesfric.sizing.result.SizingAnswer`).
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from bayesfric.study import scores as sc
 if TYPE_CHECKING:
     from bayesfric.compare.checks import RankingSensitivity
     from bayesfric.report.view import TreeView
-    from bayesfric.sizing import SizingResult
+    from bayesfric.sizing.result import SizingAnswer
 
 __all__ = ["Finding", "Summary", "findings", "summary_block", "plain", "counted_winners", "RECOMMEND_WEIGHT",
            "residual_structure", "group_coverage",
@@ -237,7 +237,7 @@ def recommendation(crits: list[sc.Criterion], table: pd.DataFrame) -> Finding:
               f"law carries ≥ {RECOMMEND_WEIGHT:.0%} of the weight; ", _law(winner), f" alone has the {why}.")
 
 
-def sizing_basis(crits: list[sc.Criterion], result: SizingResult | None, rec: Finding) -> Finding:
+def sizing_basis(crits: list[sc.Criterion], result: SizingAnswer | None, rec: Finding) -> Finding:
     """The recommendation with the basis each sizing question uses, read from the sizing result
     (the basis is chosen once there, per question, by the direction it extrapolates in): the
     same weights as the recommendation, or which others and why."""
@@ -305,7 +305,7 @@ def residual_structure(t: TreeView) -> list[Finding]:
     return out
 
 
-def summary_block(t: TreeView, sizing: SizingResult | None = None,
+def summary_block(t: TreeView, sizing: SizingAnswer | None = None,
                   extra_warnings: list[Finding] | None = None) -> Summary:
     """The top summary: question, one answer per criterion (after the residual-structure findings
     and the verdict that no law extrapolates, when those hold), recommendation (with the basis of

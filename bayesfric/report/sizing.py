@@ -1,4 +1,4 @@
-"""Renderings of a :class:`bayesfric.sizing.SizingResult`: ``sizing.csv`` records, the sizing
+"""Renderings of a :class:`bayesfric.sizing.result.SizingAnswer`: ``sizing.csv`` records, the sizing
 section of ``summary.md`` and ``report.html``, and the text ``bayesfric size`` prints.
 
 Nothing here computes a sizing number: every value comes from the result; this module only
@@ -12,12 +12,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bayesfric.quantities import QUANTITIES
 from bayesfric.report.findings import Finding, plain
 from bayesfric.report.tables import format_table
 from bayesfric.report.typeset import fmt, unit
-from bayesfric.sizing import EXTRAPOLATION_WARN, LEVELS, RANGE_POINTS, Answer, SizingResult
+from bayesfric.sizing import EXTRAPOLATION_WARN, LEVELS, RANGE_POINTS, Answer
+from bayesfric.sizing.result import SizingAnswer
 from bayesfric.sizing.steady import steady_line
+from bayesfric.sizing.tidy import first_warnings
 
 __all__ = ["Section", "sections", "records", "text_report", "headlines", "RANGE_ROWS"]
 
@@ -106,7 +107,7 @@ def _cal_cells(a, j: int, scale: float, capacity) -> list[str]:
     return cells
 
 
-def _law_table(result: SizingResult, answer: Answer, j: int) -> tuple[str, list[str], list[list[str]]]:
+def _law_table(result: SizingAnswer, answer: Answer, j: int) -> tuple[str, list[str], list[list[str]]]:
     scale, shown, c = result.response_scale, unit(result.response_unit), answer.question.confidence
     single = answer.basis is None
     capacity = answer.question.capacity
@@ -145,7 +146,7 @@ def _law_table(result: SizingResult, answer: Answer, j: int) -> tuple[str, list[
     return caption, header, rows
 
 
-def _split_table(result: SizingResult, answer: Answer, j: int) -> tuple[str, list[str], list[list[str]]] | None:
+def _split_table(result: SizingAnswer, answer: Answer, j: int) -> tuple[str, list[str], list[list[str]]] | None:
     mix = answer.average
     if mix is None or answer.basis is None:  # one fit: no average to split
         return None
@@ -163,7 +164,7 @@ def _split_table(result: SizingResult, answer: Answer, j: int) -> tuple[str, lis
     return caption, ["component", f"variance [({shown})²]", f"sd [{shown}]", "share"], rows
 
 
-def _energy_table(result: SizingResult, answer: Answer, j: int) -> tuple[str, list[str], list[list[str]]] | None:
+def _energy_table(result: SizingAnswer, answer: Answer, j: int) -> tuple[str, list[str], list[list[str]]] | None:
     rotation = answer.question.energy_rotation
     if rotation is None:
         return None
@@ -185,7 +186,7 @@ def _energy_table(result: SizingResult, answer: Answer, j: int) -> tuple[str, li
     return caption, header, rows
 
 
-def _range_table(result: SizingResult, answer: Answer) -> tuple[str, list[str], list[list[str]]] | None:
+def _range_table(result: SizingAnswer, answer: Answer) -> tuple[str, list[str], list[list[str]]] | None:
     axis = answer.question.axis
     mix = answer.average
     if axis is None or mix is None:
@@ -219,7 +220,7 @@ def _range_table(result: SizingResult, answer: Answer) -> tuple[str, list[str], 
     return caption, header, rows
 
 
-def sections(result: SizingResult, figures: dict[int, str] | None = None) -> list[Section]:
+def sections(result: SizingAnswer, figures: dict[int, str] | None = None) -> list[Section]:
     """One :class:`Section` per question (``figures``: question index -> fan figure file name)."""
     out = []
     for i, answer in enumerate(result.answers):
@@ -236,7 +237,7 @@ def sections(result: SizingResult, figures: dict[int, str] | None = None) -> lis
         if q.axis and answer.n_points > 1:
             worst = {k: float(np.max(d)) for k, d in answer.distance.items()}
             sec.lines.append("Largest over the range: " + "; ".join(f"{k} {_g(d, 3)}" for k, d in worst.items()) + ".")
-        sec.warnings += _first_warnings(answer)
+        sec.warnings += first_warnings(answer)
         if steady := steady_line(answer.laws):
             sec.lines.append(steady)
         if answer.basis is None:
@@ -264,29 +265,14 @@ def sections(result: SizingResult, figures: dict[int, str] | None = None) -> lis
     return out
 
 
-def _first_warnings(answer: Answer) -> list[str]:
-    """What the data cannot support, said before any number: no law extrapolates here; a direction
-    no blocked fold tests; a model-form error nothing measured."""
-    basis = answer.basis
-    out = []
-    if basis is not None and basis.no_extrapolation:
-        out.append(f"NO LAW EXTRAPOLATES HERE: {basis.no_extrapolation}; only calibrated numbers are quoted")
-    if basis is not None and basis.uncovered:
-        out.append(basis.note.split("; ")[0])
-    if basis is not None and not basis.calibrated and any(float(np.max(d)) > 0 for d in answer.distance.values()):
-        out.append("no blocked fold measured any law's miss beyond the envelope: the model-form error of this "
-                   "extrapolated answer is UNMEASURED and its intervals are not calibrated")
-    return out
-
-
-def headlines(result: SizingResult) -> list[Finding]:
+def headlines(result: SizingAnswer) -> list[Finding]:
     """One finding per question: the calibrated required capacity at its governing point
     (emphasised), the within-model one beside it, and what to distrust first."""
     lines = []
     for answer in result.answers:
         q, j = answer.question, answer.governing
         shown, scale = unit(result.response_unit), result.response_scale
-        first = _first_warnings(answer)
+        first = first_warnings(answer)
         if answer.average is None:
             lines.append(plain(f"Sizing '{q.label}': no model average ({answer.no_average}).", warning=True))
             continue
@@ -314,7 +300,7 @@ def headlines(result: SizingResult) -> list[Finding]:
     return lines
 
 
-def text_report(result: SizingResult) -> str:
+def text_report(result: SizingAnswer) -> str:
     """What ``bayesfric size`` prints."""
     lines = [f"sizing from {result.source}", result.provenance,
              "magnitudes |T|: friction opposes motion, so the drive must overcome |T| in either direction", ""]
@@ -326,31 +312,37 @@ def text_report(result: SizingResult) -> str:
     return "\n".join(lines)
 
 
-def _rows(answer: Answer) -> list[tuple]:
-    """(name, role, excluded, weights or None, answer-like) of every law and average of a question."""
-    single = answer.basis is None
-    rows = [(a.name, "law", a.excluded, None if single else (a.weight_raw, a.weight, a.weight_loo), a)
-            for a in answer.laws]
+def _record(ds, base: dict, r: int, c: int, levels, single: bool, rotation: float) -> dict:
+    """One row of ``sizing.csv``: row ``r`` (a law or an average) at point ``c`` of the Dataset."""
+    quantiles = [float(x) for x in ds["quantile"].values]
+
+    def at(name: str, level: float | None = None) -> float:
+        v = ds[name].values
+        return float(v[r, c] if level is None else v[r, c, quantiles.index(level)])
+
+    rec = dict(base, role=str(ds["role"].values[r]), law=str(ds["name"].values[r, c]),
+               included=bool(ds["included"].values[r, c]), excluded_reason=str(ds["excluded_reason"].values[r]),
+               steady_state=str(ds["steady_state"].values[r, c]))
     if not single:
-        rows += [(mix.basis, role, None, (math.nan, math.nan, math.nan), mix)
-                 for mix, role in ((answer.average, "average"), (answer.average_loo, "average LOO")) if mix is not None]
-    return rows
-
-
-def _calibrated_record(a, j: int, levels) -> dict:
-    cal = getattr(a, "calibrated", None)
-    rec = {f"calibrated_q{level * 100:g}": float(cal.mean_fn.q(level)[j]) if cal else math.nan
-           for level in (0.05, 0.5, 0.95)}
-    rec["calibrated_required"] = float(cal.required[j]) if cal else math.nan
-    rec["calibrated_p_exceed"] = float(cal.p_exceed[j]) if cal else math.nan
-    rec["calibrated_p_exceed_se"] = float(cal.p_se[j]) if cal else math.nan
-    rel = getattr(a, "rel_sd", None)
-    rec["model_form_rel_sd"] = float(rel[j]) if rel is not None else math.nan
+        rec.update(weight_basis=at("weight_basis"), weight_used=at("weight_used"), weight_stacking_loo=at("weight_loo"))
+    rec.update({f"mean_fn_q{level * 100:g}": at("mean_fn", level) for level in levels})
+    rec.update({f"noisy_q{level * 100:g}": at("noisy", level) for level in levels})
+    for name in ("required", "p_exceed", "p_exceed_se", "p_exceed_bound", "var_param", "var_noise", "var_between"):
+        rec[name] = at(name)
+    rec.update({f"calibrated_q{level * 100:g}": at("calibrated_mean_fn", level) for level in LEVELS})
+    for name in ("calibrated_required", "calibrated_p_exceed", "calibrated_p_exceed_se", "model_form_rel_sd"):
+        rec[name] = at(name)
+    if math.isfinite(rotation):
+        rec["energy_rotation_rad"] = rotation
+        rec.update({f"energy_mean_fn_q{level * 100:g}_J": at("mean_fn", level) * rotation for level in levels})
+        rec.update({f"energy_noisy_q{level * 100:g}_J": at("noisy", level) * rotation for level in levels})
+    rec["warnings"] = str(ds["warnings"].values[c])
     return rec
 
 
-def records(result: SizingResult) -> list[dict]:
-    """``sizing.csv``: one row per question, point and law (plus the averages), SI units.
+def records(result: SizingAnswer) -> list[dict]:
+    """``sizing.csv``: one row per question, point and law (plus the averages), SI units: a
+    rendering of ``result.dataset`` (:mod:`bayesfric.sizing.tidy`), the question's units aside.
 
     ``calibrated_q5/q50/q95`` are the friction curve's quantiles with the measured model-form
     error, ``calibrated_required`` and ``calibrated_p_exceed`` the required capacity and
@@ -358,42 +350,20 @@ def records(result: SizingResult) -> list[dict]:
     no blocked fold). ``steady_state``: what a stateful law's answer is (:data:`bayesfric.sizing.STEADY_NOTE`;
     "" for a steady law). One fit (``bayesfric size FIT.nc``) has no weight columns and no averages.
     """
-    out = []
+    ds, out = result.dataset, []
     for i, answer in enumerate(result.answers):
         q = answer.question
-        levels = answer.energy_levels
-        basis = answer.basis.key if answer.basis is not None else "single fit"
-        for j in range(answer.n_points):
+        for j, c in enumerate(np.flatnonzero(ds["question"].values == i + 1)):
             base: dict = {"question": i + 1, "label": q.label, "point": j + 1, "confidence": q.confidence}
             for k, v in q.at.items():
-                base[k] = float(answer.grid[k][j])
-                base[f"{k} [{v.unit}]"] = float(v.display(answer.grid[k][j]))
-                base[f"distance[{k}]"] = float(answer.distance[k][j]) if k in answer.distance else math.nan
-            base["unit"] = QUANTITIES[result.response].unit
-            base["capacity"] = q.capacity.lo if q.capacity is not None else math.nan
-            base["governing"] = j == answer.governing
-            base["basis"] = basis
-            for name, role, excluded, weights, a in _rows(answer):
-                rec = dict(base, role=role, law=name, included=excluded is None, excluded_reason=excluded or "",
-                           steady_state=a.steady if role == "law" else steady_line(answer.laws, a.weights, False))
-                if weights is not None:
-                    rec.update(zip(("weight_basis", "weight_used", "weight_stacking_loo"), weights, strict=True))
-                for level in levels:
-                    rec[f"mean_fn_q{level * 100:g}"] = float(a.mean_fn.q(level)[j])
-                for level in levels:
-                    rec[f"noisy_q{level * 100:g}"] = float(a.noisy.q(level)[j])
-                rec["required"] = float(a.required[j])
-                rec["p_exceed"], rec["p_exceed_se"] = float(a.p_exceed[j]), float(a.p_se[j])
-                rec["p_exceed_bound"] = float(a.p_bound[j])
-                rec["var_param"], rec["var_noise"] = float(a.var_param[j]), float(a.var_noise[j])
-                rec["var_between"] = float(a.var_between[j]) if hasattr(a, "var_between") else math.nan
-                rec.update(_calibrated_record(a, j, levels))
-                if q.energy_rotation is not None:
-                    rec["energy_rotation_rad"] = q.energy_rotation.lo
-                    for level in levels:
-                        rec[f"energy_mean_fn_q{level * 100:g}_J"] = float(answer.energy(a.mean_fn, level)[j])
-                    for level in levels:
-                        rec[f"energy_noisy_q{level * 100:g}_J"] = float(answer.energy(a.noisy, level)[j])
-                rec["warnings"] = "; ".join(_first_warnings(answer) + answer.warnings)
-                out.append(rec)
+                base[k] = float(ds[k].values[c])
+                base[f"{k} [{v.unit}]"] = float(v.display(ds[k].values[c]))
+                base[f"distance[{k}]"] = float(ds[f"distance_{k}"].values[c])
+            base["unit"] = ds.attrs["unit"]
+            base["capacity"] = float(ds["capacity"].values[c])
+            base["governing"] = bool(ds["governing"].values[c])
+            base["basis"] = str(ds["basis"].values[c])
+            out += [_record(ds, base, r, c, answer.energy_levels, bool(ds["single_fit"].values[c]),
+                            float(ds["energy_rotation"].values[c]))
+                    for r in range(ds.sizes["law"]) if ds["name"].values[r, c] != ""]
     return out

@@ -50,7 +50,7 @@ if TYPE_CHECKING:
 
     from bayesfric.laws.base import Law
     from bayesfric.report.view import TreeView
-    from bayesfric.sizing import SizingResult
+    from bayesfric.sizing.result import SizingAnswer
 
 __all__ = ["draw", "plot_ranking", "plot_penalty", "plot_bands", "plot_pairs", "plot_trajectories", "MAX_DRAWS"]
 
@@ -281,7 +281,7 @@ def _band_axes(t: TreeView, ds: xr.Dataset) -> list[tuple[str, np.ndarray | None
 
 
 def draw(t: TreeView, ds: xr.Dataset, fits: Mapping[str, xr.DataTree], folder: Path,
-         sizing: SizingResult | None = None) -> tuple[list[FigureRef], dict[int, Path]]:
+         sizing: SizingAnswer | None = None) -> tuple[list[FigureRef], dict[int, Path]]:
     """Every figure of the report into ``folder/figures``: (references with captions, sizing fans
     by question index). The scores, order, held-out rows and checks come from the result tree
     (``t``); the data set gives the points and the banner; ``fits`` (the full fits, with their

@@ -52,7 +52,7 @@ from bayesfric.report.tables import format_table
 if TYPE_CHECKING:
     from collections.abc import Mapping
 
-    from bayesfric.sizing import SizingResult
+    from bayesfric.sizing.result import SizingAnswer
     from bayesfric.study.claimspec import ClaimResult
 
 __all__ = ["write_reports", "render_report", "rerender", "render", "md_text", "md_code"]
@@ -137,7 +137,7 @@ def render(content, folder: Path, markdown: bool) -> str:
 
 
 def write_reports(tree: xr.DataTree, folder: Path, data: xr.Dataset, fits: Mapping[str, xr.DataTree],
-                  claims: list[ClaimResult] | None = None, sizing: SizingResult | None = None) -> xr.DataTree:
+                  claims: list[ClaimResult] | None = None, sizing: SizingAnswer | None = None) -> xr.DataTree:
     """Write ``folder/results.nc`` (the study's results as one DataTree,
     :mod:`bayesfric.report.results`, with the report's content, figures and tables) and render
     the report from that file alone (:func:`render_report`): figures, summary.md, report.html,

@@ -1,7 +1,8 @@
 """Actuator sizing: what torque (or force) must a drive deliver at an operating point nobody
 tested, and how sure are we? Computed once from a study's stored fits and weights (or one fit)
-into a :class:`SizingResult`; ``summary.md``, ``report.html``, ``sizing.csv``, the fan figure and
-``bayesfric size`` render it (:mod:`bayesfric.report.sizing`).
+into a :class:`~bayesfric.sizing.result.SizingAnswer` (one Dataset law × point × quantile,
+:mod:`bayesfric.sizing.tidy`); ``summary.md``, ``report.html``, ``sizing.csv``, the fan figure
+and ``bayesfric size`` render it (:mod:`bayesfric.report.sizing`).
 
 * :mod:`bayesfric.sizing.points` — questions: values with units, ranges, checks against the data;
 * :mod:`bayesfric.sizing.compute` — predictive draws, quantiles, required capacity, exceedance
@@ -51,13 +52,14 @@ from bayesfric.sizing.points import (
     parse_capacity,
     parse_value,
 )
+from bayesfric.sizing.result import SizingAnswer
 from bayesfric.sizing.steady import STEADY_NOTE, sizing_law, tested_values
 from bayesfric.sizing.store import basis_node, basis_schemes, exclusion, read_basis, sources
 
 __all__ = [
     "LOO", "NO_EXTRAPOLATION", "Basis", "choose_basis", "Miss", "Scheme", "measure_miss", "basis_schemes",
     "CLI_KEYS", "EXTRAPOLATION_WARN", "FAN_POINTS", "LEVELS", "RANGE_POINTS", "Answer", "LawSource",
-    "Mixture",
+    "Mixture", "SizingAnswer",
     "SizingError", "SizingQuestion", "SizingResult", "Value", "answer", "answer_question", "check_question",
     "exclusion", "extrapolation_distance", "make_question", "parse_at", "parse_capacity", "parse_value", "predict",
     "read_basis", "basis_node", "sources", "tested_ranges", "variance_split", "weighted_quantiles", "size_study",
@@ -72,7 +74,7 @@ def _response_display(response: str, unit: str | None) -> tuple[str, float]:
 
 
 def size_study(questions: Sequence[SizingQuestion], ds: xr.Dataset, law_sources: Sequence[LawSource],
-               schemes: Sequence[Scheme], *, study_name: str, seed: int = 0, fan: bool = True) -> SizingResult:
+               schemes: Sequence[Scheme], *, study_name: str, seed: int = 0, fan: bool = True) -> SizingAnswer:
     """Answer a study's questions from its laws' fits, weights and misses (``law_sources``, from
     :func:`sources`) and its blocked ``schemes`` (:func:`basis_schemes`). Stateful laws answer from
     their steady state (:mod:`bayesfric.sizing.steady`); coast-down laws' is a torque, where the
@@ -104,7 +106,7 @@ def provenance_of_fit(fit: xr.DataTree) -> str:
     return provenance_label(xr.Dataset(attrs=attrs))
 
 
-def size_fit(fit: xr.DataTree, question: SizingQuestion, *, name: str, seed: int = 0) -> SizingResult:
+def size_fit(fit: xr.DataTree, question: SizingQuestion, *, name: str, seed: int = 0) -> SizingAnswer:
     """Answer one question for one fit (weight 1; the tested range is the fit's own data)."""
     from bayesfric.density import OBS_SITE
     from bayesfric.laws.variants import law_of_fit

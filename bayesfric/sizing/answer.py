@@ -34,6 +34,7 @@ from bayesfric.sizing.compute import levels as quantile_levels
 from bayesfric.sizing.distance import point_distance
 from bayesfric.sizing.misfit import LocalMisfit, local_misfit
 from bayesfric.sizing.points import SizingQuestion
+from bayesfric.sizing.result import SizingAnswer, as_answer
 
 __all__ = ["SIGNIFICANT", "SHARE", "answer_question", "answer", "undetected"]
 
@@ -179,6 +180,7 @@ def answer_question(question: SizingQuestion, sources: Sequence[LawSource], data
         {s.name: dict(s.misses) for s in sources}, {s.name: dict(s.penalties) for s in sources})
     weights = {used[0].name: 1.0} if single and used else (basis.weights if basis else {})
     average = _averages(used, draws, weights, question, qs, basis.key if basis else "single fit")
+    calibrated: dict[str, Draws] = {}
     if average is not None and basis is not None and basis.calibrated:
         calibrated = _calibrate(answers, draws, sources, basis, schemes, grid, data, question, qs, seed, misfits)
         average.calibrated = mixture([a.calibrated for a in used], calibrated, average.weights, question.confidence,
@@ -200,7 +202,7 @@ def answer_question(question: SizingQuestion, sources: Sequence[LawSource], data
     else:
         governing = 0
     out = Answer(question, grid, tested, distance, answers, average, average_loo, no_average, governing,
-                 qs, warnings, basis=basis, undetected=flag)
+                 qs, warnings, basis=basis, undetected=flag, draws=draws, calibrated_draws=calibrated)
     if fan:
         out.fan = _fan(out, sources, data, seed, schemes=schemes, misfits=misfits)
     return out
@@ -246,9 +248,10 @@ def _fan(out: Answer, sources: Sequence[LawSource], data: Mapping[str, np.ndarra
 def answer(questions: Sequence[SizingQuestion], sources: Sequence[LawSource], data: Mapping[str, np.ndarray], *,
            response: str, response_unit: str, response_scale: float, provenance: str, source: str,
            schemes: Sequence[Scheme] = (), measured: np.ndarray | None = None, seed: int = 0,
-           fan: bool = True) -> SizingResult:
+           fan: bool = True) -> SizingAnswer:
     """Answer every question (see :func:`answer_question`); ``fan``: also the fan figures' bands
-    (with the ``measured`` response, SI, drawn against the fan's axis when given)."""
+    (with the ``measured`` response, SI, drawn against the fan's axis when given). Returns the
+    one object every rendering reads (:class:`~bayesfric.sizing.result.SizingAnswer`)."""
     answers = []
     misfits = {} if measured is None or (len(sources) == 1 and not schemes) else {
         s.name: local_misfit(s.fit, data, measured, seed) for s in sources if s.excluded is None}
@@ -259,4 +262,4 @@ def answer(questions: Sequence[SizingQuestion], sources: Sequence[LawSource], da
             points = (np.asarray(data[axis]), np.abs(np.asarray(measured))) if axis and measured is not None else None
             out.fan = _fan(out, sources, data, seed, points, schemes, misfits)
         answers.append(out)
-    return SizingResult(answers, response, response_unit, response_scale, provenance, source)
+    return as_answer(SizingResult(answers, response, response_unit, response_scale, provenance, source))

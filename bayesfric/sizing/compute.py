@@ -213,6 +213,8 @@ class Answer:
     fan: Fan | None = None
     basis: Basis | None = None  # which weights and measured misses answer it (None: a single fit)
     undetected: str = ""  # laws the blocked folds cannot tell from the truth here, and by how much ("": none)
+    draws: dict[str, Draws] = field(default_factory=dict)  # law -> its draws at the points (kept: q(p) of any p)
+    calibrated_draws: dict[str, Draws] = field(default_factory=dict)  # law -> with the model-form error added
 
     @property
     def n_points(self) -> int:

@@ -16,6 +16,7 @@ import xarray as xr
 from bayesfric.errors import UserError
 from bayesfric.inference import load_fit
 from bayesfric.sizing.points import SizingError, SizingQuestion, check_question
+from bayesfric.sizing.result import SizingAnswer
 
 __all__ = ["read_fit", "fit_question", "answer_fit"]
 
@@ -78,7 +79,7 @@ def fit_question(fit: xr.DataTree, question: SizingQuestion, *, keys: Mapping[st
 
 
 def answer_fit(fit: xr.DataTree, question: SizingQuestion, *, name: str, keys: Mapping[str, str] | None = None,
-               where: str = "the fit", seed: int = 0):
+               where: str = "the fit", seed: int = 0) -> SizingAnswer:
     """The answer of one fit to ``question``: the question checked against the fit's law
     (:func:`fit_question`, errors naming ``keys`` and ``where``), then
     :func:`bayesfric.sizing.size_fit` (``name`` names the fit in the result).

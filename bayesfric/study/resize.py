@@ -12,6 +12,7 @@ from pathlib import Path
 from bayesfric import sizing
 from bayesfric.errors import UserError
 from bayesfric.fsutil import is_marked
+from bayesfric.sizing.result import SizingAnswer
 from bayesfric.study.config import Study
 from bayesfric.study.plan import load_study_data, sizing_questions
 
@@ -20,7 +21,7 @@ __all__ = ["size_from_report"]
 
 def size_from_report(study: Study, questions: list[sizing.SizingQuestion] | None, reports: str | Path, *,
                      cli: bool = False, keys: Mapping[str, str] | None = None,
-                     run_hint: str = "") -> sizing.SizingResult:
+                     run_hint: str = "") -> SizingAnswer:
     """Answer ``questions`` (None: the study's own ``[[sizing]]``) from the report of ``study``
     in the reports root ``reports``.
 
