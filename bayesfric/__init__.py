@@ -38,9 +38,8 @@ if "numpyro" not in sys.modules and not any(isinstance(f, _NumpyroBeforeArviz) f
     sys.meta_path.insert(0, _NumpyroBeforeArviz())
 
 #: The public API (:mod:`bayesfric.api`), imported on first use so ``import bayesfric`` stays cheap.
-_API = ("load_data", "law", "Param", "Prior", "fit", "load_fit", "compare_laws", "size", "time_to_exceed",
-        "SizingAnswer", "predict", "score", "Study",
-        "StudyResult", "run", "write_report")
+_API = ("load_data", "law", "Param", "Prior", "fit", "load_fit", "diagnostics", "compare_laws", "size",
+        "SizingAnswer", "time_to_exceed", "predict", "score", "Study", "StudyResult", "run", "write_report")
 __all__ = ["__version__", *_API]
 
 

@@ -1,6 +1,6 @@
 """What `bayesfric.size` returns: one tidy Dataset (law × point × quantile) with `.to_dataframe()` and
 `q(p)` at any level from the kept draws; sizing.csv renders it; a fit in memory and the same fit saved
-and read back in a fresh process answer bit for bit."""
+and read back in a fresh process answer bit for bit; a fit's diagnostics come back as a dict."""
 
 from __future__ import annotations
 
@@ -142,3 +142,10 @@ def test_q_of_an_unknown_kind_is_a_user_error(fit):
     with pytest.raises(UserError, match="of: must be one of noisy, mean_fn"):
         bayesfric.size(fit, at={"velocity": (3, "rad/s")}).q(0.9, of="median")
 
+
+def test_diagnostics_come_back_as_a_dict_in_memory_and_from_the_file(fit, tmp_path):
+    d = bayesfric.diagnostics(fit)
+    assert isinstance(d, dict) and d["passed"] is True and d["problems"] == [] and d["rhat_max"] == 1.0
+    assert bayesfric.diagnostics(save_fit(fit, tmp_path / "fit.nc")) == d
+    with pytest.raises(UserError, match="fit: expected a fit"):
+        bayesfric.diagnostics({"diagnostics": "{}"})

@@ -6,6 +6,7 @@
 :class:`Param`, `Prior`  the pieces of a full law declaration (:func:`bayesfric.laws.law`)
 :func:`fit`              one law on one data set -> arviz ``DataTree``
 :func:`load_fit`         a saved fit -> ``(DataTree, Program)``: the program that produced it
+:func:`diagnostics`      a fit's convergence diagnostics and gate verdict -> ``dict``
 :func:`compare_laws`     fits ranked by PSIS-LOO with stacking weights -> ``pandas.DataFrame``
 :func:`size`             friction a drive must deliver at untested points (+ P(|T| > capacity)),
                          one Dataset law × point × quantile (:class:`SizingAnswer`)
@@ -20,7 +21,7 @@ Every argument is checked where it is given; a bad one raises a one-line
 :class:`~bayesfric.errors.UserError` naming it (the CLI prints the same line and exits 2).
 """
 
-from bayesfric.api.fitfile import load_fit
+from bayesfric.api.fitfile import diagnostics, load_fit
 from bayesfric.api.fitting import compare_laws, fit, law, load_data
 from bayesfric.api.predicting import predict, score
 from bayesfric.api.reports import write_report
@@ -30,6 +31,5 @@ from bayesfric.laws.base import Param
 from bayesfric.priors import Prior
 from bayesfric.sizing.result import SizingAnswer
 
-__all__ = ["load_data", "law", "Param", "Prior", "fit", "load_fit", "compare_laws", "size", "time_to_exceed",
-           "SizingAnswer", "predict", "score", "Study",
-           "StudyResult", "run", "write_report"]
+__all__ = ["load_data", "law", "Param", "Prior", "fit", "load_fit", "diagnostics", "compare_laws", "size",
+           "SizingAnswer", "time_to_exceed", "predict", "score", "Study", "StudyResult", "run", "write_report"]

@@ -253,7 +253,7 @@ def fit(law: str | Law, data: str | Path | xr.Dataset, *, priors: Mapping[str, P
     -------
     xarray.DataTree
         posterior, log_likelihood, posterior_predictive, observed_data, constant_data ... with
-        provenance attrs; its diagnostics verdict in ``attrs["diagnostics"]``.
+        provenance attrs; its diagnostics verdict as a dict from :func:`bayesfric.diagnostics`.
 
     Raises
     ------
