@@ -138,6 +138,12 @@ def test_q_outside_zero_one_is_a_user_error(fit, p):
         result.q(p)
 
 
+def test_a_level_the_structured_answer_did_not_keep_names_the_levels_it_kept(fit):
+    (law,) = bayesfric.size(fit, at={"velocity": (3, "rad/s")}, confidence=0.9).answers[0].laws
+    with pytest.raises(UserError, match=r"level: 0\.8 is not one of the kept levels \(0\.05, 0\.5, 0\.9, 0\.95\)"):
+        law.noisy.q(0.8)
+
+
 def test_q_of_an_unknown_kind_is_a_user_error(fit):
     with pytest.raises(UserError, match="of: must be one of noisy, mean_fn"):
         bayesfric.size(fit, at={"velocity": (3, "rad/s")}).q(0.9, of="median")

@@ -69,6 +69,7 @@ import jax.numpy as jnp
 import numpy as np
 import xarray as xr
 
+from bayesfric.errors import UserError
 from bayesfric.inference.diagnostics import import_statistics
 from bayesfric.sizing.basis import LOO, Basis
 from bayesfric.sizing.calibration import Miss
@@ -130,6 +131,12 @@ class Spread:
     mean: np.ndarray
 
     def q(self, level: float) -> np.ndarray:
+        """The kept quantile at ``level``: the question's levels only (any level in (0, 1) from the
+        draws: :meth:`bayesfric.sizing.result.SizingAnswer.q`)."""
+        if level not in self.quantiles:
+            kept = ", ".join(f"{k:g}" for k in self.quantiles)
+            raise UserError(f"level: {level!r} is not one of the kept levels ({kept}); "
+                            "SizingAnswer.q(p) gives any level in (0, 1) from the draws")
         return self.quantiles[level]
 
 
