@@ -81,7 +81,8 @@ def test_q_of_a_law_is_the_quantile_of_its_mean_function_draws(fit):
         for of in ("mean_fn", "noisy"):
             np.testing.assert_array_equal(result.q(level, of=of).sel(law="coulomb_viscous").values,
                                           ds[of].sel(quantile=level).values)
-    assert np.isnan(result.q(0.9).sel(law="average").values).all()  # one fit: no average
+    assert np.isnan(result.q(0.9).sel(law="average").values).all()  # one fit: no average, and it says so
+    assert result["single_fit"].values.all() and result["basis_note"].values[0].startswith("One fit: no model average")
 
 
 def test_q_of_the_average_inverts_the_weighted_cdf_of_both_laws_draws(two_laws):

@@ -18,7 +18,7 @@ from bayesfric.report.typeset import fmt, unit
 from bayesfric.sizing import EXTRAPOLATION_WARN, LEVELS, RANGE_POINTS, Answer
 from bayesfric.sizing.result import SizingAnswer
 from bayesfric.sizing.steady import steady_line
-from bayesfric.sizing.tidy import first_warnings
+from bayesfric.sizing.tidy import ONE_FIT, first_warnings
 
 __all__ = ["Section", "sections", "records", "text_report", "headlines", "RANGE_ROWS"]
 
@@ -241,9 +241,7 @@ def sections(result: SizingAnswer, figures: dict[int, str] | None = None) -> lis
         if steady := steady_line(answer.laws):
             sec.lines.append(steady)
         if answer.basis is None:
-            sec.lines.append("One fit: no model average, no weights; no blocked fold measured this law's model-form "
-                             "error, so no calibrated numbers: its intervals carry parameter and noise uncertainty "
-                             "only.")
+            sec.lines.append(ONE_FIT)
         elif answer.average is not None:
             sec.lines.append(f"Model average ({answer.basis.note}), renormalised over the laws sizing uses ('used'); "
                              "LOO stacking weights shown beside and as a second average.")

@@ -13,7 +13,9 @@ render it. Layout (SI units throughout):
 ``point``
     every point of every question, numbered across questions; ``question`` (1-based),
     ``question_point`` (1-based within it), ``label``, ``confidence``, ``capacity``,
-    ``energy_rotation`` (NaN: not asked), ``governing``, ``basis``, ``single_fit``, ``warnings``,
+    ``energy_rotation`` (NaN: not asked), ``governing``, ``basis`` and ``basis_note`` (which
+    weights, and why; a single fit's :data:`ONE_FIT`), ``single_fit``, ``no_average`` (why there
+    is none; ``""``), ``warnings`` (what to distrust first, then every warning of the answer),
     each asked input's value and ``distance_<input>`` (tested ranges beyond the data; NaN
     where the question does not ask it).
 ``quantile``
@@ -37,9 +39,13 @@ from bayesfric.quantities import QUANTITIES
 from bayesfric.sizing.compute import Answer, SizingResult
 from bayesfric.sizing.steady import steady_line
 
-__all__ = ["AVERAGE", "AVERAGE_LOO", "ROLES", "QUANTILE_VARS", "DRAW_VARS", "first_warnings", "build_dataset"]
+__all__ = ["AVERAGE", "AVERAGE_LOO", "ONE_FIT", "ROLES", "QUANTILE_VARS", "DRAW_VARS", "first_warnings",
+           "build_dataset"]
 
 AVERAGE, AVERAGE_LOO = "average", "average_loo"
+#: What a single fit's answer is not (no average, no weights, no calibration).
+ONE_FIT = ("One fit: no model average, no weights; no blocked fold measured this law's model-form error, so no "
+           "calibrated numbers: its intervals carry parameter and noise uncertainty only.")
 #: Row kind of each average row (laws are "law").
 ROLES = {AVERAGE: "average", AVERAGE_LOO: "average LOO"}
 #: Variables along ``quantile``.
@@ -137,8 +143,10 @@ def _fill_average(arr: _Arrays, answer: Answer, cols: slice, mix, row: str) -> N
 def _point_coords(answers: Sequence[Answer]) -> dict[str, tuple]:
     """The coordinates along ``point``: which question, where, and what was asked there."""
     inputs = list(dict.fromkeys(k for a in answers for k in a.question.at))
+    text = ("label", "basis", "basis_note", "no_average", "warnings")
     per: dict[str, list] = {k: [] for k in ("question", "question_point", "label", "confidence", "capacity",
-                                            "energy_rotation", "governing", "basis", "single_fit", "warnings")}
+                                            "energy_rotation", "governing", "basis", "basis_note", "single_fit",
+                                            "no_average", "warnings")}
     values: dict[str, list] = {k: [] for k in inputs}
     distance: dict[str, list] = {k: [] for k in inputs}
     for i, a in enumerate(answers):
@@ -151,12 +159,14 @@ def _point_coords(answers: Sequence[Answer]) -> dict[str, tuple]:
         per["energy_rotation"] += [q.energy_rotation.lo if q.energy_rotation is not None else math.nan] * n
         per["governing"] += [j == a.governing for j in range(n)]
         per["basis"] += [a.basis.key if a.basis is not None else "single fit"] * n
+        per["basis_note"] += [a.basis.note if a.basis is not None else ONE_FIT] * n
         per["single_fit"] += [a.basis is None] * n
+        per["no_average"] += [a.no_average] * n
         per["warnings"] += ["; ".join(first_warnings(a) + a.warnings)] * n
         for k in inputs:
             values[k] += list(np.asarray(a.grid[k], dtype=float)) if k in a.grid else [math.nan] * n
             distance[k] += list(np.asarray(a.distance[k], dtype=float)) if k in a.distance else [math.nan] * n
-    coords = {k: ("point", np.asarray(v, dtype=object if k in ("label", "basis", "warnings") else None))
+    coords = {k: ("point", np.asarray(v, dtype=object if k in text else None))
               for k, v in per.items()}
     coords |= {k: ("point", np.asarray(v, dtype=float)) for k, v in values.items()}
     coords |= {f"distance_{k}": ("point", np.asarray(v, dtype=float)) for k, v in distance.items()}
