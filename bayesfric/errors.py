@@ -7,11 +7,15 @@ option; empty when the message already says where). The CLI reports any of them 
 exit status 2 (:mod:`bayesfric.cli`); a caller that knows more of the place puts its prefix
 before the key with :meth:`UserError.within`. The subclasses say which input it was; they keep
 the constructor their callers use.
+
+What is not the user's mistake -- a broken invariant of bayesfric itself -- is an
+:class:`InternalError`: the CLI does not turn it into a one-line input error, because it is a bug
+to report.
 """
 
 from __future__ import annotations
 
-__all__ = ["UserError", "DataError"]
+__all__ = ["UserError", "DataError", "InternalError"]
 
 
 class UserError(ValueError):
@@ -61,3 +65,13 @@ class DataError(UserError):
     Declared here, in a base module, because the laws raise it too (a law that cannot run on a data
     set's motion kind, :func:`bayesfric.laws.variants.for_data`); :mod:`bayesfric.datasets` and
     :mod:`bayesfric.datasets.loader` re-export it."""
+
+
+class InternalError(RuntimeError):
+    """A broken invariant of bayesfric itself, not of what the user gave: a bug to report.
+
+    Examples
+    --------
+    >>> isinstance(InternalError("unknown unit stage 'fold'"), UserError)
+    False
+    """

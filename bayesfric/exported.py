@@ -51,6 +51,7 @@ import jax
 import jaxlib
 import numpy as np
 
+from bayesfric.errors import UserError
 from bayesfric.fingerprint import canonical, code_fingerprint
 from bayesfric.runtime import cache_dir
 
@@ -98,7 +99,7 @@ def set_compile_threads(threads: int) -> None:
     """
     global _THREADS
     if threads < 1:
-        raise ValueError(f"compilation threads must be at least 1 (got {threads})")
+        raise UserError(f"compilation threads must be at least 1 (got {threads})", "threads")
     finish_compilations()
     _THREADS = int(threads)
 

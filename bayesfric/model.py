@@ -47,6 +47,7 @@ import xarray as xr
 from bayesfric.datasets.loader import OBS_DIM, DataError
 from bayesfric.datasets.views import data_scale, law_inputs, response_se, response_values, trajectory_starts
 from bayesfric.density import OBS_SITE, Density, build_density
+from bayesfric.errors import UserError
 from bayesfric.hierarchy import (
     NEW_LEVEL,
     Grouping,
@@ -112,9 +113,9 @@ class Noise:
 
     def __post_init__(self):
         if self.kind not in _NOISE_SITES:
-            raise ValueError(f"noise kind {self.kind!r} not one of {tuple(_NOISE_SITES)}")
+            raise UserError(f"noise kind {self.kind!r} not one of {tuple(_NOISE_SITES)}")
         if self.sigma is not None and (self.kind != "normal" or not self.sigma > 0):
-            raise ValueError("a known sigma needs kind='normal' and sigma > 0")
+            raise UserError("a known sigma needs kind='normal' and sigma > 0")
 
     def sites(self) -> tuple[str, ...]:
         base = () if self.sigma is not None else _NOISE_SITES[self.kind]
@@ -445,7 +446,7 @@ def _noise_of(attrs: Mapping[str, Any]) -> Noise:
     noise, priors = json.loads(attrs["noise"]), json.loads(attrs["priors"])
     sigma = noise.get("sigma")
     if noise["kind"] == "normal" and "sigma" not in priors and sigma is None:
-        raise ValueError(f"fit of {attrs['law']!r} used a known noise sigma, which its attrs "
+        raise UserError(f"fit of {attrs['law']!r} used a known noise sigma, which its attrs "
                          "do not record; pass the fit's program (or engine) explicitly")
     return Noise(kind=noise["kind"], group=noise.get("group"), sigma=sigma)
 

@@ -45,6 +45,7 @@ import numpy as np
 import numpyro
 import numpyro.distributions as dist
 
+from bayesfric.errors import UserError
 from bayesfric.priors import Prior
 
 __all__ = ["FORMS", "FLOOR", "coordinates", "span", "support", "trend_prior", "centre", "walk_levels", "paths",
@@ -72,7 +73,7 @@ def coordinates(labels: Sequence[str]) -> np.ndarray:
         return np.asarray([float(v) for v in labels], dtype=float)
     except ValueError:
         bad = next(v for v in labels if not _is_number(v))
-        raise ValueError(f"service coordinate {bad!r} is not a number (a trend column holds one number "
+        raise UserError(f"service coordinate {bad!r} is not a number (a trend column holds one number "
                          "per campaign: hours, cycles, distance)") from None
 
 

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 import xarray as xr
 
+from bayesfric.errors import UserError
 from bayesfric.laws.variants import law_of_fit
 
 __all__ = ["Asymmetry", "asymmetry"]
@@ -55,7 +56,7 @@ def asymmetry(fit: xr.DataTree, prob: float = 0.9) -> list[Asymmetry]:
         Probability mass of the equal-tailed interval.
     """
     if not 0 < prob < 1:
-        raise ValueError(f"prob must be in (0, 1), got {prob}")
+        raise UserError(f"must be in (0, 1), got {prob}", "prob")
     law = law_of_fit(fit.attrs)
     post = fit["posterior"].to_dataset()
     out = []

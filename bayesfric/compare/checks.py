@@ -38,6 +38,7 @@ from numpyro.infer import Predictive
 from scipy.stats import kstest
 
 from bayesfric.compare.loo_subsample import n_rows, on_rows, releases_views, rows_summed, subsample_rows
+from bayesfric.errors import UserError
 from bayesfric.exported import program_jit
 from bayesfric.inference.pointwise import stored_draws
 from bayesfric.limits import CHUNK_NUMBERS
@@ -305,7 +306,7 @@ def prior_sensitivity(dt: xr.DataTree, threshold: float = 0.05) -> pd.DataFrame:
     it is held back here (the diagnosis is in the table and reaches the report from there).
     """
     if "log_prior" not in dt.children:
-        raise ValueError("fit has no log_prior group; refit with a current bayesfric")
+        raise UserError("fit has no log_prior group; refit with a current bayesfric")
     with contextlib.redirect_stdout(io.StringIO()), _quiet(logging.getLogger("arviz_stats.psense")):
         # the log-likelihood summed per draw in chunks: the same numbers, no copies of draws × rows
         return az.psense_summary(rows_summed(dt), var_names=_parameters(dt), threshold=threshold)
@@ -333,7 +334,7 @@ def power_scaled_loo(dt: xr.DataTree, alpha: float, rows: np.ndarray | None = No
     (its elpd is then their sum).
     """
     if "log_prior" not in dt.children:
-        raise ValueError("fit has no log_prior group; refit with a current bayesfric")
+        raise UserError("fit has no log_prior group; refit with a current bayesfric")
     # a thinned fit: the draws its log-likelihood holds, in float64
     dt = stored_draws(dt, ("log_likelihood",)) if rows is None else on_rows(dt, rows, ("log_likelihood",))
     log_prior = dt["log_prior"].to_dataset()

@@ -35,6 +35,7 @@ from numpyro.infer import Predictive
 from scipy.special import logsumexp
 from scipy.stats import multivariate_normal
 
+from bayesfric.errors import UserError
 from bayesfric.inference.modes import by_mode, is_multimodal
 from bayesfric.limits import CHUNK_NUMBERS
 from bayesfric.model import Program
@@ -165,7 +166,7 @@ def bridge_log_evidence(
     q21 = _finite(log_joint(jnp.asarray(proposal_draws)))
     q22 = proposal.logpdf(proposal_draws).reshape(-1)
     if not np.all(np.isfinite(q11)):
-        raise ValueError("non-finite log density at posterior draws; is the fit from this program?")
+        raise UserError("non-finite log density at posterior draws; is the fit from this program?")
 
     ess = az.ess(xr.Dataset({"x": (("chain", "draw", "d"), bridge_half)}), method="bulk")["x"]
     n_eff = float(np.median(np.asarray(ess)))
@@ -185,12 +186,12 @@ def _unconstrained_draws(program: Program, density, dt: xr.DataTree) -> np.ndarr
     post = dt["posterior"].to_dataset()
     missing = [s for s in density.sites if s not in post]
     if missing:
-        raise ValueError(
+        raise UserError(
             f"fit posterior lacks latent site(s) {missing} of law {program.law.name!r}"
         )
     n_chains, n_draws = post.sizes["chain"], post.sizes["draw"]
     if n_draws // 2 < 20:
-        raise ValueError(f"bridge sampling needs at least 40 draws per chain, got {n_draws}")
+        raise UserError(f"bridge sampling needs at least 40 draws per chain, got {n_draws}", "draws")
     constrained = {s: np.asarray(post[s].values).reshape((n_chains * n_draws,) + post[s].shape[2:])
                    for s in density.sites}
     return np.asarray(density.to_unconstrained(constrained)).reshape(n_chains, n_draws, density.dim)
@@ -292,9 +293,9 @@ def smc_log_evidence(
     error over runs) is the guide to whether that matters.
     """
     if runs < 2:
-        raise ValueError("smc_log_evidence needs runs >= 2 to estimate its error")
+        raise UserError("smc_log_evidence needs runs >= 2 to estimate its error", "runs")
     if mass_matrix not in ("dense", "diagonal"):
-        raise ValueError(f"mass_matrix must be 'dense' or 'diagonal', not {mass_matrix!r}")
+        raise UserError(f"must be 'dense' or 'diagonal', not {mass_matrix!r}", "mass_matrix")
     density = program.density(seed)
     step_fn, init_fn, fixed, kernel_text = _move_kernel(kernel, integration_steps, max_doublings)
 
@@ -330,7 +331,7 @@ def _move_kernel(kernel: str, integration_steps: int, max_doublings: int) -> tup
     if kernel == "hmc":
         return (blackjax.hmc.build_kernel(), blackjax.hmc.init, {"num_integration_steps": integration_steps},
                 f"HMC, {integration_steps} leapfrog steps")
-    raise ValueError(f"kernel must be 'nuts' or 'hmc', not {kernel!r}")
+    raise UserError(f"must be 'nuts' or 'hmc', not {kernel!r}", "kernel")
 
 
 def _prior_particles(program: Program, density, particles: int, key):

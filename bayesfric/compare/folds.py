@@ -47,6 +47,7 @@ import numpy as np
 import xarray as xr
 
 from bayesfric.datasets.loader import OBS_DIM, DataError
+from bayesfric.errors import UserError
 
 __all__ = ["Folds", "kfold_masks", "grouped_masks", "forecast_masks", "blocked_masks"]
 
@@ -72,9 +73,9 @@ class Folds:
 
     def __post_init__(self):
         if self.train.shape != self.heldout.shape or self.train.ndim != 2:
-            raise ValueError("train and held-out masks must both be (K, n_obs)")
+            raise UserError("train and held-out masks must both be (K, n_obs)")
         if (self.train & self.heldout).any():
-            raise ValueError(f"{self.scheme}: a point is both trained on and held out")
+            raise UserError(f"{self.scheme}: a point is both trained on and held out")
         empty = [self.labels[k] for k in range(self.n_folds)
                  if not self.train[k].any() or not self.heldout[k].any()]
         if empty:
@@ -92,7 +93,7 @@ def _future_fold(ds: xr.Dataset, axis: str, values: np.ndarray, threshold: float
         values = np.abs(values)
     if quantile is not None:
         if not 0 < quantile < 1:
-            raise ValueError(f"quantile must lie in (0, 1); got {quantile}")
+            raise UserError(f"must lie in (0, 1); got {quantile}", "quantile")
         threshold = float(np.quantile(values, quantile))
     key = ds.attrs.get("trajectory")
     unit = (np.unique(np.asarray(ds[key].values), return_inverse=True)[1] if key
@@ -143,7 +144,7 @@ def kfold_masks(ds: xr.Dataset, k: int = 10, *, seed: int = 0) -> Folds:
     """
     unit, n_units = _units(ds)
     if not 2 <= k <= n_units:
-        raise ValueError(f"K-fold needs 2 <= k <= {n_units} (points or trajectories); got {k}")
+        raise UserError(f"K-fold needs 2 <= k <= {n_units} (points or trajectories); got {k}", "k")
     rng = np.random.default_rng(seed)
     fold_of_unit = np.empty(n_units, dtype=int)
     fold_of_unit[rng.permutation(n_units)] = np.arange(n_units) % k
@@ -262,9 +263,9 @@ def blocked_masks(
         have = [k for k, v in ds.coords.items() if v.attrs.get("role") == "input"]
         raise DataError(f"no input {axis!r} to block on; inputs: {', '.join(have)}")
     if (threshold is None) == (quantile is None):
-        raise ValueError("give exactly one of threshold= or quantile=")
+        raise UserError("give exactly one of threshold= or quantile=")
     if direction not in ("upper", "lower"):
-        raise ValueError(f"direction must be 'upper' or 'lower'; got {direction!r}")
+        raise UserError(f"must be 'upper' or 'lower'; got {direction!r}", "direction")
     values = np.asarray(ds[axis].values, dtype=float)
     if future:
         return _future_fold(ds, axis, values, threshold, quantile, direction, bool(use_abs))
@@ -278,7 +279,7 @@ def blocked_masks(
     reduce.at(per_unit, unit, values)
     if quantile is not None:
         if not 0 < quantile < 1:
-            raise ValueError(f"quantile must lie in (0, 1); got {quantile}")
+            raise UserError(f"must lie in (0, 1); got {quantile}", "quantile")
         threshold = float(np.quantile(per_unit, quantile))
     point_value = per_unit[unit]
     outside = point_value > threshold if direction == "upper" else point_value < threshold

@@ -35,6 +35,7 @@ import xarray as xr
 
 from bayesfric.compare.loo_subsample import Subsample, describe, estimate, is_subsampled, releases_views, subsample_psis
 from bayesfric.compare.refit import CVResult, RefitEngine, pointwise_lpd, program_from_fit
+from bayesfric.errors import UserError
 from bayesfric.inference.diagnostics import verdict_of
 from bayesfric.inference.pointwise import stored_draws
 from bayesfric.model import OBS_SITE, Program
@@ -272,7 +273,7 @@ def extrapolation_penalty(loo: LooResult, blocked: CVResult) -> Penalty:
         The two results belong to different laws or data sizes.
     """
     if loo.law != blocked.law or loo.elpd_i.size != blocked.elpd_i.size:
-        raise ValueError("LOO and blocked CV must be of the same law on the same data")
+        raise UserError("LOO and blocked CV must be of the same law on the same data")
     points = np.asarray(blocked.heldout, dtype=bool).copy()
     if loo.subsample is not None:  # the approximated rows are no LOO values
         exact = np.zeros_like(points)

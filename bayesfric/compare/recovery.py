@@ -29,6 +29,7 @@ from numpyro.infer import Predictive
 from bayesfric.compare.checks import plausible_draws
 from bayesfric.compare.evidence import bridge_log_evidence, smc_log_evidence
 from bayesfric.datasets.synthetic import make_dataset, simulate
+from bayesfric.errors import UserError
 from bayesfric.inference import fit, release_compiled_code
 from bayesfric.inference.pointwise import stored_draws
 from bayesfric.laws.base import Law
@@ -110,7 +111,7 @@ def _scores(
         folds_fn, engine_cls, cross_validate, axis, quantile, settings = blocked
         engine = engine_cls(program, seed=seed, **settings)
         return float(cross_validate(engine, folds_fn(ds, axis, quantile=quantile), seed=seed).elpd)
-    raise ValueError(f"unknown method {method!r}")
+    raise UserError(f"unknown method {method!r}", "methods")
 
 
 def _blocked_cv_api(axis: str | None, quantile: float, settings: Mapping[str, Any]):
@@ -176,10 +177,10 @@ def model_recovery(
         ``confusion[method][i, j]``: sets simulated from ``laws[i]`` on which ``laws[j]`` won.
     """
     if len(laws) < 2:
-        raise ValueError("model recovery needs at least two laws")
+        raise UserError("model recovery needs at least two laws", "laws")
     methods = list(methods)
     if "blocked_cv" in methods and blocked_axis is None:
-        raise ValueError("method 'blocked_cv' needs blocked_axis")
+        raise UserError("method 'blocked_cv' needs blocked_axis", "blocked_axis")
     settings = dict(draws=500, tune=300, chains=2) | dict(fit_settings or {})
     blocked = _blocked_cv_api(blocked_axis if "blocked_cv" in methods else None,
                               blocked_quantile, settings)

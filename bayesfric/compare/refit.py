@@ -27,6 +27,7 @@ import numpy as np
 
 from bayesfric.compare.folds import Folds
 from bayesfric.compare.heldout import HeldOut, heldout_predictive
+from bayesfric.errors import UserError
 from bayesfric.inference.diagnostics import Verdict
 from bayesfric.inference.engine import FoldFits, NutsEngine
 from bayesfric.model import program_from_fit  # re-exported: it lives below compare, in model
@@ -190,7 +191,7 @@ def cross_validate(engine: RefitEngine, folds: Folds, *, seed: int = 0, predicti
     """
     counts = folds.heldout.sum(axis=0)
     if counts.max() > 1:
-        raise ValueError(f"scheme {folds.scheme!r} holds some points out more than once")
+        raise UserError(f"scheme {folds.scheme!r} holds some points out more than once", "folds")
     fits = engine.run(folds.train, seed=seed)
     elpd_i = np.full(engine.program.n_obs, np.nan)
     for k in range(folds.n_folds):

@@ -67,6 +67,7 @@ from bayesfric.compare.structure_stats import (
     structure_tests,
 )
 from bayesfric.datasets.views import trajectory_starts
+from bayesfric.errors import UserError
 from bayesfric.laws.base import Law
 from bayesfric.limits import CHUNK_NUMBERS
 from bayesfric.model import OBS_SITE, Program, program_of_fit
@@ -238,7 +239,7 @@ def residual_structure(fit: xr.DataTree, data: xr.Dataset, *, alpha: float = ALP
     program = program_of_fit(fit) if program is None else program
     n = int(data.sizes["obs"])
     if program.n_obs != n:
-        raise ValueError(f"the fit has {program.n_obs} rows, the data set {n}: pass the data it was fitted on")
+        raise UserError(f"the fit has {program.n_obs} rows, the data set {n}: pass the data it was fitted on")
     resid, sd = fit_residuals(fit, program)
     law = program.law
     columns = columns_to_test(data, law)

@@ -34,6 +34,7 @@ from arviz_stats import ELPDDataLOOKFold
 from bayesfric.compare.loo import LooResult
 from bayesfric.compare.refit import CVResult
 from bayesfric.datasets.loader import OBS_DIM
+from bayesfric.errors import UserError
 
 __all__ = ["BOOTSTRAP", "Weights", "bootstrap_stacking", "model_weights", "BayesFactors", "bayes_factors",
            "averaged_predictive"]
@@ -143,16 +144,16 @@ def model_weights(
 
     kinds = {type(r) for r in results.values()}
     if len(kinds) != 1:
-        raise ValueError("weights need results of one kind: all LooResult or all CVResult")
+        raise UserError("weights need results of one kind: all LooResult or all CVResult")
     if CVResult in kinds:
         schemes = {r.scheme for r in results.values()}
         heldouts = {r.heldout.tobytes() for r in results.values()}
         if len(schemes) != 1 or len(heldouts) != 1:
-            raise ValueError(f"CV weights need one scheme on the same held-out points: {schemes}")
+            raise UserError(f"CV weights need one scheme on the same held-out points: {schemes}")
     basis = "PSIS-LOO" if LooResult in kinds else next(iter(results.values())).scheme
     arviz_method = _METHODS.get(method.lower())
     if arviz_method is None:
-        raise ValueError(f"unknown method {method!r}: stacking, BB-pseudo-BMA, pseudo-BMA+")
+        raise UserError(f"unknown method {method!r}: stacking, BB-pseudo-BMA, pseudo-BMA+", "method")
     excluded = {}
     for name, result in results.items():
         reason = _why_unreliable(result)
@@ -165,7 +166,7 @@ def model_weights(
         excluded = {}
     kept = {k: _as_elpd_data(r) for k, r in results.items() if k not in excluded}
     if not kept:
-        raise ValueError(f"every law was excluded as unreliable: {excluded}")
+        raise UserError(f"every law was excluded as unreliable: {excluded}")
     if len(kept) == 1:
         return Weights({next(iter(kept)): 1.0}, arviz_method, basis, excluded, None)
     table = az.compare(kept, method=arviz_method, round_to="none")
@@ -258,7 +259,7 @@ def bayes_factors(log_evidence: Mapping[str, tuple[float, float]]) -> BayesFacto
     log_z = np.array([float(log_evidence[k][0]) for k in names])
     err = np.array([float(log_evidence[k][1]) for k in names])
     if not np.all(np.isfinite(log_z)) or np.any(err < 0):
-        raise ValueError("log evidences must be finite and errors non-negative")
+        raise UserError("log evidences must be finite and errors non-negative")
     return BayesFactors(
         pd.DataFrame(log_z[:, None] - log_z[None, :], index=names, columns=names),
         pd.DataFrame(np.sqrt(err[:, None] ** 2 + err[None, :] ** 2), index=names, columns=names),
@@ -278,7 +279,7 @@ def averaged_predictive(
     w = weights.weights if isinstance(weights, Weights) else dict(weights)
     names = [k for k in fits if w.get(k, 0.0) > 0]
     if not names:
-        raise ValueError("no fit has a positive weight")
+        raise UserError("no fit has a positive weight", "weights")
     if len(names) == 1:
         only = fits[names[0]]
         return xr.DataTree.from_dict({

@@ -68,6 +68,8 @@ from blackjax.adaptation.step_size import dual_averaging_adaptation
 from blackjax.adaptation.window_adaptation import build_schedule
 from blackjax.mcmc.metrics import Metric, gaussian_euclidean
 
+from bayesfric.errors import UserError
+
 __all__ = ["ChainDraws", "sampling_schedule", "nuts_chain", "chain_start", "chain_steps", "step_keys"]
 
 
@@ -99,7 +101,7 @@ def sampling_schedule(steps: int, draws: int, active: int | None = None, warm: b
         warm = np.column_stack([rows, np.ones(steps, dtype=int), np.zeros(steps, dtype=int)])
         return np.vstack([warm, sampling])
     if not 120 <= active <= steps:
-        raise ValueError(f"a short warm-up needs 120 to {steps} steps (got {active})")
+        raise UserError(f"a short warm-up needs 120 to {steps} steps (got {active})", "tune")
     if warm:
         short = np.asarray(build_schedule(active, initial_buffer_size=50, final_buffer_size=50,
                                           first_window_size=active - 100), dtype=int).reshape(-1, 2)

@@ -48,6 +48,7 @@ import numpy as np
 from blackjax.optimizers.lbfgs import bfgs_sample, lbfgs_inverse_hessian_factors, minimize_lbfgs
 
 from bayesfric.density import median_starts, pending_median_starts, start_seeds
+from bayesfric.errors import UserError
 from bayesfric.exported import program_jit
 from bayesfric.limits import INIT_NUMBERS
 from bayesfric.model import Program
@@ -101,7 +102,7 @@ def plan(rows: int, paths: int = PATHS, budget: int = INIT_NUMBERS) -> Plan | No
 def chain_starts(program: Program, chains: int, seed: int, init: Init = "median") -> jax.Array:
     """Flat unconstrained starting points ``(chains, dim)`` of the NUTS chains (see the module notes)."""
     if init not in INITS:
-        raise ValueError(f"unknown init {init!r}; choose one of {', '.join(INITS)}")
+        raise UserError(f"unknown init {init!r}; choose one of {', '.join(INITS)}", "init")
     if init == "median":
         return median_starts(program, start_seeds(seed, chains))
     return pathfinder_starts(program, chains, seed)

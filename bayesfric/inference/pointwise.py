@@ -55,6 +55,7 @@ import xarray as xr
 from numpyro.handlers import mask, seed, substitute, trace
 from numpyro.infer import log_likelihood as numpyro_log_likelihood
 
+from bayesfric.errors import UserError
 from bayesfric.exported import program_jit
 from bayesfric.limits import CHUNK_NUMBERS, FULL_NUMBERS, STORED_NUMBERS
 from bayesfric.model import OBS_SITE, Program, program_from_fit
@@ -342,7 +343,7 @@ def log_likelihood(fit: xr.DataTree, ds: xr.Dataset | None = None, *, program: P
     """
     if program is None:
         if ds is None:
-            raise ValueError("log_likelihood needs the fit's data (ds) or its program")
+            raise UserError("log_likelihood needs the fit's data (ds) or its program", "ds")
         program = program_from_fit(fit, ds)
     rows = np.arange(program.n_obs)[slice(None) if obs is None else obs]
     post = fit["posterior"]

@@ -7,6 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 import xarray as xr
 
+from bayesfric.errors import UserError
 from bayesfric.inference.adaptation import DENSE_ABOVE, PSEUDO_COUNT, SHRINK_TO
 from bayesfric.model import Program
 
@@ -30,7 +31,7 @@ def warm_start_from(program: Program, fit: xr.DataTree, chains: int, seed: int, 
     post = fit["posterior"]
     missing = [n for n in density.sites if n not in post.data_vars]
     if missing:
-        raise ValueError(f"warm start: the fit lacks the sampled site(s) {missing}; is it a fit of "
+        raise UserError(f"warm start: the fit lacks the sampled site(s) {missing}; is it a fit of "
                          f"{program.law.name!r} with the same noise model?")
     n_chain, n_draw = post.sizes["chain"], post.sizes["draw"]
     flat = {n: np.asarray(post[n].values).reshape((n_chain * n_draw,) + post[n].shape[2:]) for n in density.sites}

@@ -30,7 +30,7 @@ import numpy as np
 import pandas as pd
 import xarray as xr
 
-from bayesfric.errors import UserError
+from bayesfric.errors import InternalError, UserError
 from bayesfric.report.blocks import FigureRef, Table
 from bayesfric.report.findings import Finding, Summary
 from bayesfric.report.sizing import Section
@@ -183,7 +183,7 @@ def _from_json(d: dict):
 def _plain(value):
     """JSON has no NaN or NumPy scalars: a content model holds strings, flags and lists only."""
     if isinstance(value, float) and not math.isfinite(value):
-        raise ValueError(f"report content holds a non-finite number {value!r}: it must be text")
+        raise InternalError(f"report content holds a non-finite number {value!r}: it must be text")
     return value
 
 

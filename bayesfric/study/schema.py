@@ -22,7 +22,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from bayesfric.errors import UserError
+from bayesfric.errors import InternalError, UserError
 from bayesfric.fsutil import name_problem
 
 __all__ = ["REQUIRED", "KINDS", "Field", "Schema", "SchemaError", "parse", "location"]
@@ -105,7 +105,7 @@ class Field:
 
     def __post_init__(self):
         if self.kind not in KINDS or (self.items is not None and self.items not in KINDS):
-            raise ValueError(f"field {self.key!r}: unknown kind")
+            raise InternalError(f"field {self.key!r}: unknown kind")
 
     def describe(self) -> str:
         """What a valid value is, e.g. ``an integer ≥ 1`` or ``one of 'nuts', 'emcee'``."""
