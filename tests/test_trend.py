@@ -277,3 +277,24 @@ def test_a_model_average_is_the_weighted_mixture(trend_fit):
         averaged = 0.25 * one["fan_new"].sel(quantile=q).values + 0.75 * two["fan_new"].sel(quantile=q).values
         off = np.abs(averaged - exact[q]) / exact[q]  # averaging the quantiles instead
         assert np.median(gap) < 0.03 and np.median(gap) < 0.5 * np.median(off)
+
+
+def test_a_measured_forecast_miss_widens_the_time_to_exceed_and_keeps_the_trends_own(trend_fit):
+    from bayesfric.sizing.calibration import Miss
+    from bayesfric.sizing.forecast import allowance
+
+    plain = time_to_exceed(trend_fit, {"velocity": 1.0}, 5.0, 20000.0)
+    assert plain.attrs["allowance"].startswith("none:")
+    zero = time_to_exceed(trend_fit, {"velocity": 1.0}, 5.0, 20000.0, miss=Miss("lfo", 0.0, 1e-10, 1e-9, 20, 0.2))
+    np.testing.assert_array_equal(zero["crossing"], plain["crossing"])  # a zero rate changes nothing
+    assert zero.attrs["allowance"].startswith("measured, zero")
+    miss = Miss("lfo", 3e-9, 3e-9, 0.0, 20, 0.2)
+    wide = time_to_exceed(trend_fit, {"velocity": 1.0}, 5.0, 20000.0, miss=miss)
+    np.testing.assert_array_equal(wide["crossing_within"], plain["crossing"])
+    np.testing.assert_allclose(wide["allowance"], allowance(miss, wide["service"].values, first=0.0, last=3000.0))
+
+    def width(out, name="crossing_q"):
+        return float(out[name].sel(quantile=0.95) - out[name].sel(quantile=0.05))
+
+    assert width(wide) > 1.2 * width(plain) and width(wide, "crossing_within_q") == width(plain)
+    assert "relative sd" in wide.attrs["allowance"]

@@ -36,6 +36,7 @@ from bayesfric import fsutil, identifiability, sizing
 from bayesfric.fingerprint import package_fingerprint
 from bayesfric.report.summary import write_reports
 from bayesfric.sizing import exceed
+from bayesfric.sizing.forecast import study_misses
 from bayesfric.study.claims import evaluate_claims
 from bayesfric.study.config import Study, StudyError
 from bayesfric.study.executor import open_client, timing_table, unit_seconds, write_timings
@@ -212,8 +213,10 @@ def _write_study(prepared, out_root: Path, quick: bool, fresh: bool, client, tim
         if service := [q for q in questions if q.horizon is not None]:
             print(f"[{study.name}] time to exceed, {len(service)} question(s) ...", flush=True)
             column = next(c for spec in study.laws for c in spec.trend)
+            forecast = [label for label, _, kind in schemes if kind == "forecast"]
+            misses = study_misses({n: s.cv for n, (s, _) in scored.items()}, forecast, ds, column)
             tree["service"] = exceed.answer_study(service, held, tree, unit=ds[column].attrs.get("units", ""),
-                                                  seed=seed)
+                                                  seed=seed, misses=misses)
         claims = evaluate_claims(study.claims, tree)
         tree.attrs.update(run_attrs(time.perf_counter() - start, unit_seconds(rows)))
         tree = write_reports(tree, work, ds, fits, claims, sized)

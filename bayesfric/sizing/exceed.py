@@ -13,9 +13,15 @@ path of the walk per draw, continued from the last fitted campaign. The fan also
 searched on a grid of :data:`GRID` service times from the last fitted campaign to the horizon
 (linear interpolation between grid points); a draw that has not crossed by the horizon counts as
 "not within the horizon" (``inf``), one already above the capacity at the last campaign crosses
-there. No model-form allowance is added here: the forecast bands' measured coverage
-(leave-future-out over campaigns, ``benchmarks/bench_trend_forecast.py``) says how far to trust
-them.
+there.
+
+The model-form allowance. Where leave-future-out folds measured how far the law's forecasts of
+campaigns it had not seen missed (:func:`bayesfric.sizing.forecast.forecast_miss`), every
+draw's curve gets that miss, grown with the reach past the last campaign
+(:func:`bayesfric.sizing.forecast.allowance`), before its crossing is found: ``crossing`` is
+then the calibrated answer and ``crossing_within`` the trend's own (within-model) one. Without
+folds (a single fit) or with folds that failed the gate, both are the within-model answer and
+the ``allowance`` attribute says so.
 
 Example
 -------
@@ -35,6 +41,8 @@ import jax.numpy as jnp
 import numpy as np
 import xarray as xr
 
+from bayesfric.sizing.calibration import Miss
+from bayesfric.sizing.forecast import allowance, widen_curves
 from bayesfric.sizing.points import SizingError, parse_capacity, parse_horizon, parse_value
 from bayesfric.sizing.steady import steady_note
 
@@ -147,7 +155,7 @@ def _campaigns(fit: xr.DataTree, at: Mapping[str, Any], column: str) -> tuple[np
 
 
 def time_to_exceed(fit: xr.DataTree, at: Mapping[str, Any], capacity: Any, horizon: Any, *, seed: int = 0,
-                   unit: str = "", grid: int = GRID) -> xr.Dataset:
+                   unit: str = "", grid: int = GRID, miss: Miss | None = None, why_none: str = "") -> xr.Dataset:
     """When friction at the operating point ``at`` first exceeds ``capacity``, per posterior draw.
 
     Parameters
@@ -167,12 +175,19 @@ def time_to_exceed(fit: xr.DataTree, at: Mapping[str, Any], capacity: Any, horiz
         The service coordinate's unit (the data column's), to convert ``horizon`` into.
     grid : int
         Service times searched between the last campaign and the horizon.
+    miss : Miss, optional
+        The law's forecast miss on leave-future-out folds
+        (:func:`bayesfric.sizing.forecast.forecast_miss`): the model-form allowance.
+    why_none : str
+        Without ``miss``: why none was measured (stated in the answer).
 
     Returns
     -------
     xarray.Dataset
-        ``crossing`` (draw): each draw's time to exceed (``inf``: not by the horizon);
-        ``crossing_q`` (quantile); ``p_exceed`` (service): P(crossed by t); ``fan`` and ``fan_new``
+        ``crossing`` (draw): each draw's time to exceed (``inf``: not by the horizon), with the
+        model-form allowance where ``miss`` is given; ``crossing_q`` (quantile); ``crossing_within``
+        and ``crossing_within_q``: the same without the allowance; ``allowance`` (service): its
+        relative sd; ``p_exceed`` (service): P(crossed by t); ``fan`` and ``fan_new``
         (quantile, service): the typical campaign's and a new campaign's friction; ``campaign_q``
         (campaign, quantile): each fitted campaign's; ``curve`` and ``curve_new`` (draw, service):
         the typical and the new campaigns' curves (drop them before storing). Attrs say what the answer is for.
@@ -201,14 +216,21 @@ def time_to_exceed(fit: xr.DataTree, at: Mapping[str, Any], capacity: Any, horiz
     last = float(coordinates([str(v) for v in fit["posterior"][column].values]).max())
     if end <= last:
         raise SizingError("horizon", f"{horizon!r} is not after the last fitted campaign ({last:g} {unit})".rstrip())
+    coords = coordinates([str(v) for v in fit["posterior"][column].values])
     times = np.linspace(last, end, grid)
-    curve = friction_curves(fit, at, times, seed=seed)
-    new = friction_curves(fit, at, times, seed=seed + 1, scatter=True)
-    crossing = crossing_times(curve, times, cap)
+    rel = allowance(miss, times, first=float(coords.min()), last=last)
+    rng = np.random.default_rng(seed + 2)
+    within = friction_curves(fit, at, times, seed=seed)
+    curve = widen_curves(within, rel, rng)
+    new = widen_curves(friction_curves(fit, at, times, seed=seed + 1, scatter=True), rel, rng)
+    crossing, crossing_within = crossing_times(curve, times, cap), crossing_times(within, times, cap)
     where, campaign_q = _campaigns(fit, at, column)
     return xr.Dataset(
         {"crossing": ("draw", crossing),
          "crossing_q": ("quantile", np.quantile(crossing, QUANTILES, method="inverted_cdf")),
+         "crossing_within": ("draw", crossing_within),
+         "crossing_within_q": ("quantile", np.quantile(crossing_within, QUANTILES, method="inverted_cdf")),
+         "allowance": ("service", rel),
          "p_exceed": ("service", (crossing[:, None] <= times[None, :]).mean(axis=0)),
          "fan": (("quantile", "service"), np.quantile(np.abs(curve), QUANTILES, axis=0)),
          "fan_new": (("quantile", "service"), np.quantile(np.abs(new), QUANTILES, axis=0)),
@@ -217,10 +239,22 @@ def time_to_exceed(fit: xr.DataTree, at: Mapping[str, Any], capacity: Any, horiz
         coords={"service": times, "quantile": list(QUANTILES), "campaign": where},
         attrs={"law": fitted.name, "capacity": cap, "horizon": end, "column": column, "unit": unit,
                "form": fitted.trend_form, "at": repr(dict(at)), "response": law.response,
-               "steady": steady_note(fitted, law),
+               "steady": steady_note(fitted, law), "allowance": _allowance_note(miss, rel, why_none, unit),
                "curve": ("one simulated path of the random walk per draw" if fitted.trend_form == "walk" else
                          "the typical campaign: the trend itself, without campaign-to-campaign scatter"),
                "p_within_horizon": float(np.isfinite(crossing).mean())})
+
+
+def _allowance_note(miss: Miss | None, rel: np.ndarray, why_none: str, unit: str) -> str:
+    """What the model-form allowance is, in one sentence."""
+    if miss is None:
+        return "none: " + (why_none or "no leave-future-out folds measured this law's forecasts") + \
+            "; the answer is the trend's own (within-model)"
+    if miss.rate <= 0:
+        return (f"measured, zero: the leave-future-out forecasts ({miss.n} rows) missed within their own bands "
+                f"(miss {miss.beta:.3g} ± {miss.se:.3g} per {unit or 'unit'}²)")
+    return (f"from the leave-future-out misses ({miss.n} rows, rate {miss.rate:.3g} per {unit or 'unit'}²): "
+            f"relative sd {rel[0]:.1%} at the last campaign, {rel[-1]:.1%} at the horizon")
 
 
 def combine(results: Mapping[str, xr.Dataset], weights: Mapping[str, float], seed: int = 0) -> xr.Dataset:
@@ -245,15 +279,20 @@ def combine(results: Mapping[str, xr.Dataset], weights: Mapping[str, float], see
     curve = np.concatenate([results[n]["curve"].values[r] for n, r in zip(names, rows, strict=True)])
     new = np.concatenate([results[n]["curve_new"].values[r] for n, r in zip(names, rows, strict=True)])
     crossing = np.concatenate(draws)
+    within = np.concatenate([results[n]["crossing_within"].values[r] for n, r in zip(names, rows, strict=True)])
     first = results[names[0]]
     return first.copy(data={
         "crossing": crossing, "crossing_q": np.quantile(crossing, QUANTILES, method="inverted_cdf"),
+        "crossing_within": within, "crossing_within_q": np.quantile(within, QUANTILES, method="inverted_cdf"),
+        "allowance": sum(wi * results[n]["allowance"].values for wi, n in zip(w, names, strict=True)),
         "p_exceed": sum(wi * results[n]["p_exceed"].values for wi, n in zip(w, names, strict=True)),
         "fan": np.quantile(np.abs(curve), QUANTILES, axis=0),
         "fan_new": np.quantile(np.abs(new), QUANTILES, axis=0),
         "campaign_q": sum(wi * results[n]["campaign_q"].values for wi, n in zip(w, names, strict=True)),
         "curve": curve, "curve_new": new}).assign_attrs(
             law="model average", weights=repr(dict(zip(names, w.round(4), strict=True))),
+            allowance="each law's own (a mixture of the laws' widened curves; the allowance variable is their "
+                      "weighted mean)",
             p_within_horizon=float(np.isfinite(crossing).mean()))
 
 
@@ -271,11 +310,13 @@ def forecast_weights(tree: xr.DataTree) -> tuple[dict[str, float], str]:
 
 
 def answer_study(questions: Sequence[Any], fits: Mapping[str, xr.DataTree], tree: xr.DataTree, *, unit: str = "",
-                 seed: int = 0) -> xr.DataTree:
+                 seed: int = 0, misses: Mapping[str, tuple[Miss | None, str]] | None = None) -> xr.DataTree:
     """Every time-to-exceed question of a study (``[[sizing]]`` with ``horizon``), per law with a
     trend and as their weighted average (:func:`forecast_weights`), as one DataTree: ``q<i>/<law>``
     and ``q<i>/average`` (each :func:`time_to_exceed`'s Dataset without its curves). Laws without a
-    trend are listed in ``q<i>``'s attrs (``no_trend``): they cannot forecast service time."""
+    trend are listed in ``q<i>``'s attrs (``no_trend``): they cannot forecast service time.
+    ``misses``: law -> (its forecast miss or None, why none), the model-form allowance
+    (:func:`bayesfric.sizing.forecast.study_misses`)."""
     from bayesfric.laws.variants import law_of_fit
 
     weights, basis = forecast_weights(tree)
@@ -283,7 +324,9 @@ def answer_study(questions: Sequence[Any], fits: Mapping[str, xr.DataTree], tree
     for i, q in enumerate(questions):
         at = {k: v.lo for k, v in q.at.items()}
         trending = {n: f for n, f in fits.items() if law_of_fit(f.attrs).trending}
-        results = {n: time_to_exceed(f, at, q.capacity.lo, q.horizon, seed=seed, unit=unit)
+        results = {n: time_to_exceed(f, at, q.capacity.lo, q.horizon, seed=seed, unit=unit,
+                                     miss=(misses or {}).get(n, (None, ""))[0],
+                                     why_none=(misses or {}).get(n, (None, ""))[1])
                    for n, f in trending.items()}
         used = {n: weights.get(n, 0.0) for n in results}
         nodes[f"q{i}"] = xr.Dataset(attrs={

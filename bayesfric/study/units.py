@@ -252,7 +252,7 @@ def _compute_rest(job: LawJob, unit: Unit, fit: xr.DataTree) -> xr.Dataset:
         p = unit.params
         folds = compare.Folds(np.asarray(p["train"]), np.asarray(p["heldout"]), p["scheme"], p["labels"])
         return cv_dataset(compare.cross_validate(_engine(job, fit, warm=passed and p["kind"] == "kfold"), folds,
-                                                 seed=job.seed, predictive=p["kind"] == "blocked",
+                                                 seed=job.seed, predictive=p["kind"] in ("blocked", "forecast"),
                                                  joint=p["kind"] in ("grouped", "forecast")))
     program = _program(job)
     if unit.stage == "bridge":
