@@ -127,6 +127,9 @@ def test_the_dataset_says_what_the_answer_is_for_and_saves_as_netcdf(two_laws, t
     attrs = result.dataset.attrs
     assert attrs["unit"] == "N*m" and "magnitudes |T|" in attrs["magnitudes"] and "Monte Carlo" in attrs["approximate"]
     assert "no group terms" in attrs["answers_for"]
+    text = result["p_exceed_text"].sel(law="coulomb_viscous", point=0).item()
+    p, se = (float(result[k].sel(law="coulomb_viscous", point=0)) for k in ("p_exceed", "p_exceed_se"))
+    assert text == f"{p:.3g} ± {se:.2g}" if 0 < p < 1 else text.endswith("exceeds)")
     result.dataset.to_netcdf(tmp_path / "s.nc", engine="h5netcdf")
     back = xr.open_dataset(tmp_path / "s.nc", engine="h5netcdf").load()
     np.testing.assert_array_equal(back["required"].values, result.dataset["required"].values)

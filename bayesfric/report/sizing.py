@@ -18,7 +18,7 @@ from bayesfric.report.typeset import fmt, unit
 from bayesfric.sizing import EXTRAPOLATION_WARN, LEVELS, RANGE_POINTS, Answer
 from bayesfric.sizing.result import SizingAnswer
 from bayesfric.sizing.steady import steady_line
-from bayesfric.sizing.tidy import ONE_FIT, first_warnings
+from bayesfric.sizing.tidy import ONE_FIT, first_warnings, p_text
 
 __all__ = ["Section", "sections", "records", "text_report", "headlines", "RANGE_ROWS"]
 
@@ -88,14 +88,6 @@ def _distance_text(answer: Answer, j: int) -> str:
     return "; ".join(parts)
 
 
-def _p_text(p: float, se: float, bound: float) -> str:
-    if not math.isfinite(p):
-        return "–"
-    if math.isfinite(bound):
-        return f"< {bound:.2g} (no draw exceeds)" if p == 0 else f"> {1 - bound:.4g} (every draw exceeds)"
-    return f"{p:.3g} ± {se:.2g}"
-
-
 def _cal_cells(a, j: int, scale: float, capacity) -> list[str]:
     """Calibrated friction-curve 5/50/95 %, required capacity and P(exceed) of a law or average."""
     cal = a.calibrated
@@ -103,7 +95,7 @@ def _cal_cells(a, j: int, scale: float, capacity) -> list[str]:
         return ["–"] * (4 + (capacity is not None))
     cells = [_g(float(cal.mean_fn.q(q)[j]) / scale) for q in LEVELS] + [_g(float(cal.required[j]) / scale)]
     if capacity is not None:
-        cells.append(_p_text(float(cal.p_exceed[j]), float(cal.p_se[j]), float(cal.p_bound[j])))
+        cells.append(p_text(float(cal.p_exceed[j]), float(cal.p_se[j]), float(cal.p_bound[j])))
     return cells
 
 
@@ -128,7 +120,7 @@ def _law_table(result: SizingAnswer, answer: Answer, j: int) -> tuple[str, list[
             cells += [_g(float(a.noisy.q(q)[j]) / scale) for q in LEVELS]
             cells.append(_g(float(a.required[j]) / scale))
             if capacity is not None:
-                cells.append(_p_text(float(a.p_exceed[j]), float(a.p_se[j]), float(a.p_bound[j])))
+                cells.append(p_text(float(a.p_exceed[j]), float(a.p_se[j]), float(a.p_bound[j])))
         return cells + (_cal_cells(a, j, scale, capacity) if calibrated else [])
 
     mark = {a.name: " (steady state)" for a in answer.laws if a.steady}  # a stateful law's steady state
@@ -208,12 +200,12 @@ def _range_table(result: SizingAnswer, answer: Answer) -> tuple[str, list[str], 
         cells = [_g(float(value.display(answer.grid[axis][j]))), _g(float(answer.distance[axis][j]), 3),
                  _g(med / scale), _g(req / scale)]
         if capacity is not None:
-            cells.append(_p_text(float(mix.p_exceed[j]), float(mix.p_se[j]), float(mix.p_bound[j])))
+            cells.append(p_text(float(mix.p_exceed[j]), float(mix.p_se[j]), float(mix.p_bound[j])))
         if cal is not None:
             cells += [f"{_g(float(cal.mean_fn.q(0.05)[j]) / scale)}–{_g(float(cal.mean_fn.q(0.95)[j]) / scale)}",
                       _g(float(cal.required[j]) / scale)]
             if capacity is not None:
-                cells.append(_p_text(float(cal.p_exceed[j]), float(cal.p_se[j]), float(cal.p_bound[j])))
+                cells.append(p_text(float(cal.p_exceed[j]), float(cal.p_se[j]), float(cal.p_bound[j])))
         rows.append(cells)
     caption = (f"model average along {axis} {_qty(value.text)} [{unit(result.response_unit)}] ({RANGE_POINTS} "
                "points sized; every point in sizing.csv)")
@@ -281,7 +273,7 @@ def headlines(result: SizingAnswer) -> list[Finding]:
         if answer.average.calibrated is not None and not (answer.basis and answer.basis.no_extrapolation):
             tail += f"; within-model {_g(float(answer.average.required[j]) / scale)} {shown}"
         if q.capacity is not None:
-            p = _p_text(float(mix.p_exceed[j]), float(mix.p_se[j]), float(mix.p_bound[j]))
+            p = p_text(float(mix.p_exceed[j]), float(mix.p_se[j]), float(mix.p_bound[j]))
             tail += f"; P(> {_qty(q.capacity.text)}) {p}"
         tail += ")"
         if q.energy_rotation is not None:

@@ -10,6 +10,7 @@ render it. Layout (SI units throughout):
     every law, then ``average`` (the model average by the question's basis weights) and
     ``average_loo`` (by LOO stacking weights); ``role`` says which. A row a question has no
     answer for (no average, a single fit) has ``name == ""`` and NaN numbers at its points.
+    ``p_exceed_text`` (and ``calibrated_``) says P(exceed) as the report does (:func:`p_text`).
 ``point``
     every point of every question, numbered across questions; ``question`` (1-based),
     ``question_point`` (1-based within it), ``label``, ``confidence``, ``capacity``,
@@ -39,7 +40,7 @@ from bayesfric.quantities import QUANTITIES
 from bayesfric.sizing.compute import Answer, SizingResult
 from bayesfric.sizing.steady import steady_line
 
-__all__ = ["AVERAGE", "AVERAGE_LOO", "ONE_FIT", "ROLES", "QUANTILE_VARS", "DRAW_VARS", "first_warnings",
+__all__ = ["AVERAGE", "AVERAGE_LOO", "ONE_FIT", "ROLES", "QUANTILE_VARS", "DRAW_VARS", "p_text", "first_warnings",
            "build_dataset"]
 
 AVERAGE, AVERAGE_LOO = "average", "average_loo"
@@ -55,7 +56,24 @@ DRAW_VARS = ("draws_mean_fn", "draws_noisy", "calibrated_draws_mean_fn", "calibr
              "calibrated_mix_weight", "n_draws")
 _ROW_FLOATS = ("weight_basis", "weight_used", "weight_loo", "required", "p_exceed", "p_exceed_se", "p_exceed_bound",
                "ess", "var_param", "var_noise", "var_between", "calibrated_required", "calibrated_p_exceed",
-               "calibrated_p_exceed_se", "model_form_rel_sd")
+               "calibrated_p_exceed_se", "calibrated_p_exceed_bound", "model_form_rel_sd")
+
+
+def p_text(p: float, se: float, bound: float) -> str:
+    """``P(|T| > capacity)`` as a reader is told it: ``"0.0123 ± 0.0031"``; where no draw (or every
+    draw) exceeds, the one-sided 95 % bound ``"< 0.00075 (no draw exceeds)"``; ``"–"`` without a
+    capacity.
+
+    Examples
+    --------
+    >>> p_text(0.0, 0.0, 3 / 4000), p_text(0.25, 0.01, float("nan"))
+    ('< 0.00075 (no draw exceeds)', '0.25 ± 0.01')
+    """
+    if not math.isfinite(p):
+        return "–"
+    if math.isfinite(bound):
+        return f"< {bound:.2g} (no draw exceeds)" if p == 0 else f"> {1 - bound:.4g} (every draw exceeds)"
+    return f"{p:.3g} ± {se:.2g}"
 
 
 def first_warnings(answer: Answer) -> list[str]:
@@ -96,10 +114,18 @@ class _Arrays:
                 self.q[prefix + kind][r, cols, self.levels.index(level)] = values
         self.f[prefix + "required"][r, cols] = a.required
         self.f[prefix + "p_exceed"][r, cols] = a.p_exceed
-        self.f[prefix + "p_exceed_se"][r, cols] = a.p_se
+        self.f[prefix + "p_exceed_se"][r, cols], self.f[prefix + "p_exceed_bound"][r, cols] = a.p_se, a.p_bound
         if not prefix:
-            self.f["p_exceed_bound"][r, cols] = a.p_bound
             self.f["var_param"][r, cols], self.f["var_noise"][r, cols] = a.var_param, a.var_noise
+
+    def texts(self) -> dict[str, np.ndarray]:
+        """``p_exceed_text`` and ``calibrated_p_exceed_text``: P(exceed) as a reader is told it."""
+        out = {}
+        for prefix in ("", "calibrated_"):
+            p, se, bound = (self.f[prefix + k] for k in ("p_exceed", "p_exceed_se", "p_exceed_bound"))
+            out[prefix + "p_exceed_text"] = np.vectorize(p_text, otypes=[object])(p, se, bound) if p.size else \
+                np.full(p.shape, "", dtype=object)
+        return out
 
     def draws_of(self, prefix: str, k: int, cols: slice, d) -> None:
         mu, y = np.abs(d.mu).reshape(-1, d.mu.shape[-1]), np.abs(d.y).reshape(-1, d.y.shape[-1])
@@ -215,6 +241,7 @@ def build_dataset(result: SizingResult) -> xr.Dataset:
     data = {k: (rl, v) for k, v in arr.f.items()}
     data |= {k: (("law", "point", "quantile"), v) for k, v in arr.q.items()}
     data |= {"name": (rl, arr.name), "steady_state": (rl, arr.steady), "included": (rl, arr.included)}
+    data |= {k: (rl, v) for k, v in arr.texts().items()}
     data |= {k: (lp, v) for k, v in arr.mix.items()} | {k: (cs, v) for k, v in arr.draws.items()}
     data["n_draws"] = ("component", arr.n_draws)
     excluded = {a.name: a.excluded or "" for ans in answers for a in ans.laws}
