@@ -291,10 +291,14 @@ def loo_pit_check(dt: xr.DataTree, *, ci_prob: float = 0.99, n_simulations: int 
 # -- prior sensitivity ----------------------------------------------------------------------------
 def _parameters(dt: xr.DataTree) -> list[str]:
     """Posterior variables but the per-group ones (offsets, a varying parameter's levels), whose
-    extra dimension is a group column, not the parameter's own ``<name>_dim_<k>``."""
+    extra dimension is a group column, not the parameter's own ``<name>_dim_<k>``, and but those
+    constant in every draw (a derived quantity that fixed values hold, σ1 = 0 where ρ1 = 0: no
+    sensitivity to measure), unless every one is."""
     post = dt["posterior"]
-    return [v for v in post.data_vars
-            if set(post[v].dims) <= {"chain", "draw"} | {f"{v}_dim_{i}" for i in range(post[v].ndim)}]
+    own = [v for v in post.data_vars
+           if set(post[v].dims) <= {"chain", "draw"} | {f"{v}_dim_{i}" for i in range(post[v].ndim)}]
+    moving = [v for v in own if not (post[v].size and bool((post[v] == post[v].values.flat[0]).all()))]
+    return moving or own
 
 
 @releases_views

@@ -149,13 +149,17 @@ def _per_fold(ds: xr.Dataset, reduce, fold: str | None) -> np.ndarray:
     """``reduce`` (nanmin or nanmax) over each variable's entries, then over variables, per ``fold``.
 
     Without a fold dimension the result has one element. A variable whose entries are all NaN
-    gives NaN (and so fails the gate)."""
+    gives NaN (and so fails the gate), without numpy's "All-NaN slice" warning: the verdict says it."""
     per_var = []
     for v in ds.data_vars.values():
         if not v.size:
             continue
         values = np.asarray(v.transpose(fold, ...).values if fold else v.values, dtype=float)
-        per_var.append(reduce(values.reshape(values.shape[0] if fold else 1, -1), axis=1))
+        rows = values.reshape(values.shape[0] if fold else 1, -1)
+        some = ~np.isnan(rows).all(axis=1)
+        reduced = np.full(rows.shape[0], np.nan)
+        reduced[some] = reduce(rows[some], axis=1)
+        per_var.append(reduced)
     if not per_var:
         return np.full(ds.sizes.get(fold, 1) if fold else 1, np.nan)
     return np.max(per_var, axis=0) if reduce is np.nanmax else np.min(per_var, axis=0)

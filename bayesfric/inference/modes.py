@@ -132,6 +132,9 @@ def chain_health(posterior: xr.Dataset, sample_stats: xr.Dataset, gate: Gate = G
     """
     stats = import_statistics()
     x = _features(posterior)[1]
+    # a feature constant in every draw (a derived quantity fixed values hold, as the gate leaves out) has no R-hat
+    moving = ~np.all(x == x[:1, :1], axis=(0, 1))
+    x = x[..., moving] if moving.any() else x
     n_chains, n_draws = x.shape[:2]
     half = n_draws // 2
     dims = ("fold", "chain", "draw", "feature")

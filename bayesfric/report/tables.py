@@ -78,13 +78,15 @@ def parameter_rows(dt: xr.DataTree, law: Law) -> list[ParameterRow]:
     noise = list(json.loads(dt.attrs["priors"]).keys()) if "priors" in dt.attrs else []
     order = list(law.params) + list(law.derived) + [n for n in noise if n not in law.params]
     order = [n for n in order if n in post]
-    rhat = arviz_stats.rhat(post[order])
+    # a quantity constant in every draw (σ1 = 0 where fixed values hold it) has no R-hat: NaN, not computed
+    moving = [n for n in order if not bool((post[n] == post[n].values.flat[0]).all())]
+    rhat = arviz_stats.rhat(post[moving]) if moving else {}
     ess = arviz_stats.ess(post[order], method="bulk")
     rows = []
     for name in order:
         values = np.asarray(post[name].values)
         flat = values.reshape(values.shape[0] * values.shape[1], -1)
-        r = np.atleast_1d(np.asarray(rhat[name].values)).ravel()
+        r = np.atleast_1d(np.asarray(rhat[name].values)).ravel() if name in moving else np.full(flat.shape[1], np.nan)
         e = np.atleast_1d(np.asarray(ess[name].values)).ravel()
         for k in range(flat.shape[1]):
             col = flat[:, k]
