@@ -106,13 +106,15 @@ def _option(key: str) -> str:
     return "--sampler" if key == "name" else f"--{key.replace('_', '-')}"
 
 
-def _fit_settings(args: argparse.Namespace) -> dict[str, object]:
-    """Sampler options of ``fit``, validated against the study schema's ``[sampler]`` table."""
+def _fit_settings(args: argparse.Namespace):
+    """The sampler configuration of ``fit``'s options (:class:`~bayesfric.inference.config.SamplerConfig`,
+    checked as a study's ``[sampler]`` table is, errors naming the options)."""
     from bayesfric.api.fitting import sampler_options
 
     return sampler_options(args.sampler, args.seed, {"draws": args.draws, "tune": args.tune, "chains": args.chains,
                                                      "walkers": args.walkers, "init": args.init, "metric": args.metric,
-                                                     "retry_target_accept": args.retry_target_accept}, key=_option)
+                                                     "retry_target_accept": args.retry_target_accept,
+                                                     "progress": not args.quiet}, key=_option)
 
 
 def _load_selected(data: str, items: list[str] | None):
@@ -125,12 +127,12 @@ def _load_selected(data: str, items: list[str] | None):
         raise UserError(f"--select {' '.join(items or [])}: {exc}") from None
 
 
-def _checked_program(law, ds, priors: dict[str, Prior], noise, sampler: str, settings: dict[str, object]):
+def _checked_program(law, ds, priors: dict[str, Prior], noise, config):
     """The fit's program, its priors, walkers and memory checked before sampling
     (:func:`bayesfric.api.fitting.checked_program`, errors naming the options)."""
     from bayesfric.api.fitting import checked_program
 
-    return checked_program(law, ds, priors, noise, sampler, settings, key=_option, prior_key="--prior {}".format)
+    return checked_program(law, ds, priors, noise, config, key=_option, prior_key="--prior {}".format)
 
 
 def cmd_fit(args: argparse.Namespace) -> None:
@@ -140,7 +142,7 @@ def cmd_fit(args: argparse.Namespace) -> None:
     from bayesfric.laws.variants import for_data
     from bayesfric.model import Noise
 
-    settings = _fit_settings(args)
+    config = _fit_settings(args)
     if args.out is not None:
         try:
             check_output_file(args.out)
@@ -157,9 +159,8 @@ def cmd_fit(args: argparse.Namespace) -> None:
     if args.group is not None and args.group not in ds.coords:
         raise UserError(f"--group {args.group}: not a coordinate of the data ({', '.join(ds.coords)})")
     priors = parse_priors(args.prior, list(law.params) + list(noise.sites()), law.name)
-    _checked_program(law, ds, priors, noise, args.sampler, settings)  # checked before sampling
-    dt = fit(law, ds, sampler=args.sampler, priors=priors, noise=noise, seed=args.seed, progress=not args.quiet,
-             **settings)
+    _checked_program(law, ds, priors, noise, config)  # checked before sampling
+    dt = fit(law, ds, priors=priors, noise=noise, config=config)
     from bayesfric.report.tables import fit_report  # after the fit: it imports arviz-stats (see diagnostics)
 
     print(fit_report(dt, law))

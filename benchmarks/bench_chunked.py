@@ -47,8 +47,8 @@ def main() -> None:
         law, ds = _data(name, args.rows)
         program = build_program(law, ds)
         mask = np.ones((1, program.n_obs), dtype=bool)
-        engines = {"chunked": NutsEngine(program, tune=1000, seed=1, chunk_steps=CHUNK_STEPS),
-                   "one call": NutsEngine(program, tune=1000, seed=1, chunk_steps=10**9)}
+        engines = {"chunked": NutsEngine.build(program, tune=1000, seed=1, chunk_steps=CHUNK_STEPS),
+                   "one call": NutsEngine.build(program, tune=1000, seed=1, chunk_steps=10**9)}
         first = {k: e.run(mask) for k, e in engines.items()}  # compiles (or loads) and warms
         same = bool(np.array_equal(first["chunked"].samples[next(iter(first["chunked"].samples))],
                                    first["one call"].samples[next(iter(first["one call"].samples))]))
@@ -65,7 +65,7 @@ def main() -> None:
         row = dict(law=name, rows=args.rows, chunk=CHUNK_STEPS, chains=4, draws=1000, tune=1000,
                    seconds=seconds, fastest=med, median_cpu=med_cpu,
                    cpu_overhead=med_cpu["chunked"] / med_cpu["one call"] - 1,
-                   fallbacks=engines["chunked"]._sampler.fallbacks, overhead=med["chunked"] / med["one call"] - 1,
+                   fallbacks=engines["chunked"].kernel.sampler.fallbacks, overhead=med["chunked"] / med["one call"] - 1,
                    identical=same)
         print(json.dumps(row), flush=True)
         results.append(row)

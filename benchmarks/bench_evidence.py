@@ -24,7 +24,6 @@ from bayesfric.datasets import load_dataset, resolve, select
 from bayesfric.inference import SAMPLERS, release_compiled_code
 from bayesfric.model import build_program
 from bayesfric.study import STUDIES_DIR, load_study
-from bayesfric.study.config import sampler_settings
 
 
 def _timed(fn, *args, **kwargs):
@@ -36,14 +35,14 @@ def _timed(fn, *args, **kwargs):
 def bench_study(name: str, laws: list[str] | None, smc: bool) -> list[dict]:
     study = load_study(STUDIES_DIR / f"{name}.toml")
     ds = select(load_dataset(resolve(study.dataset)), study.select)
-    settings = sampler_settings(study.sampler)
+    config = study.sampler_config.replace(seed=0)
     rows = []
     for spec in study.laws:
         if laws and spec.name not in laws:
             continue
         program = build_program(spec.build(), ds, priors=spec.priors, noise=study.noise,
                                 constants=spec.constants)
-        dt, t_fit = _timed(SAMPLERS["nuts"], program, ds, seed=0, **spec.settings(settings))
+        dt, t_fit = _timed(SAMPLERS["nuts"], program, ds, spec.config(config))
         bridge, t_bridge = _timed(compare.bridge_log_evidence, program, dt, seed=0)
         importance, t_is = _timed(compare.laplace_is_log_evidence, program, seed=0)
         row = {"study": name, "law": spec.name, "fit_s": t_fit, "bridge_s": t_bridge, "is_s": t_is,

@@ -23,7 +23,7 @@ def main() -> None:
     ds = load_builtin("robot_joint")
     folds = compare.blocked_masks(ds, "velocity", threshold=0.5, direction="upper")
     for name in ("stribeck", "helical_gear"):
-        engine = compare.RefitEngine(build_program(get_law(name), ds), draws=1000, tune=1000, chains=4, seed=0)
+        engine = compare.RefitEngine.build(build_program(get_law(name), ds), draws=1000, tune=1000, chains=4, seed=0)
         fit = seconds(lambda engine=engine: engine.fit(ds))
         compare.cross_validate(engine, folds, seed=0)  # compiled once
         cv = seconds(lambda engine=engine: compare.cross_validate(engine, folds, seed=1))

@@ -77,8 +77,8 @@ def main() -> None:
 
     first, _ = data(0)
     settings = dict(draws=500, tune=500, chains=4, seed=0)
-    engines = {"pooled": NutsEngine(build_program(law, first), **settings),
-               "by run": NutsEngine(build_program(law.vary_by("run", "T_C", "c_v"), first), **settings)}
+    engines = {"pooled": NutsEngine.build(build_program(law, first), **settings),
+               "by run": NutsEngine.build(build_program(law.vary_by("run", "T_C", "c_v"), first), **settings)}
     run_of = np.asarray(first["run"].values)
     labels = sorted(set(run_of))
     rows = {k: {"cover": [], "all": [], "score": [], "elpd": [], "joint": [], "failed": 0, "s": 0.0} for k in engines}

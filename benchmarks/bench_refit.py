@@ -87,7 +87,7 @@ def main() -> None:
 
     program = build_program(law, ds)
     start = time.perf_counter()
-    fit_engine = RefitEngine(program, tune=1000, seed=0)  # what bayesfric.inference.fit runs
+    fit_engine = RefitEngine.build(program, tune=1000, seed=0)  # what bayesfric.inference.fit runs
     full = fit_engine.fit(ds)
     t_full = time.perf_counter() - start
     settings = json.loads(full.attrs["sampler_settings"])
@@ -101,7 +101,7 @@ def main() -> None:
         if variant == "shared":
             engine = fit_engine.warm_started(full)
         else:
-            engine = RefitEngine(program, fold_batch=batch, warm_start=full if warm else None)
+            engine = RefitEngine.build(program, fold_batch=batch, warm_start=full if warm else None)
         t_init = time.perf_counter() - start
         first = cross_validate(engine, folds, seed=0)
         t_first = time.perf_counter() - start

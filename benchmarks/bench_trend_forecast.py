@@ -85,8 +85,8 @@ def run_case(name: str, replicates: int, scatter: float = SCATTER) -> dict:
                                   sigma=SIGMA, seed=r)
 
     first, _ = data(0)
-    engine = NutsEngine(build_program(law.trend("hours", "T_C", form=form), first), draws=500, tune=500, chains=4,
-                        seed=0)
+    engine = NutsEngine.build(build_program(law.trend("hours", "T_C", form=form), first), draws=500, tune=500,
+                              chains=4, seed=0)
     hours = np.asarray(first["hours"].values).astype(float)
     train = hours < 3500
     labels = [f"{h:g}" for h in HOURS]

@@ -33,13 +33,13 @@ SEEDS = ("robot_joint", "pitch_bearing", "dahl_duplex", "unwinder", "drum_rollou
 def time_law(engine: NutsEngine) -> list[dict]:
     """Lower, compile and run the engine's chain step (the whole schedule in one chunk: the engine
     is built with ``chunk_steps`` at least its schedule) once per optimisation level."""
-    program, sampler = engine.program, engine._sampler
+    program, sampler = engine.program, engine.kernel.sampler
     assert sampler.chunk == sampler.rows, "build the engine with chunk_steps >= tune + draws"
     keys = np.asarray(jnp.stack([jax.random.split(jax.random.PRNGKey(1), engine.chains)]))
     masks = np.ones((1, program.n_obs), bool)
-    leaves, step = sampler.start(keys, masks, program.response, np.asarray(engine._starts()),
-                                 np.asarray(engine._init_imm))
-    args = (leaves, step, masks, program.response, np.asarray(engine._schedule), np.asarray(engine.target_accept))
+    leaves, step = sampler.start(keys, masks, program.response, np.asarray(engine.kernel.positions(engine.start)),
+                                 np.asarray(engine.start.inverse_mass))
+    args = (leaves, step, masks, program.response, np.asarray(engine.start.schedule), np.asarray(engine.target_accept))
     rows = []
     for options in LEVELS:
         jitted = jax.jit(sampler._advance, compiler_options=options or None)
@@ -60,13 +60,11 @@ def main(studies: list[str]) -> None:
     configure()
     with tempfile.TemporaryDirectory() as out:
         for name in studies:
-            study, _, ds, settings, *_ = _prepare(STUDIES_DIR / f"{name}.toml", out, False)
+            study, _, ds, config, *_ = _prepare(STUDIES_DIR / f"{name}.toml", out, False)
             for spec in study.laws:
                 program = build_program(spec.build(), ds, priors=spec.priors, noise=study.noise,
                                         constants=spec.constants)
-                engine = NutsEngine(program, draws=settings["draws"], tune=settings["tune"],
-                                    chains=settings.get("chains", 4), seed=1, chain_batch=settings.get("chains", 4),
-                                    chunk_steps=10**9)
+                engine = NutsEngine.build(program, config, seed=1, chain_batch=config.chains, chunk_steps=10**9)
                 for row in time_law(engine):
                     print(json.dumps(dict(study=name, law=spec.name, **row)), flush=True)
                 release_compiled_code()

@@ -58,7 +58,7 @@ def main(replicates: int, seed: int) -> dict:
     program = build_program(get_law("dahl"), ds)
     truth = dict(gen.TRUTH) | {"sigma": gen.SIGMA}
     mean = np.asarray(program.law.mean(program.inputs, gen.TRUTH), dtype=float)
-    engine = NutsEngine(program, draws=1000, tune=1000, chains=4, seed=0)  # the study's [sampler]
+    engine = NutsEngine.build(program, draws=1000, tune=1000, chains=4, seed=0)  # the study's [sampler]
     all_true = np.ones((1, program.n_obs), dtype=bool)
     rng = np.random.default_rng(seed)
     covered = {k: [] for k in truth}

@@ -27,6 +27,7 @@ FAST_FILES = frozenset(f"tests/{name}.py" for name in (
     "test_example_studies", "test_priors", "test_sizing_misfit", "test_sizing_basis", "test_numerics",
     "test_sizing_truth", "test_asymmetry", "test_drive_dynamics", "test_structure", "test_density", "test_errors",
     "test_fingerprint", "test_readme", "test_thin", "test_modes", "test_drum_campaigns_data", "test_identifiability",
+    "test_sampler_config",
     "test_sizing_distance",
     "test_sizing_result",
 ))

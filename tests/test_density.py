@@ -64,6 +64,6 @@ def test_every_consumer_reads_the_one_density(case):
     # emcee's log probability of that draw (its sample_stats.lp)
     assert float(density.log_joint(x)) == pytest.approx(float(dt["sample_stats"]["lp"].values[0, -1]), rel=1e-9)
     # the refit engine samples this very density object
-    engine = RefitEngine(program, draws=50, tune=50, chains=1)
-    assert engine._density is density
-    assert np.isfinite(float(jax.jit(density.log_joint)(engine._starts()[0])))
+    engine = RefitEngine.build(program, draws=50, tune=50, chains=1)
+    assert engine.kernel.density is density
+    assert np.isfinite(float(jax.jit(density.log_joint)(engine.kernel.positions(engine.start)[0])))

@@ -37,7 +37,7 @@ def cache(monkeypatch, tmp_path):
 def _engine(ds, **settings):
     """An engine as a new process would build it: nothing compiled in this one is reused."""
     exported.forget_compiled()
-    return NutsEngine(build_program(get_law("coulomb_viscous"), ds), **(SMALL | settings))
+    return NutsEngine.build(build_program(get_law("coulomb_viscous"), ds), **(SMALL | settings))
 
 
 def test_within_a_process_an_equal_program_reuses_the_compiled_function(cache, data):
@@ -45,13 +45,13 @@ def test_within_a_process_an_equal_program_reuses_the_compiled_function(cache, d
     fit) gets the function compiled for the first: no trace, no disk read, no compilation."""
     first = _engine(data)
     files = sorted(cache.glob(f"*{exported.SUFFIX}"))
-    second = NutsEngine(build_program(get_law("coulomb_viscous"), data.copy(deep=True)), **SMALL)
-    assert second.loaded and second._sampler.advance is first._sampler.advance
+    second = NutsEngine.build(build_program(get_law("coulomb_viscous"), data.copy(deep=True)), **SMALL)
+    assert second.loaded and second.kernel.sampler.advance is first.kernel.sampler.advance
     assert first.compilations == 1 and second.compilations == 1  # the second counts its reuse
     assert sorted(cache.glob(f"*{exported.SUFFIX}")) == files
     exported.forget_compiled()  # between laws (release_compiled_code): read back from disk
-    third = NutsEngine(build_program(get_law("coulomb_viscous"), data), **SMALL)
-    assert third.loaded and third._sampler.advance is not first._sampler.advance
+    third = NutsEngine.build(build_program(get_law("coulomb_viscous"), data), **SMALL)
+    assert third.loaded and third.kernel.sampler.advance is not first.kernel.sampler.advance
 
 
 def test_an_engine_on_equal_content_reads_the_same_program_back(cache, data):
@@ -88,7 +88,7 @@ def test_the_off_switch_keeps_nothing(monkeypatch, tmp_path, data):
     engine = _engine(data)
     assert not engine.loaded and engine.compilations == 1  # plain jax.jit, traced (lowered ahead) here
     engine.fit(data)
-    assert engine.compilations == 1 and engine._sampler.fallbacks == 0
+    assert engine.compilations == 1 and engine.kernel.sampler.fallbacks == 0
     assert not (tmp_path / "exported").exists()
 
 

@@ -148,7 +148,7 @@ def test_a_program_is_frozen_and_an_engine_on_another_response_scores_that_respo
     program = build_program(bayesfric.law("coulomb_viscous"), ds)
     with pytest.raises(AttributeError):
         program.response = np.zeros(3)  # type: ignore[misc]
-    engine = NutsEngine(program, seed=1, **SHORT)
+    engine = NutsEngine.build(program, seed=1, **SHORT)
     engine.fit(ds)
     shifted = engine.with_response(program.response + 2.0)
     fit = shifted.fit(ds)

@@ -12,7 +12,7 @@ from bayesfric import identifiability as idf
 from bayesfric.compare.loo import psis_loo
 from bayesfric.datasets.synthetic import make_dataset, simulate
 from bayesfric.datasets.views import travel
-from bayesfric.inference import fit
+from bayesfric.inference import SamplerConfig, fit
 from bayesfric.laws import get_law
 from bayesfric.laws.variants import for_data
 from bayesfric.model import Noise, build_program
@@ -114,7 +114,7 @@ def test_the_companion_entry_is_added_named_and_ranked_like_any_law():
     assert set(companion.build().params) == {"sigma0", "sigma2", "F_c", "gamma"}
     assert set(for_data(companion.build(), ds).params) == {"sigma0", "sigma2", "F_c"}
     # the companion is an entry like any other: it gets its own job and units
-    job = units.make_job(companion, Noise(), ds, "nuts", {"draws": 10, "tune": 10, "chains": 1}, 0)
+    job = units.make_job(companion, Noise(), ds, SamplerConfig(draws=10, tune=10, chains=1))
     fit_unit, rest = units.plan_law(job, study, [])
     assert fit_unit.law == "lugre_Fs_eq_Fc" and [u.stage for u in rest] == ["loo", "checks"]
     lines = idf.describe(study.identifiability, idf.companions_of(study.laws))
@@ -191,7 +191,7 @@ def test_psis_loo_refits_nothing_when_told_why_not(outlier):
 def test_a_failed_fit_gets_psis_only_unless_the_study_runs_failed_fits(outlier, monkeypatch, failed_fits):
     ds, dt = outlier
     spec = LawSpec("coulomb_viscous", law="coulomb_viscous")
-    job = units.make_job(spec, Noise(sigma=0.05), ds, "nuts", {"draws": 500, "tune": 300, "chains": 2}, 0)
+    job = units.make_job(spec, Noise(sigma=0.05), ds, SamplerConfig(draws=500, tune=300, chains=2))
     study = SimpleNamespace(loo=True, evidence=False, smc=False, failed_fits=failed_fits)
     loo_unit = units.plan_law(job, study, [])[1][0]
     verdict = units.compare.verdict_of(dt)

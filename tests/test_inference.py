@@ -251,16 +251,16 @@ def test_the_auto_metric_goes_dense_on_strong_correlations_only():
 
 
 def test_the_engine_takes_a_dense_metric_through_fit_and_warm_started_folds(simulator):
-    """``NutsEngine(metric="dense")``: the fit records it, a warm start begins from the fit's
+    """``NutsEngine.build(metric="dense")``: the fit records it, a warm start begins from the fit's
     covariance, its folds sample; an unknown metric is refused."""
     from bayesfric.compare.refit import RefitEngine
     from bayesfric.model import build_program
 
     law = get_law("coulomb_viscous")
     ds = simulator(law, {"velocity": np.linspace(-2, 2, 20)}, {"T_C": 1.0, "c_v": 0.5}, sigma=0.05, seed=1)
-    with pytest.raises(ValueError, match="metric must be one of"):
-        RefitEngine(build_program(law, ds), metric="full")
-    engine = RefitEngine(build_program(law, ds), draws=300, tune=300, chains=2, metric="dense")
+    with pytest.raises(ValueError, match="metric: must be one of"):
+        RefitEngine.build(build_program(law, ds), metric="full")
+    engine = RefitEngine.build(build_program(law, ds), draws=300, tune=300, chains=2, metric="dense")
     dt = engine.fit(ds)
     assert json.loads(dt.attrs["sampler_settings"])["metric"] == "dense"
     assert engine.settings["metric"] == "dense"
@@ -287,14 +287,14 @@ def test_the_auto_metric_records_its_choice_and_falls_back_to_the_diagonal_one(s
 
     law = get_law("coulomb_viscous")
     ds = simulator(law, {"velocity": np.linspace(1, 2, 30)}, {"T_C": 1.0, "c_v": 0.5}, sigma=0.05, seed=2)
-    engine = RefitEngine(build_program(law, ds), draws=600, tune=300, chains=2)
+    engine = RefitEngine.build(build_program(law, ds), draws=600, tune=300, chains=2)
     assert engine.metric == "auto"
     dt = engine.fit(ds)
     settings = json.loads(dt.attrs["sampler_settings"])
     assert settings["metric"].startswith("auto: dense in 2 of 2 chains") and "retried" not in settings
     warm = engine.warm_started(dt, 150)
-    assert np.asarray(warm._init_imm).ndim == 2 and np.asarray(warm._init_imm)[0, 1] != 0
-    strict = RefitEngine(build_program(law, ds), draws=300, tune=300, chains=2, gate=Gate(ess_bulk_min=1e9))
+    assert np.asarray(warm.start.inverse_mass).ndim == 2 and np.asarray(warm.start.inverse_mass)[0, 1] != 0
+    strict = RefitEngine.build(build_program(law, ds), draws=300, tune=300, chains=2, gate=Gate(ess_bulk_min=1e9))
     fits = strict.run(np.ones((1, 30), dtype=bool))
     assert fits.diagonal.tolist() == [True] and not fits.stats["dense_metric"].any()
     assert not fits.verdicts[0].passed and strict.compilations == 1

@@ -69,8 +69,9 @@ def test_chunked_engine_draws_equal_one_call(data):
     """Chunks of 37 rows (the last padded with idle rows) give the draws, statistics and lpd of
     the whole schedule in one call, for a cold fit and warm-started folds; one compilation each."""
     program = build_program(get_law("coulomb_viscous"), data)
-    chunked, whole = NutsEngine(program, chunk_steps=37, **SMALL), NutsEngine(program, chunk_steps=10**6, **SMALL)
-    assert chunked._sampler.chunk == 37 and whole._sampler.chunk == 250
+    chunked = NutsEngine.build(program, chunk_steps=37, **SMALL)
+    whole = NutsEngine.build(program, chunk_steps=10**6, **SMALL)
+    assert chunked.kernel.sampler.chunk == 37 and whole.kernel.sampler.chunk == 250
     masks = np.ones((2, program.n_obs), dtype=bool)
     masks[1, :5] = False
     a, b = chunked.run(masks, seed=2), whole.run(masks, seed=2)
@@ -82,15 +83,15 @@ def test_chunked_engine_draws_equal_one_call(data):
     fit = whole.fit(data)
     warm_a, warm_b = chunked.warm_started(fit, 120).run(masks), whole.warm_started(fit, 120).run(masks)
     np.testing.assert_array_equal(warm_a.samples["T_C"], warm_b.samples["T_C"])
-    assert chunked.compilations == 1 and whole.compilations == 1 and chunked._sampler.fallbacks == 0
+    assert chunked.compilations == 1 and whole.compilations == 1 and chunked.kernel.sampler.fallbacks == 0
 
 
 def test_plain_progress_lines_per_chain(data):
     """Off a terminal: lines at most one per interval (here every chunk), the last at the end; a
     run shorter than the interval prints nothing."""
     stream = io.StringIO()
-    engine = NutsEngine(build_program(get_law("coulomb_viscous"), data), chunk_steps=50, retry_target_accept=None,
-                        **SMALL)
+    engine = NutsEngine.build(build_program(get_law("coulomb_viscous"), data), chunk_steps=50,
+                              retry_target_accept=None, **SMALL)
     with reporting("cv fit", stream=stream, live=False, interval=0):
         engine.run(np.ones((1, data.sizes["obs"]), dtype=bool))
     lines = stream.getvalue().splitlines()
@@ -236,10 +237,10 @@ def test_engines_of_other_warm_up_lengths_do_not_share_start_programs(monkeypatc
     keys = np.zeros((1, 1, 2), dtype=np.uint32)
     for tune in (150, 200):
         exported.forget_compiled()
-        engine = NutsEngine(program, **(SMALL | dict(tune=tune)))
-        starts = np.asarray(engine._starts())[:1]
-        _, step = engine._sampler.start(keys, np.ones((1, program.n_obs), bool), program.response, starts,
-                                        engine._init_imm)
+        engine = NutsEngine.build(program, **(SMALL | dict(tune=tune)))
+        starts = np.asarray(engine.kernel.positions(engine.start))[:1]
+        _, step = engine.kernel.sampler.start(keys, np.ones((1, program.n_obs), bool), program.response, starts,
+                                              engine.start.inverse_mass)
         assert np.asarray(step).shape[2] == tune + SMALL["draws"]
     exported.forget_compiled()
 
@@ -284,7 +285,7 @@ def test_a_unit_on_a_dask_worker_reports_its_chains(monkeypatch, capsys):
     from bayesfric.inference.progress import current
     from bayesfric.study import executor
 
-    def fake_compute(job, unit, fit_payload):
+    def fake_compute(job, unit, fit_payload, engines=None):
         shown = SamplingProgress(current(), folds=1, chains=2, idle=0, tune=10, draws=20)
         shown.update(range(1), range(2), 30, np.zeros((1, 2)))
         return b"payload", 1.5

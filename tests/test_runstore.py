@@ -28,8 +28,8 @@ def _units(path: Path):
     """(fit unit, later units) of the study's first law, as a run would key them."""
     study = load_study(path)
     ds = load_study_data(study)
-    settings, kfold = _run_settings(study, quick=True)
-    job = make_job(study.laws[0], study.noise, ds, study.sampler["name"], settings, study.sampler["seed"])
+    config, kfold = _run_settings(study, quick=True)
+    job = make_job(study.laws[0], study.noise, ds, config)
     fit, rest = plan_law(job, study, _fold_schemes(study, ds, study.sampler["seed"], kfold))
     return fit, {u.label: u.key for u in rest}
 
@@ -339,10 +339,10 @@ def _all_keys(path: Path) -> list[str]:
     """The key of every unit of every law of the study at ``path`` (quick settings), in order."""
     study = load_study(path)
     ds = load_study_data(study)
-    settings, kfold = _run_settings(study, quick=True)
+    config, kfold = _run_settings(study, quick=True)
     out = []
     for spec in study.laws:
-        job = make_job(spec, study.noise, ds, study.sampler["name"], settings, study.sampler["seed"])
+        job = make_job(spec, study.noise, ds, config)
         fit, rest = plan_law(job, study, _fold_schemes(study, ds, study.sampler["seed"], kfold))
         out += [fit.key, *(u.key for u in rest)]
     return out

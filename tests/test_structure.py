@@ -24,7 +24,6 @@ MAX_MODULE_LINES = 400
 
 #: Modules allowed above MAX_MODULE_LINES, with the reason (kept in step with docs/architecture.md).
 LONG_MODULES = {
-    "inference/engine.py": "one class, NutsEngine (a 70-line docstring): its views, chunked runs, retry and gate",
     "model.py": "Program and the fit's record of its program (the record may move to a module of its own)",
     "sizing/compute.py": "per-law predictive draws at the query points, required capacity and exceedance",
     "laws/hysteresis.py": "the Dahl, LuGre and GMS laws with their shared loop helpers, one family",

@@ -156,8 +156,10 @@ def test_settings_per_sampler_and_quick_lowers_them_after_validation(tmp_path, d
     text = study_text().replace("draws = 1000\ntune = 500\nchains = 2\n", sampler)
     (tmp_path / "s.toml").write_text(text.replace("evidence = false\n", "evidence = false\nkfold = 10\n"))
     study = load_study(tmp_path / "s.toml")
-    assert _run_settings(study, quick=False) == (full, 10)
-    assert _run_settings(study, quick=True) == (full | quick, QUICK_KFOLD)
+    config, kfold = _run_settings(study, quick=False)
+    assert (config.settings(), kfold) == (full, 10)
+    config, kfold = _run_settings(study, quick=True)
+    assert (config.settings(), kfold) == (full | quick, QUICK_KFOLD)
 
 
 @pytest.mark.parametrize(("line", "engine_retry"), [("", 0.99), ("retry_target_accept = 0.95\n", 0.95),
@@ -171,8 +173,8 @@ def test_the_divergence_retry_is_a_sampler_key_that_reaches_the_engine(tmp_path,
     text = study_text().replace("chains = 2\n", "chains = 2\n" + line)
     (tmp_path / "s.toml").write_text(text)
     study = load_study(tmp_path / "s.toml")
-    settings, _ = _run_settings(study, quick=False)
-    job = make_job(study.laws[0], study.noise, load_dataset(resolve(study.dataset)), "nuts", settings, 0)
+    config, _ = _run_settings(study, quick=False)
+    job = make_job(study.laws[0], study.noise, load_dataset(resolve(study.dataset)), config)
     assert _base_engine(job).retry_target_accept == engine_retry
 
 
@@ -185,8 +187,8 @@ def test_the_mass_matrix_is_a_sampler_key_that_reaches_the_engine(tmp_path, data
 
     (tmp_path / "s.toml").write_text(study_text().replace("chains = 2\n", "chains = 2\n" + line))
     study = load_study(tmp_path / "s.toml")
-    settings, _ = _run_settings(study, quick=False)
-    job = make_job(study.laws[0], study.noise, load_dataset(resolve(study.dataset)), "nuts", settings, 0)
+    config, _ = _run_settings(study, quick=False)
+    job = make_job(study.laws[0], study.noise, load_dataset(resolve(study.dataset)), config)
     engine = _base_engine(job)
     assert engine.metric == metric and engine.settings["metric"] == metric
 

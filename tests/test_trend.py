@@ -251,7 +251,7 @@ def test_a_forecast_fold_reads_its_held_out_campaign_as_its_sampler_did():
     ds, truth_values = _campaigns()
     program = build_program(get_law("coulomb_viscous").trend("hours", "T_C"), ds)
     hours = ds["hours"].values.astype(float)
-    fold = NutsEngine(program, draws=300, tune=300, chains=2, seed=0).run((hours < 3000)[None], seed=0)
+    fold = NutsEngine.build(program, draws=300, tune=300, chains=2, seed=0).run((hours < 3000)[None], seed=0)
     forecast = fold.samples["T_C_hours"][0].reshape(-1, 7)[:, 6]
     assert np.quantile(forecast, 0.05) > 2.5 and np.quantile(forecast, 0.95) < 3.6  # truth at 3000 h: 3.0
     assert np.quantile(forecast, 0.05) < truth_values["T_C"][6] < np.quantile(forecast, 0.95)

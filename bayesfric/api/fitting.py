@@ -17,6 +17,7 @@ import pandas as pd
 import xarray as xr
 
 from bayesfric.errors import UserError
+from bayesfric.inference.config import SamplerConfig
 from bayesfric.laws.base import Law
 from bayesfric.priors import Prior, PriorError
 
@@ -153,27 +154,23 @@ def _as_law(given: str | Law) -> Law:
 
 
 def sampler_options(sampler: str, seed: int, options: Mapping[str, Any],
-                    key: Callable[[str], str] = str) -> dict[str, Any]:
-    """Sampler settings checked against the study schema's ``[sampler]`` table
-    (:data:`bayesfric.study.config.SAMPLER`: ranges, which settings belong to which sampler);
-    returns the backend's keyword arguments. ``key`` names a setting in errors (``--draws`` on
-    the command line). Unset (None) settings take the sampler's defaults."""
-    from bayesfric.study.config import SAMPLER, retry_problem, sampler_settings
-    from bayesfric.study.schema import SchemaError, parse
+                    key: Callable[[str], str] = str) -> SamplerConfig:
+    """The sampler configuration of a fit's options: :meth:`SamplerConfig.from_table` over the
+    backend, the seed and ``options`` (None: not given, the backend's default), checked as a study's
+    ``[sampler]`` table is (ranges, which settings belong to which sampler). ``key`` names a
+    setting in errors (``--draws`` on the command line).
 
-    given = {"name": sampler, "seed": seed} | dict(options)
-    try:
-        section = parse(SAMPLER, {k: v for k, v in given.items() if v is not None})
-    except SchemaError as exc:
-        raise UserError(f"{key(str(exc.where[0]) if exc.where else 'name')}: {exc.problem}") from None
-    if problem := retry_problem(section):
-        raise UserError(f"{key('retry_target_accept')}: {problem}")
-    return sampler_settings(section)
+    Examples
+    --------
+    >>> config = sampler_options("nuts", 1, {"draws": 200, "chains": None})
+    >>> config.draws, config.chains, config.seed
+    (200, 4, 1)
+    """
+    return SamplerConfig.from_table({"name": sampler, "seed": seed} | dict(options), key)
 
 
-def checked_program(law: Law, ds: xr.Dataset, priors: dict[str, Prior], noise, sampler: str,
-                    settings: dict[str, Any], key: Callable[[str], str] = str,
-                    prior_key: Callable[[str], str] = "priors.{}".format):
+def checked_program(law: Law, ds: xr.Dataset, priors: dict[str, Prior], noise, config: SamplerConfig,
+                    key: Callable[[str], str] = str, prior_key: Callable[[str], str] = "priors.{}".format):
     """Build the fit's program (data-scaled priors resolved) and check its walkers and the memory
     its settings imply (:mod:`bayesfric.limits`), before anything is sampled; return it.
     ``key`` names a sampler setting in errors, ``prior_key`` a prior given by the user."""
@@ -187,9 +184,9 @@ def checked_program(law: Law, ds: xr.Dataset, priors: dict[str, Prior], noise, s
         name, _, sub = exc.key.removeprefix("priors.").partition(".")
         where = prior_key(name) if name in priors else f"law {law.name!r}: prior of {name}"
         raise UserError(f"{where}{': ' + sub if sub else ''}: {exc.problem}") from None
-    if sampler == "emcee" and (problem := walkers_problem(program, settings.get("walkers"))):
+    if config.name == "emcee" and (problem := walkers_problem(program, config.walkers)):
         raise UserError(f"{key('walkers')}: {problem}")
-    if found := sampler_problem(sampler, settings, *program_size(program)):
+    if found := sampler_problem(config.name, config.settings(), *program_size(program)):
         raise UserError(f"{key(found[0])}: {found[1]}")
     return program
 
@@ -270,14 +267,14 @@ def fit(law: str | Law, data: str | Path | xr.Dataset, *, priors: Mapping[str, P
     from bayesfric.inference import fit as sample
     from bayesfric.laws.variants import for_data
 
-    options = {"draws": draws, "tune": tune, "chains": chains} | settings
-    checked = sampler_options(sampler, seed, options)
+    config = sampler_options(sampler, seed, {"draws": draws, "tune": tune, "chains": chains, "progress": progress}
+                             | settings)
     ds = load_data(data)
     chosen = for_data(_as_law(law), ds)
     noise = _noise(noise, ds)
     given = _priors(priors, list(chosen.params) + list(noise.sites()), chosen.name)
-    checked_program(chosen, ds, given, noise, sampler, checked)
-    return sample(chosen, ds, sampler=sampler, priors=given, noise=noise, seed=seed, progress=progress, **checked)
+    checked_program(chosen, ds, given, noise, config)
+    return sample(chosen, ds, priors=given, noise=noise, config=config)
 
 
 def compare_laws(fits: Mapping[str, xr.DataTree] | list[xr.DataTree], data: str | Path | xr.Dataset | None = None,

@@ -173,7 +173,7 @@ def psis_loo(
         passed = "diagnostics" in fit.attrs and verdict_of(fit).passed
         if callable(engine) and not isinstance(engine, RefitEngine):
             engine = engine()
-        engine = engine or RefitEngine(program or program_from_fit(fit, ds), warm_start=fit if passed else None)
+        engine = engine or RefitEngine.build(program or program_from_fit(fit, ds), warm_start=fit if passed else None)
         masks = np.ones((high.size, elpd_i.size), dtype=bool)
         masks[np.arange(high.size), high] = False
         refits = engine.run(masks, seed=seed)

@@ -122,7 +122,7 @@ def _blocked_cv_api(axis: str | None, quantile: float, settings: Mapping[str, An
         from bayesfric.compare.refit import RefitEngine, cross_validate
     except ImportError as exc:  # pragma: no cover - depends on the other module's presence
         raise RuntimeError("blocked CV needs bayesfric.compare.refit, which is missing") from exc
-    return blocked_masks, RefitEngine, cross_validate, axis, quantile, dict(settings)
+    return blocked_masks, RefitEngine.build, cross_validate, axis, quantile, dict(settings)
 
 
 def model_recovery(

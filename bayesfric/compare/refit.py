@@ -12,7 +12,7 @@ order of magnitude slower per fold.
 Every fold fit goes through the diagnostics gate; a fold that fails is *flagged* in the result,
 and scores computed from it are reported with the flag, never silently used as if healthy.
 
->>> engine = RefitEngine(build_program(law, ds))                       # doctest: +SKIP
+>>> engine = RefitEngine.build(build_program(law, ds))                 # doctest: +SKIP
 >>> result = cross_validate(engine, kfold_masks(ds, k=10))             # doctest: +SKIP
 >>> result.elpd, result.se, result.failed_folds                       # doctest: +SKIP
 """

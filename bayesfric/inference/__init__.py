@@ -18,6 +18,7 @@ import xarray as xr
 
 from bayesfric.exported import forget_compiled
 from bayesfric.fsutil import check_output_file
+from bayesfric.inference.config import SamplerConfig
 from bayesfric.inference.diagnostics import GATE, Gate, Verdict, check, verdict_of
 from bayesfric.inference.ensemble import sample_emcee
 from bayesfric.inference.nuts import sample_nuts
@@ -27,10 +28,18 @@ from bayesfric.priors import Prior
 
 __all__ = [
     "fit", "save_fit", "load_fit", "release_compiled_code", "memory_mappings", "MAPPINGS_BUDGET", "SAMPLERS",
-    "GATE", "Gate", "Verdict", "check", "verdict_of",
+    "GATE", "Gate", "Verdict", "check", "verdict_of", "SamplerConfig",
 ]
 
-SAMPLERS = {"nuts": sample_nuts, "emcee": sample_emcee}
+
+def _emcee(program, ds: xr.Dataset, config: SamplerConfig | None = None, **settings: Any) -> xr.DataTree:
+    """:func:`~bayesfric.inference.ensemble.sample_emcee` under a configuration."""
+    config = (config or SamplerConfig(name="emcee")).replace(**settings)
+    return sample_emcee(program, ds, seed=config.seed, progress=config.progress, **config.settings())
+
+
+#: The backends by name, each ``sample(program, ds, config=None, **settings)`` -> the fit's DataTree.
+SAMPLERS = {"nuts": sample_nuts, "emcee": _emcee}
 
 
 def release_compiled_code(*, when_mapped_above: int = 0) -> None:
@@ -84,6 +93,7 @@ def fit(
     constants: Mapping[str, float] | None = None,
     seed: int = 0,
     progress: bool = False,
+    config: SamplerConfig | None = None,
     **settings: Any,
 ) -> xr.DataTree:
     """Fit ``law`` to ``ds`` and return the DataTree (see :func:`bayesfric.inference.datatree.assemble`).
@@ -102,13 +112,21 @@ def fit(
         Seed of every random draw of the fit.
     progress : bool
         Show a progress bar while sampling.
+    config : SamplerConfig, optional
+        Every setting at once (``sampler``, ``seed``, ``progress`` and ``settings`` are then
+        ignored): what ``bayesfric.fit`` and the ``fit`` command pass.
     **settings
-        Backend settings (NUTS: draws, tune, chains, target_accept; emcee: draws, tune, walkers, thin).
+        Backend settings (NUTS: draws, tune, chains, target_accept ...; emcee: draws, tune,
+        walkers, thin), checked by :meth:`SamplerConfig.from_table`.
+
+    Examples
+    --------
+    >>> dt = fit(get_law("stribeck"), ds, draws=300, tune=300, chains=2)        # doctest: +SKIP
     """
-    if sampler not in SAMPLERS:
-        raise ValueError(f"unknown sampler {sampler!r}; choose one of {', '.join(SAMPLERS)}")
+    if config is None:
+        config = SamplerConfig.from_table({"name": sampler, "seed": seed, "progress": progress} | settings)
     program = build_program(law, ds, priors=priors, noise=noise, constants=constants)
-    return SAMPLERS[sampler](program, ds, seed=seed, progress=progress, **settings)
+    return SAMPLERS[config.name](program, ds, config)
 
 
 def save_fit(dt: xr.DataTree, path: str | Path) -> Path:

@@ -12,6 +12,7 @@ import jax
 import numpy as np
 from scipy.special import logsumexp
 
+from bayesfric.errors import UserError
 from bayesfric.inference.diagnostics import Verdict
 
 __all__ = ["FoldFits", "available_cpus", "chain_batch_of", "join_chains", "vmap_or_squeeze"]
@@ -86,7 +87,7 @@ def chain_batch_of(chains: int, chain_batch: int | None) -> int:
     if chain_batch is None:  # see the class notes: one chain per call on CPUs, all chains on accelerators
         return 1 if jax.default_backend() == "cpu" else chains
     if chain_batch < 1 or chains % chain_batch:
-        raise ValueError(f"chain_batch must divide chains ({chains}); got {chain_batch}")
+        raise UserError(f"must divide chains ({chains}); got {chain_batch}", "chain_batch")
     return int(chain_batch)
 
 

@@ -30,12 +30,11 @@ import numpy as np
 
 from bayesfric.exported import exported_jit
 from bayesfric.inference.adaptation import chain_start, chain_steps, step_keys
+from bayesfric.inference.config import CHUNK_STEPS
 
 __all__ = ["ChunkedSampler", "CHUNK_STEPS"]
 
-#: Schedule rows per compiled call. 100 rows of a 1500-2000-row chain: a report every 5-7 % of
-#: a chain (every few seconds to about 40 s on the slow stateful laws); a call costs about 0.3 ms.
-CHUNK_STEPS = 100
+# CHUNK_STEPS (schedule rows per compiled call) is a setting of SamplerConfig: bayesfric.inference.config
 
 
 class ChunkedSampler:

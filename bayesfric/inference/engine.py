@@ -12,6 +12,14 @@ is an argument: :meth:`NutsEngine.with_response` refits other
 responses on the same inputs (simulation studies, calibration replicates) with the same
 compiled code. A repeated fit of the same data still loads its compiled program from disk.
 
+The engine is built as blackjax builds its kernels: :func:`build` (``NutsEngine.build``) takes a
+program and a :class:`~bayesfric.inference.config.SamplerConfig` and compiles the
+:class:`~bayesfric.inference.kernel.Kernel` once; a :class:`NutsEngine` is a frozen value of that
+kernel, its program, its configuration and an immutable :class:`~bayesfric.inference.kernel.Start`.
+A warm or cold start, or another response, is a new engine sharing the same kernel
+(``dataclasses.replace``): nothing is copied and then changed, and no engine is kept anywhere but
+by its caller (a study keeps a law's engine in :class:`bayesfric.study.units.Engines`).
+
 Every chain is :func:`bayesfric.inference.adaptation.nuts_chain` (blackjax NUTS,
 Stan's window adaptation from blackjax's public primitives) on the program's one log density
 (:mod:`bayesfric.density`), vectorised with ``jax.vmap`` over chains and optionally over a
@@ -29,7 +37,7 @@ goes from one call to the next, the draws are those of one call over the whole s
 after each chunk reports to the run's :class:`~bayesfric.inference.progress.SamplingProgress`,
 which shows something only inside :func:`bayesfric.inference.progress.reporting`.
 
-Warm starts: :meth:`NutsEngine.warm_started` returns a view of the same compiled sampler whose
+Warm starts: :meth:`NutsEngine.warm_started` returns an engine of the same compiled sampler whose
 chains start at draws of a full fit, with its unconstrained posterior variance as the initial
 inverse mass matrix and a 250-step warm-up (the schedule is data: the skipped warm-up steps
 are idle). Folds that drop a few points (PSIS-LOO refits, random K-fold) use it; folds that
@@ -40,17 +48,16 @@ Every fold fit goes through the diagnostics gate of :mod:`bayesfric.inference.di
 (R-hat, bulk/tail ESS, divergences, E-BFMI on the fold's own draws, thresholds unchanged). A
 fold that fails is *flagged* in the result, never silently used as if healthy.
 
->>> engine = NutsEngine(build_program(law, ds))                        # doctest: +SKIP
+>>> engine = build(build_program(law, ds))                             # doctest: +SKIP
 >>> dt = engine.fit(ds)                    # the full fit: the all-true mask  # doctest: +SKIP
 >>> folds = engine.warm_started(dt).run(kfold_masks(ds, k=10).train)   # doctest: +SKIP
 """
 
 from __future__ import annotations
 
-import copy
 import time
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import replace
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import jax
@@ -58,172 +65,133 @@ import jax.numpy as jnp
 import numpy as np
 import xarray as xr
 
-from bayesfric.fingerprint import program_parts
-from bayesfric.inference.adaptation import DENSE_ABOVE, sampling_schedule
-from bayesfric.inference.batching import FoldFits, available_cpus, chain_batch_of, join_chains, vmap_or_squeeze
-from bayesfric.inference.chunked import CHUNK_STEPS, ChunkedSampler
-from bayesfric.inference.datatree import assemble, draw_tables_args, tables_jit
+from bayesfric.errors import UserError
+from bayesfric.inference.adaptation import DENSE_ABOVE
+from bayesfric.inference.batching import FoldFits, available_cpus, join_chains
+from bayesfric.inference.config import METRICS, SamplerConfig
+from bayesfric.inference.datatree import assemble
 from bayesfric.inference.diagnostics import GATE, Gate, Verdict, check_folds, import_statistics
-from bayesfric.inference.init import Init, pending_chain_starts
-from bayesfric.inference.pointwise import log_mean_likelihood, storage
+from bayesfric.inference.kernel import FitTables, Kernel, Start, cold_start, warm_start
 from bayesfric.inference.progress import SamplingProgress, current
-from bayesfric.inference.warmstart import warm_start_from
 from bayesfric.model import Program
 
-__all__ = ["NutsEngine", "FoldFits", "available_cpus", "METRICS"]
+__all__ = ["NutsEngine", "build", "ENGINE_DEFAULTS", "FoldFits", "available_cpus", "METRICS"]
 
-#: Mass matrices the warm-up can estimate (``NutsEngine(metric=...)``, study key ``[sampler] metric``).
-METRICS = ("diag", "dense", "auto")
+#: The configuration of an engine built without one: the NUTS defaults with a 500-step compiled
+#: warm-up (the refits' length: a warm start uses 250 of it, a cold fold at most 500).
+ENGINE_DEFAULTS = SamplerConfig(tune=500)
 
 
+@dataclass(frozen=True, eq=False)
 class NutsEngine:
     """The compiled NUTS sampler of one :class:`~bayesfric.model.Program`, full fit and folds.
 
     One compiled function serves the full fit (the all-true mask) and every fold refit (another
-    mask); seeds, masks and warm or cold starts change nothing compiled. Why it is built this
-    way, with the measurements behind each default: ``docs/inference.md``.
+    mask); seeds, masks and warm or cold starts change nothing compiled. Made by :func:`build`;
+    frozen: :meth:`warm_started`, :meth:`cold_started` and :meth:`with_response` return new
+    engines sharing its :class:`~bayesfric.inference.kernel.Kernel`. Why it is built this way,
+    with the measurements behind each default: ``docs/inference.md``.
 
-    Parameters
+    The ``auto`` metric keeps each slow window's dense estimate where the condition number of its
+    correlation matrix exceeds :data:`~bayesfric.inference.adaptation.DENSE_ABOVE`, else its
+    diagonal (per chain, recorded in the fit's ``metric`` setting and per draw in the
+    ``dense_metric`` statistic of :meth:`run`'s folds); where no window goes dense it draws exactly
+    what ``diag`` draws. A fold (the full fit included) with divergent transitions is sampled once
+    more, same keys and starts, at ``retry_target_accept`` (default 0.99) and the second run is
+    kept and gated; under ``auto``, a fold that fails the gate after a chain went dense is first
+    sampled again with the diagonal metric at ``target_accept``, and only if that fails too at the
+    raised target, diagonal again. The targets are arguments of the compiled sampler: a retry
+    compiles nothing and costs one more sampling of that fold only. ``fold_batch`` folds are
+    sampled in one vectorised call (default 1: vmapped NUTS steps wait for the longest trajectory,
+    so folds in sequence are faster on CPUs); ``chain_batch`` chains per call (default on CPUs 1,
+    on accelerators all); ``threads`` calls at once. The draws depend on none of these three.
+
+    Attributes
     ----------
     program : Program
         The law bound to the *full* dataset (its data scale fixes the priors of every fold).
-    draws, tune, chains : int
-        Per fit or fold. ``tune`` is the length of the compiled warm-up: a full Stan warm-up for
-        the full fit and folds that start cold, or the frame of a warm start's shorter one.
-        1000 draws by default because 500 left R-hat just above the gate on about one fold in ten.
-    target_accept, max_tree_depth
-        Target acceptance of the step-size adaptation and the largest tree depth (doublings).
-    metric : {"auto", "diag", "dense"}
-        The mass matrix the warm-up estimates (Stan's ``diag_e`` / ``dense_e``). ``auto`` keeps
-        each slow window's dense estimate where the condition number of its correlation matrix
-        exceeds :data:`~bayesfric.inference.adaptation.DENSE_ABOVE`, else its diagonal: per chain,
-        re-decided at each window, recorded in the fit's ``metric`` setting (per draw in the
-        ``dense_metric`` statistic of :meth:`run`'s folds). A dense metric crosses strongly
-        correlated posteriors in far fewer leapfrog steps; where no window goes dense, ``auto``
-        draws exactly what ``diag`` draws.
-    retry_target_accept : float or None
-        A fold (the full fit included) with divergent transitions is sampled once more, same keys
-        and starts, at this target acceptance (default 0.99, a smaller step), and the second run
-        is kept and gated; ``None`` or 0 switches it off. Under ``auto``, a fold that fails the
-        gate after a chain went dense is first sampled again with the diagonal metric at
-        ``target_accept`` (a dense metric fails on some curved posteriors where the diagonal one
-        passes), and only if that fails too at this target, diagonal again; so no verdict is
-        worse than the raised target alone would give. The targets are arguments of the compiled
-        sampler: a retry compiles nothing and costs one more sampling of that fold only.
-    fold_batch : int
-        Folds sampled together in one vectorised call. Fixed per engine so one compilation
-        serves any K. Default 1: vmapped NUTS steps wait for the longest trajectory of all
-        ``fold_batch × chains`` chains, so folds in sequence are faster on CPUs.
+    config : SamplerConfig
+        Its settings; ``config.tune`` is the compiled warm-up (a warm start's frame).
+    kernel : Kernel
+        The compiled programs, shared by every engine made from this one.
+    start : Start
+        Where its chains start and how long their warm-up is.
     gate : Gate
         Diagnostics thresholds (default: the project gate).
-    seed : int
-        Seed of the chains' initial points, or of the draws picked as initial points under
-        ``warm_start``.
-    warm_start : xarray.DataTree, optional
-        Start every chain from this full fit (see :meth:`warm_started`); the compiled warm-up is
-        then ``warm_tune`` steps long. A study instead takes ``engine.warm_started(fit)`` of the
-        engine that made the full fit, which shares its compiled sampler.
-    warm_tune : int
-        Warm-up steps per chain under ``warm_start`` (default 250; at least 120).
-    init : {"median", "pathfinder"}
-        Starting points of chains that start cold (:mod:`bayesfric.inference.init`): prior
-        medians (default), or multi-path Pathfinder draws for posteriors with minor modes.
-    threads : int, optional
-        Calls of the compiled sampler (fold batches × chain groups) run at once, each from its
-        own thread (XLA releases the GIL). Default: the CPUs this process may use. The draws do
-        not depend on it.
-    chain_batch : int, optional
-        Chains vectorised in one call (a divisor of ``chains``). Default on CPUs: 1, each chain
-        its own call, because a vmapped NUTS step waits for the longest trajectory in the batch
-        and vmapped nested while loops are slow to trace; on an accelerator, all chains in one
-        call. Fixed per engine (it is the compiled shape); the draws do not depend on it.
-    chunk_steps : int
-        Schedule rows per call of the compiled step function (default
-        :data:`~bayesfric.inference.chunked.CHUNK_STEPS`): how often chains report progress.
-        The draws do not depend on it.
 
-    Notes
-    -----
-    ``compilations`` counts how often the sampler was built -- traced, or read from the exported
-    programs on disk (:mod:`bayesfric.exported`; ``loaded`` says which): it stays at 1
-    for every later call (any mask, seed, warm or cold start) on the engine and its views.
+    Examples
+    --------
+    >>> engine = build(program, SamplerConfig(draws=300, tune=300, chains=2))   # doctest: +SKIP
+    >>> fit = engine.fit(ds)                                                   # doctest: +SKIP
+    >>> folds = engine.warm_started(fit).run(masks)      # the same compiled code  # doctest: +SKIP
+    >>> engine.compilations                                                    # doctest: +SKIP
+    1
     """
 
-    def __init__(
-        self,
-        program: Program,
-        *,
-        draws: int = 1000,
-        tune: int = 500,
-        chains: int = 4,
-        target_accept: float = 0.9,
-        max_tree_depth: int = 10,
-        metric: str = "auto",
-        retry_target_accept: float | None = 0.99,
-        fold_batch: int = 1,
-        gate: Gate = GATE,
-        seed: int = 0,
-        warm_start: xr.DataTree | None = None,
-        warm_tune: int = 250,
-        init: Init = "median",
-        threads: int | None = None,
-        chain_batch: int | None = None,
-        chunk_steps: int = CHUNK_STEPS,
-    ):
-        self._program = program
-        self.threads = available_cpus() if threads is None else max(1, int(threads))
-        self.chain_batch = chain_batch_of(int(chains), chain_batch)
-        self.draws, self.chains = int(draws), int(chains)
-        self.target_accept, self.max_tree_depth = float(target_accept), int(max_tree_depth)
-        if metric not in METRICS:
-            raise ValueError(f"metric must be one of {', '.join(METRICS)} (got {metric!r})")
-        self.metric = metric
-        self.retry_target_accept = float(retry_target_accept) if retry_target_accept else None
-        self.fold_batch = int(fold_batch)
-        self.gate = gate
-        self.seed = int(seed)
-        self.compilations = 0
-        self._density = program.density(seed)
-        # the warm-up length is the compiled scan's; a warm start idles through part of it
-        self.tune = int(warm_tune) if warm_start is not None else int(tune)
-        self.warm = False
-        self.active_tune = self.tune
-        self._schedule = sampling_schedule(self.tune, self.draws)
-        self.init = init  # how cold chains start (bayesfric.inference.init)
-        # cold starts compile in the background while the sampler is traced (bayesfric.exported)
-        self._cold_starts = pending_chain_starts(program, self.chains, seed, init)
-        self._init_z = None  # None: the cold starts; a warm start sets its own
-        self._init_imm = self._unit_imm()
-        # warm-up and sampling in chunks of chunk_steps rows, for progress (bayesfric.inference.chunked)
-        self._sampler = ChunkedSampler(self._density, self._data, vmap_or_squeeze, self._finish_batch,
-                                       self._program_parts(), self._example_args(), self.max_tree_depth,
-                                       self.tune, chunk_steps, self._traced, auto=self.metric == "auto")
-        self.loaded = self._sampler.loaded
-        self._tables = None  # the full fit's DataTree tables, compiled on the first fit
-        self.compilations += int(self.loaded)  # a program read from disk counts as its one compilation
-        if warm_start is not None:
-            self._start_from(warm_start, int(warm_tune))
+    program: Program
+    config: SamplerConfig
+    kernel: Kernel
+    start: Start
+    gate: Gate = GATE
+    tables: FitTables = field(default_factory=FitTables, repr=False)
+
+    @classmethod
+    def build(cls, program: Program, config: SamplerConfig | None = None, *, gate: Gate = GATE,
+              warm_start: xr.DataTree | None = None, warm_tune: int = 250, **settings: Any) -> NutsEngine:
+        """Compile the sampler of ``program`` under ``config`` (:data:`ENGINE_DEFAULTS` over which
+        ``settings`` apply, as :meth:`SamplerConfig.replace`); see :func:`build`."""
+        config = (config or ENGINE_DEFAULTS).replace(**settings)
+        if config.name != "nuts":
+            raise UserError(f"the NUTS engine samples with NUTS, got sampler {config.name!r}", "name")
+        if warm_start is not None:  # the compiled warm-up is the warm start's
+            config = config.replace(tune=int(warm_tune))
+        kernel = Kernel(program, config)
+        engine = cls(program, config, kernel, cold_start(kernel), gate)
+        return engine if warm_start is None else engine.warm_started(warm_start, int(warm_tune))
+
+    # -- what it is -------------------------------------------------------------------------
+    draws = property(lambda self: self.config.draws, doc="Draws per chain.")
+    tune = property(lambda self: self.config.tune, doc="Steps of the compiled warm-up.")
+    chains = property(lambda self: self.config.chains, doc="Chains per fold.")
+    seed = property(lambda self: self.config.seed, doc="Seed of the starts (and of :meth:`fit`).")
+    metric = property(lambda self: self.config.metric, doc="The warm-up's mass matrix.")
+    init = property(lambda self: self.config.init, doc="How chains that start cold are placed.")
+    target_accept = property(lambda self: self.config.target_accept, doc="Target acceptance.")
+    retry_target_accept = property(lambda self: self.config.retry, doc="Retry target (None: off).")
+    warm = property(lambda self: self.start.warm, doc="Whether chains start from a full fit.")
+    active_tune = property(lambda self: self.start.active_tune, doc="Warm-up steps its runs use.")
+    compilations = property(lambda self: self.kernel.compilations, doc="Builds of the compiled sampler.")
+    loaded = property(lambda self: self.kernel.loaded, doc="Whether it was read from disk.")
+    chain_batch = property(lambda self: self.kernel.chain_batch, doc="Chains per compiled call.")
 
     @property
-    def program(self) -> Program:
-        """The program this engine samples (read-only: :meth:`with_response` swaps the response)."""
-        return self._program
+    def threads(self) -> int:
+        """Calls of the compiled sampler run at once (default: the CPUs this process may use)."""
+        return self.config.threads or available_cpus()
 
+    @property
+    def settings(self) -> dict:
+        """Sampler settings, as stored with results."""
+        c = self.config
+        return dict(draws=c.draws, tune=self.active_tune, chains=c.chains, target_accept=c.target_accept,
+                    retry_target_accept=c.retry, max_tree_depth=c.max_tree_depth, metric=c.metric,
+                    fold_batch=c.fold_batch, chain_batch=self.chain_batch, init=c.init,
+                    sampler="blackjax NUTS, window adaptation",
+                    warm_start="from the full fit's draws and mass matrix" if self.warm else "no")
+
+    # -- variations: new engines of the same kernel ------------------------------------------
     def with_response(self, response: np.ndarray) -> NutsEngine:
         """This engine (same compiled sampler) on another response at the same inputs.
 
         The priors stay those the program was built with (data-scaled on its own response);
         ``response`` must have the program's shape and be finite.
         """
-        y = np.asarray(response, dtype=self._program.response.dtype)
-        if y.shape != self._program.response.shape:
-            raise ValueError(f"response must have shape {self._program.response.shape}; got {y.shape}")
+        y = np.asarray(response, dtype=self.program.response.dtype)
+        if y.shape != self.program.response.shape:
+            raise UserError(f"must have shape {self.program.response.shape}; got {y.shape}", "response")
         if not np.isfinite(y).all():
-            raise ValueError("response has non-finite values")
-        view = copy.copy(self)
-        view._program = replace(self._program, response=y)
-        view._tables = None  # the original's compiled fit tables close over its own response
-        return view
+            raise UserError("has non-finite values", "response")
+        return replace(self, program=replace(self.program, response=y), tables=FitTables())
 
     def warm_started(self, fit: xr.DataTree, warm_tune: int = 250) -> NutsEngine:
         """This engine (same compiled sampler) with chains started from the full fit ``fit``.
@@ -237,11 +205,7 @@ class NutsEngine:
         one; the gate still checks every fold. Use only a fit that passed the gate.
         ``warm_tune`` must lie in [120, ``tune``].
         """
-        if warm_tune > self.tune:
-            raise ValueError(f"warm_tune ({warm_tune}) exceeds the engine's warm-up of {self.tune} steps")
-        view = copy.copy(self)
-        view._start_from(fit, int(warm_tune))
-        return view
+        return replace(self, start=warm_start(self.kernel, self.program, fit, int(warm_tune)))
 
     def cold_started(self, tune: int) -> NutsEngine:
         """This engine (same compiled sampler) with a cold Stan warm-up of ``tune`` steps.
@@ -251,76 +215,7 @@ class NutsEngine:
         warm-up idles). For folds that remove a whole region or series, whose posteriors may
         lie far from the full one. ``tune`` must lie in [120, the engine's warm-up].
         """
-        if not 120 <= tune <= self.tune:
-            raise ValueError(f"a cold warm-up needs 120 to {self.tune} steps (got {tune})")
-        view = copy.copy(self)
-        view._init_z = None  # the prior-median starts, computed once per engine
-        view._init_imm = self._unit_imm()
-        view._schedule = sampling_schedule(self.tune, self.draws, active=tune, warm=False)
-        view.warm, view.active_tune = False, tune
-        return view
-
-    def _start_from(self, fit: xr.DataTree, warm_tune: int) -> None:
-        if warm_tune < 120:
-            raise ValueError(f"warm_tune must be at least 120 (got {warm_tune})")
-        self._init_z, self._init_imm = warm_start_from(self.program, fit, self.chains, self.seed, self.metric)
-        self._schedule = sampling_schedule(self.tune, self.draws, active=warm_tune)
-        self.warm, self.active_tune = True, warm_tune
-
-    @property
-    def settings(self) -> dict:
-        """Sampler settings, as stored with results."""
-        return dict(draws=self.draws, tune=self.active_tune, chains=self.chains,
-                    target_accept=self.target_accept, retry_target_accept=self.retry_target_accept,
-                    max_tree_depth=self.max_tree_depth, metric=self.metric, fold_batch=self.fold_batch,
-                    chain_batch=self.chain_batch, init=self.init,
-                    sampler="blackjax NUTS, window adaptation",
-                    warm_start="from the full fit's draws and mass matrix" if self.warm else "no")
-
-    def _unit_imm(self) -> np.ndarray:
-        """The inverse mass matrix chains start cold with: ones, or the identity (dense, auto)."""
-        dim = self._density.dim
-        return np.ones(dim) if self.metric == "diag" else np.eye(dim)
-
-    # -- the compiled function ------------------------------------------------------------
-    def _program_parts(self) -> dict:
-        """What the traced sampler depends on besides the package source (its disk-cache key)."""
-        return dict(program=program_parts(self.program, response=False), what="NutsEngine",
-                    draws=self.draws, max_tree_depth=self.max_tree_depth, metric=self.metric)
-
-    def _example_args(self) -> tuple:
-        keys = jax.ShapeDtypeStruct((self.fold_batch, self.chain_batch) + jax.random.PRNGKey(0).shape, jnp.uint32)
-        masks = jax.ShapeDtypeStruct((self.fold_batch, self.program.n_obs), jnp.bool_)
-        y = self.program.response
-        schedule = np.asarray(self._schedule)
-        starts = jax.ShapeDtypeStruct((self.chain_batch, self._density.dim), self._init_imm.dtype)
-        return (keys, masks, jax.ShapeDtypeStruct(y.shape, y.dtype), starts, self._init_imm,
-                jax.ShapeDtypeStruct(schedule.shape, schedule.dtype),
-                jax.ShapeDtypeStruct((), self._init_imm.dtype), jax.ShapeDtypeStruct((), self._init_imm.dtype))
-
-    def _traced(self) -> None:
-        self.compilations += 1  # runs only while tracing the sampler's step, i.e. once per compilation
-
-    def _data(self, response) -> dict:
-        p = self.program  # its inputs: constants of the compiled code (see the module notes)
-        return dict(inputs=p.inputs, group_index=p.group_index, response=response)
-
-    def _finish_batch(self, positions, masks, response):
-        """Constrained draws and lpd of every observation from the kept unconstrained draws
-        ``(fold, chain, draw, dim)`` of one call, each fold with its training mask (which levels
-        of a group column its draws hold centred: ``Program.model``'s ``seen``)."""
-        density = self._density  # the program's one log density
-        data = self._data(response)
-
-        def one_fold(position, mask):
-            fold = dict(data, seen=mask)
-            constrained = jax.vmap(jax.vmap(lambda v: density.constrain(v, fold)))(position)
-            flat = {k: v.reshape((-1,) + v.shape[2:]) for k, v in constrained.items()}
-            # draws × rows at once for small data, else in chunks of draws (bounded memory)
-            lpd = log_mean_likelihood(lambda c: density.pointwise(c, fold), flat, self.program.n_obs)
-            return constrained, lpd
-
-        return vmap_or_squeeze(one_fold)(positions, masks)
+        return replace(self, start=cold_start(self.kernel, int(tune)))
 
     # -- public ---------------------------------------------------------------------------
     def run(self, train_masks: np.ndarray, seed: int = 0) -> FoldFits:
@@ -332,33 +227,32 @@ class NutsEngine:
         """
         masks = np.asarray(train_masks, dtype=bool)
         if masks.ndim != 2 or masks.shape[1] != self.program.n_obs:
-            raise ValueError(f"train masks must be (K, {self.program.n_obs}); got {masks.shape}")
+            raise UserError(f"must be (K, {self.program.n_obs}); got {masks.shape}", "train_masks")
         if not masks.any(axis=1).all():
-            raise ValueError("a fold trains on no observation")
+            raise UserError("a fold trains on no observation", "train_masks")
         start = time.perf_counter()
         folds = np.arange(masks.shape[0])
-        samples, stats, lpd = self._sample(masks, folds, seed, self.target_accept, DENSE_ABOVE)
+        target, retry = self.config.target_accept, self.config.retry
+        samples, stats, lpd = self._sample(masks, folds, seed, target, DENSE_ABOVE)
         fits = FoldFits(samples, lpd, self._verdicts(samples, stats), 0.0, stats,
-                        np.full(folds.size, self.target_accept), np.zeros(folds.size, bool))
-        raise_target = self.retry_target_accept is not None and self.retry_target_accept > self.target_accept
+                        np.full(folds.size, target), np.zeros(folds.size, bool))
         went_dense = (stats["dense_metric"].any(axis=(1, 2)) if self.metric == "auto"
                       else np.zeros(folds.size, bool))
         # a dense metric that failed: first the diagonal one at the same target (its divergences
         # may say the metric was wrong, not that the step was too long), then, if that fails
         # too, the raised target (so never a worse verdict than the raised target alone)
         self._again(fits, masks, seed, [i for i, v in enumerate(fits.verdicts) if not v.passed and went_dense[i]],
-                    self.target_accept)
-        if raise_target:
+                    target)
+        if retry is not None and retry > target:
             self._again(fits, masks, seed, [i for i, v in enumerate(fits.verdicts)
-                                            if not v.passed and (v.divergences or went_dense[i])],
-                        self.retry_target_accept)
+                                            if not v.passed and (v.divergences or went_dense[i])], retry)
         fits.diagonal[:] = fits.diagonal & went_dense
         fits.seconds = time.perf_counter() - start
         return fits
 
     def _again(self, fits: FoldFits, masks: np.ndarray, seed: int, retry: list[int], target: float) -> None:
         """Sample the folds ``retry`` once more at ``target`` (diagonal metric under ``auto``), same
-        keys and starts, and keep that run in ``fits``."""
+        keys and starts, and keep that run in ``fits`` (the run's own result, being assembled)."""
         if not retry:
             return
         again = self._sample(masks[retry], np.asarray(retry), seed, target,
@@ -375,47 +269,44 @@ class NutsEngine:
         """Draws, statistics and lpd of the folds ``folds`` (indices of the run, which fix
         their keys) with training masks ``masks``, at ``target_accept`` (and the ``auto``
         metric's threshold ``dense_above``)."""
-        n_folds, b = masks.shape[0], self.fold_batch
+        c, cb, sampler = self.config, self.chain_batch, self.kernel.sampler
+        n_folds, b = masks.shape[0], c.fold_batch
         n_pad = (-n_folds) % b
         padded = np.concatenate([masks, np.repeat(masks[:1], n_pad, axis=0)])
         ids = np.concatenate([folds, np.repeat(folds[:1], n_pad)])
         # fold k's chains draw from fold_in(seed, k): independent of K, batch, padding and retries
         base = jax.random.PRNGKey(seed)
-        keys = np.asarray(jnp.stack([jax.random.split(jax.random.fold_in(base, int(k)), self.chains) for k in ids]))
+        keys = np.asarray(jnp.stack([jax.random.split(jax.random.fold_in(base, int(k)), c.chains) for k in ids]))
         # host arrays: a device-committed start would count as another signature of the
         # exported program and compile it again
-        starts, cb = np.asarray(self._starts()), self.chain_batch
-        fixed = (np.asarray(self._init_imm), np.asarray(self._schedule), np.asarray(target_accept, dtype=float),
-                 np.asarray(dense_above, dtype=float))
-        idle = self.tune - self.active_tune
-        shown = SamplingProgress(current(), n_folds, self.chains, idle, self.active_tune, self.draws)
+        starts = np.asarray(self.kernel.positions(self.start))
+        fixed = (np.asarray(self.start.inverse_mass), np.asarray(self.start.schedule),
+                 np.asarray(target_accept, dtype=float), np.asarray(dense_above, dtype=float))
+        shown = SamplingProgress(current(), n_folds, c.chains, c.tune - self.active_tune, self.active_tune, c.draws)
 
-        def one_call(work: tuple[int, int]) -> Any:  # folds lo:lo+b, chains c:c+cb
-            lo, c = work
+        def one_call(work: tuple[int, int]) -> Any:  # folds lo:lo+b, chains i:i+cb
+            lo, i = work
 
             def report(rows: int, divergent: np.ndarray) -> None:
-                shown.update(range(lo, lo + b), range(c, c + cb), rows, divergent)
+                shown.update(range(lo, lo + b), range(i, i + cb), rows, divergent)
 
-            constrained, stats, lpd = self._sampler(keys[lo:lo + b, c:c + cb], padded[lo:lo + b],
-                                                    self.program.response, starts[c:c + cb], *fixed,
-                                                    report=report if shown.target is not None else None)
-            return constrained, stats, lpd
+            return sampler(keys[lo:lo + b, i:i + cb], padded[lo:lo + b], self.program.response, starts[i:i + cb],
+                           *fixed, report=report if shown.target is not None else None)
 
-        work = [(lo, c) for lo in range(0, padded.shape[0], b) for c in range(0, self.chains, cb)]
+        work = [(lo, i) for lo in range(0, padded.shape[0], b) for i in range(0, c.chains, cb)]
         threads = min(self.threads, len(work))
         if threads > 1:  # XLA runs each call on its own core; results keep their order
             with ThreadPoolExecutor(threads, thread_name_prefix="bayesfric-chains") as pool:
                 parts = list(pool.map(one_call, work))
         else:
             parts = [one_call(w) for w in work]
-        splits = self.chains // cb
+        splits = c.chains // cb
         per_batch = [join_chains(parts[i:i + splits]) for i in range(0, len(parts), splits)]
         return jax.tree.map(lambda *xs: np.concatenate(xs)[:n_folds], *per_batch)
 
     def _verdicts(self, samples: dict, stats: dict) -> list[Verdict]:
         """The gate of every fold, in one pass of arviz-stats over a ``fold`` dimension."""
         lead = ("fold", "chain", "draw")
-
         site_dims = self.program.site_dims()
 
         def dims(name: str, value: np.ndarray) -> tuple[str, ...]:
@@ -432,35 +323,66 @@ class NutsEngine:
         ``seed`` defaults to the engine's seed.
         """
         seed = self.seed if seed is None else int(seed)
-        if self._tables is None:  # compiles in the background while the chains run
-            self._tables = tables_jit(self.program, storage(self.program.n_obs, self.chains, self.draws))
-            sites = {k: jax.ShapeDtypeStruct(v.shape[3:], v.dtype) for k, v in self._sampler.out_shapes[0].items()}
-            self._tables.ahead(*draw_tables_args(sites, self.chains * self.draws, seed))
+        tables = self.tables.of(self, seed)
         import_statistics()  # the gate's library imports while the programs above compile or load
         fits = self.run(np.ones((1, self.program.n_obs), dtype=bool), seed=seed)
         samples = {k: v[0] for k, v in fits.samples.items()}
         stats = {k: v[0] for k, v in fits.stats.items()}
         dense = stats.pop("dense_metric").any(axis=-1)  # per chain: sampled with a dense metric
         settings = dict(draws=self.draws, tune=self.active_tune, chains=self.chains,
-                        target_accept=float(fits.target_accept[0]), max_tree_depth=self.max_tree_depth,
+                        target_accept=float(fits.target_accept[0]), max_tree_depth=self.config.max_tree_depth,
                         init=self.init, algorithm="blackjax NUTS, Stan window adaptation")
-        if self.metric == "auto":
-            settings["metric"] = (f"auto: dense in {int(dense.sum())} of {dense.size} chains (correlation "
-                                  f"condition number above {DENSE_ABOVE:g}), diagonal in the others")
-        elif self.metric != "diag":  # recorded when not the default, so existing fits keep their attrs
-            settings["metric"] = self.metric
-        raised = fits.target_accept[0] != self.target_accept
-        if fits.diagonal[0]:
-            settings["retried"] = (f"the dense metric the warm-up chose failed the gate: sampled again with the "
-                                   f"diagonal one at {self.target_accept}")
-            if raised:
-                settings["retried"] += f", which failed too; then at {fits.target_accept[0]}"
-        elif raised:
-            settings["retried"] = (f"divergent transitions at target_accept {self.target_accept}: sampled again "
-                                   f"at {fits.target_accept[0]}")
-        return assemble(self.program, ds, samples, stats, sampler="nuts", settings=settings, seed=seed,
-                        tables=self._tables)
+        settings |= _fit_notes(self.metric, self.target_accept, dense, fits)
+        return assemble(self.program, ds, samples, stats, sampler="nuts", settings=settings, seed=seed, tables=tables)
 
-    def _starts(self) -> jax.Array:
-        """The chains' starting points ``(chains, dim)``: a warm start's, or the cold ones."""
-        return self._cold_starts() if self._init_z is None else self._init_z
+
+def _fit_notes(metric: str, target: float, dense: np.ndarray, fits: FoldFits) -> dict:
+    """What a full fit records of its metric and of a retry."""
+    notes = {}
+    if metric == "auto":
+        notes["metric"] = (f"auto: dense in {int(dense.sum())} of {dense.size} chains (correlation "
+                           f"condition number above {DENSE_ABOVE:g}), diagonal in the others")
+    elif metric != "diag":  # recorded when not the default, so existing fits keep their attrs
+        notes["metric"] = metric
+    raised = fits.target_accept[0] != target
+    if fits.diagonal[0]:
+        notes["retried"] = (f"the dense metric the warm-up chose failed the gate: sampled again with the "
+                            f"diagonal one at {target}")
+        if raised:
+            notes["retried"] += f", which failed too; then at {fits.target_accept[0]}"
+    elif raised:
+        notes["retried"] = (f"divergent transitions at target_accept {target}: sampled again "
+                            f"at {fits.target_accept[0]}")
+    return notes
+
+
+def build(program: Program, config: SamplerConfig | None = None, *, gate: Gate = GATE,
+          warm_start: xr.DataTree | None = None, warm_tune: int = 250, **settings: Any) -> NutsEngine:
+    """Compile the NUTS sampler of ``program`` under ``config`` and return its engine.
+
+    Parameters
+    ----------
+    program : Program
+        The law bound to the full data set.
+    config : SamplerConfig, optional
+        Its settings (default :data:`ENGINE_DEFAULTS`); ``settings`` replace some of them.
+    gate : Gate
+        Diagnostics thresholds.
+    warm_start : xarray.DataTree, optional
+        Start every chain from this full fit (:meth:`NutsEngine.warm_started`); the compiled
+        warm-up is then ``warm_tune`` steps long. A study instead takes
+        ``engine.warm_started(fit)`` of the engine that made the full fit (one compilation).
+    warm_tune : int
+        Warm-up steps per chain under ``warm_start`` (default 250; at least 120).
+
+    Returns
+    -------
+    NutsEngine
+        Frozen: its variations are new engines of the same compiled kernel.
+
+    Examples
+    --------
+    >>> engine = build(program, SamplerConfig(draws=300, tune=300, chains=2, seed=1))  # doctest: +SKIP
+    >>> engine.cold_started(200).run(masks).verdicts                                  # doctest: +SKIP
+    """
+    return NutsEngine.build(program, config, gate=gate, warm_start=warm_start, warm_tune=warm_tune, **settings)

@@ -12,32 +12,19 @@ from __future__ import annotations
 import contextlib
 import sys
 import time
+from typing import Any
 
 import xarray as xr
 
-from bayesfric.inference.engine import NutsEngine
-from bayesfric.inference.init import Init
+from bayesfric.inference.config import SamplerConfig
+from bayesfric.inference.engine import build
 from bayesfric.inference.progress import reporting
 from bayesfric.model import Program
 
 __all__ = ["sample_nuts"]
 
 
-def sample_nuts(
-    program: Program,
-    ds: xr.Dataset,
-    *,
-    draws: int = 1000,
-    tune: int = 1000,
-    chains: int = 4,
-    seed: int = 0,
-    target_accept: float = 0.9,
-    max_tree_depth: int = 10,
-    metric: str = "auto",
-    init: Init = "median",
-    retry_target_accept: float = 0.99,
-    progress: bool = False,
-) -> xr.DataTree:
+def sample_nuts(program: Program, ds: xr.Dataset, config: SamplerConfig | None = None, **settings: Any) -> xr.DataTree:
     """Sample the program's posterior with NUTS and return the fit's DataTree.
 
     Chains run in one compiled sampler (on CPUs one chain per call, the calls on a thread pool;
@@ -48,16 +35,29 @@ def sample_nuts(
     more at ``retry_target_accept`` (0 switches that off; the cost is stated on the engine).
     ``metric = "dense"`` estimates a dense mass matrix in the warm-up instead of a diagonal one
     (for strongly correlated coefficients; see the engine).
+
+    Parameters
+    ----------
+    program : Program
+        The law bound to its data.
+    ds : xarray.Dataset
+        The data the program was built on (coordinates and provenance of the fit).
+    config : SamplerConfig, optional
+        The settings (default: :class:`~bayesfric.inference.config.SamplerConfig`'s, 1000 draws
+        after 1000 warm-up steps in 4 chains); ``settings`` replace some of them.
+
+    Examples
+    --------
+    >>> dt = sample_nuts(program, ds, SamplerConfig(draws=300, tune=300, chains=2))   # doctest: +SKIP
     """
-    engine = NutsEngine(program, draws=draws, tune=tune, chains=chains, seed=seed,
-                        target_accept=target_accept, max_tree_depth=max_tree_depth, metric=metric, init=init,
-                        retry_target_accept=retry_target_accept)
+    config = (config or SamplerConfig()).replace(**settings)
+    engine = build(program, config)
     start = time.perf_counter()
-    if progress:
-        print(f"sampling {program.law.name}: {chains} chains × ({tune} warm-up + {draws} draws), "
-              "compiling first unless cached …", file=sys.stderr, flush=True)
-    with reporting(f"{program.law.name} fit") if progress else contextlib.nullcontext():
+    if config.progress:
+        print(f"sampling {program.law.name}: {config.chains} chains × ({config.tune} warm-up + {config.draws} "
+              "draws), compiling first unless cached …", file=sys.stderr, flush=True)
+    with reporting(f"{program.law.name} fit") if config.progress else contextlib.nullcontext():
         dt = engine.fit(ds)
-    if progress:
+    if config.progress:
         print(f"sampled in {time.perf_counter() - start:.1f} s", file=sys.stderr, flush=True)
     return dt

@@ -104,12 +104,14 @@ belongs to — is declared once, as the tables :data:`FILE` (with :data:`STUDY`,
 :data:`NOISE`, :data:`SAMPLER`, :data:`LAW`, :data:`COMPARE`, :data:`BLOCKED`, :data:`SIZING`,
 :data:`CLAIM`) of :mod:`bayesfric.study.sections`;
 :func:`bayesfric.study.schema.parse` derives validation, defaults and messages from them. The
-sampler defaults are the backends' own (:data:`bayesfric.inference.SAMPLERS`). The study name
-becomes a folder name, so it must be a plain name (letters, digits, ``-``, ``_``, ``.`` not first,
-at most 64 characters; :func:`bayesfric.fsutil.name_problem`). The ``fit`` command validates its
-sampler options against the same :data:`SAMPLER` table. Checks that need the data (coordinates,
-inputs, number of K-fold folds, emcee walkers against the number of free parameters, sizing
-inputs against the data and the laws) are in :func:`bayesfric.study.runner.validate_against_data`.
+sampler settings' rules and defaults are those of the one sampler configuration
+(:class:`bayesfric.inference.config.SamplerConfig`), which also checks the table as a whole. The
+study name becomes a folder name, so it must be a plain name (letters, digits, ``-``, ``_``, ``.``
+not first, at most 64 characters; :func:`bayesfric.fsutil.name_problem`). The ``fit`` command and
+``bayesfric.fit`` validate their sampler settings through the same configuration. Checks that
+need the data (coordinates, inputs, number of K-fold folds, emcee walkers against the number of
+free parameters, sizing inputs against the data and the laws) are in
+:func:`bayesfric.study.runner.validate_against_data`.
 
 Every error is a :class:`StudyError` with one line naming the file and the key:
 ``path: [section] key: problem``, ``path: laws[i].key: problem`` or
@@ -122,7 +124,9 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
+from bayesfric.errors import UserError
 from bayesfric.fsutil import name_problem
+from bayesfric.inference.config import SamplerConfig
 from bayesfric.laws import Law, get_law
 from bayesfric.laws.plugins import LawModuleError, load_module
 from bayesfric.laws.variants import VariantError, vary
@@ -133,8 +137,6 @@ from bayesfric.study.claimspec import Claim, ClaimError, make_claim
 from bayesfric.study.samplers import (
     EVIDENCE_MIN_DRAWS,
     free_parameter_count,
-    retry_problem,
-    sampler_settings,
     walkers_problem,
 )
 from bayesfric.study.schema import SchemaError, parse
@@ -159,7 +161,7 @@ from bayesfric.study.spec import BlockedSpec, LawSpec, Study, StudyError
 __all__ = [
     "StudyError", "Study", "LawSpec", "BlockedSpec", "load_study", "study_from_raw",
     "FILE", "STUDY", "DATA", "NOISE", "SAMPLER", "LAW", "BLOCKED", "COMPARE", "SIZING", "CLAIM",
-    "sampler_settings", "walkers_problem", "free_parameter_count", "retry_problem", "EVIDENCE_MIN_DRAWS",
+    "walkers_problem", "free_parameter_count", "EVIDENCE_MIN_DRAWS",
 ]
 
 
@@ -279,9 +281,13 @@ def _law_specs(path: Path, spec: dict[str, Any], noise: Noise, modules: tuple[st
     return laws
 
 
-def _check_retry(path: Path, sampler: dict[str, Any]) -> None:
-    if problem := retry_problem(sampler):
-        raise StudyError(f"{path}: [sampler] retry_target_accept: {problem}")
+def _check_sampler(path: Path, sampler: dict[str, Any]) -> None:
+    """The ``[sampler]`` table as a configuration: what the schema cannot check (the retry target
+    above ``target_accept``), keyed by the setting."""
+    try:
+        SamplerConfig.from_table(sampler)
+    except UserError as exc:
+        raise StudyError(f"{path}: [sampler] {exc.key}: {exc.problem}") from None
 
 
 def _check_evidence_draws(path: Path, sampler: dict[str, Any]) -> None:
@@ -351,7 +357,7 @@ def study_from_raw(path: Path, raw: dict[str, Any]) -> Study:
         dataset = str((path.parent / dataset).absolute())
     noise = Noise(kind=spec["noise"]["kind"], group=spec["noise"]["group"])
     laws = _law_specs(path, spec, noise, modules)
-    _check_retry(path, spec["sampler"])
+    _check_sampler(path, spec["sampler"])
     if compare["evidence"]:
         _check_evidence_draws(path, spec["sampler"])
     blocked = [BlockedSpec(b["axis"], b["direction"], b["threshold"], b["quantile"], b["label"], b["future"])

@@ -44,7 +44,7 @@ from bayesfric.csvout import write_csv
 from bayesfric.errors import UserError
 from bayesfric.inference.progress import reporting
 from bayesfric.study.store import Result, RunStore
-from bayesfric.study.units import COSTLY, LawJob, Unit, compute, compute_seconds
+from bayesfric.study.units import COSTLY, Engines, LawJob, Unit, compute, compute_seconds
 
 #: Seconds to wait for ``--scheduler ADDRESS`` to answer.
 CONNECT_TIMEOUT_S = 20
@@ -226,11 +226,13 @@ def open_client(workers: int = 0, scheduler: str | None = None) -> Iterator[obje
 class _Serial:
     """In-process executor with the interface :func:`run_units` needs; a law's units run together.
     Each unit runs inside ``inside(unit)`` (its chains' progress) and gets a shallow copy of the
-    fit (a unit's changes to the tree's structure or attributes do not reach the others)."""
+    fit (a unit's changes to the tree's structure or attributes do not reach the others); the
+    law's units share its compiled engine (``engines``, this executor's own)."""
 
     def __init__(self, inside=None):
         self.queue: deque = deque()
         self.inside = inside or (lambda unit: contextlib.nullcontext())
+        self.engines = Engines()
 
     def submit(self, job, unit, fit, first: bool) -> None:
         (self.queue.appendleft if first else self.queue.append)((job, unit, fit))
@@ -239,16 +241,32 @@ class _Serial:
         while self.queue:
             job, unit, fit = self.queue.popleft()
             with self.inside(unit):
-                result, seconds = compute(job, unit, None if fit is None else fit.copy())
+                result, seconds = compute(job, unit, None if fit is None else fit.copy(), self.engines)
             yield job, unit, result, seconds
 
 
 def compute_reporting(study: str, job: LawJob, unit: Unit, fit) -> tuple[Result, float]:
     """:func:`compute` on a Dask worker, its chains reporting in plain lines on the worker's stderr
     (a local cluster's workers share the terminal; a remote worker's lines go to its log), one
-    every :data:`bayesfric.inference.progress.PLAIN_INTERVAL_S` seconds, none for a short unit."""
+    every :data:`bayesfric.inference.progress.PLAIN_INTERVAL_S` seconds, none for a short unit.
+    The law's compiled engine is kept by the worker (:func:`_worker_engines`) for its next unit."""
     with reporting(f"{study} {unit.law} {unit.label}", live=False):
-        return compute(job, unit, fit)
+        return compute(job, unit, fit, _worker_engines())
+
+
+def _worker_engines() -> Engines:
+    """The :class:`~bayesfric.study.units.Engines` of the Dask worker running this task: an
+    attribute of the worker object, made on its first unit (outside a worker: a new one)."""
+    try:
+        from distributed import get_worker
+
+        worker = get_worker()
+    except (ImportError, ValueError):  # not inside a Dask task
+        return Engines()
+    if not isinstance(engines := getattr(worker, "bayesfric_engines", None), Engines):
+        engines = Engines()
+        worker.bayesfric_engines = engines
+    return engines
 
 
 class _Dask:

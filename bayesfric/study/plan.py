@@ -11,21 +11,20 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 from bayesfric import compare, fsutil, identifiability, limits, sizing
 from bayesfric.datasets import DataError, load_dataset, resolve, select
 from bayesfric.datasets.views import thin
+from bayesfric.inference.config import SamplerConfig
 from bayesfric.laws.variants import for_data
 from bayesfric.model import build_program
 from bayesfric.priors import PriorError
 from bayesfric.quantities import QUANTITIES
 from bayesfric.study import units
 from bayesfric.study.claims import ClaimError, basis_problem, check_claim
-from bayesfric.study.config import Study, StudyError, load_study, sampler_settings, walkers_problem
+from bayesfric.study.config import Study, StudyError, load_study, walkers_problem
 from bayesfric.study.store import store_folder
 
 __all__ = ["validate_against_data", "sizing_questions", "load_study_data", "QUICK", "QUICK_KFOLD", "QuickRun",
@@ -35,9 +34,9 @@ __all__ = ["validate_against_data", "sizing_questions", "load_study_data", "QUIC
 #: K-fold folds: a smoke test of the whole pipeline, not for decisions (reports say so).
 @dataclass(frozen=True)
 class QuickRun:
-    """The settings a ``--quick`` run capped: the sampler's, and K-fold's (asked, used)."""
+    """The settings a ``--quick`` run capped: the sampler's configuration, and K-fold's (asked, used)."""
 
-    settings: Mapping[str, Any]
+    config: SamplerConfig
     kfold: tuple[int, int]
 
 
@@ -222,24 +221,25 @@ def _fold_schemes(study: Study, ds, seed: int, kfold: int) -> list[tuple[str, ob
     return schemes
 
 
-def _plan_laws(study: Study, ds, schemes, settings: dict, seed: int) -> list:
-    """(job, fit unit, following units) of every law, keyed by everything each depends on."""
-    sampler = study.sampler.get("name", "nuts")
+def _plan_laws(study: Study, ds, schemes, config: SamplerConfig, seed: int) -> list:
+    """(job, fit unit, following units) of every law, keyed by everything each depends on; each
+    law runs with the run's ``config`` (:func:`_run_settings`) at the study's ``seed``, with its
+    own metric where its entry gives one."""
+    config = config.replace(seed=seed)
     plans = []
     for spec in study.laws:
-        job = units.make_job(spec, study.noise, ds, sampler, spec.settings(settings), seed)
+        job = units.make_job(spec, study.noise, ds, spec.config(config))
         plans.append((job, *units.plan_law(job, study, schemes)))
     return plans
 
 
-def _run_settings(study: Study, quick: bool) -> tuple[dict, int]:
-    """Backend settings and number of K-fold folds of this run: the study's (validated), or
-    under ``--quick`` lowered to the :data:`QUICK` caps and at most :data:`QUICK_KFOLD` folds."""
-    settings = sampler_settings(study.sampler)
+def _run_settings(study: Study, quick: bool) -> tuple[SamplerConfig, int]:
+    """The sampler configuration and number of K-fold folds of this run: the study's (validated),
+    or under ``--quick`` lowered to the :data:`QUICK` caps and at most :data:`QUICK_KFOLD` folds."""
+    config = study.sampler_config
     if not quick:
-        return settings, study.kfold
-    caps = QUICK[study.sampler["name"]]
-    return settings | {k: min(settings[k], cap) for k, cap in caps.items() if k in settings}, \
+        return config, study.kfold
+    return config.replace(**{k: min(getattr(config, k), cap) for k, cap in QUICK[config.name].items()}), \
         min(study.kfold, QUICK_KFOLD)
 
 

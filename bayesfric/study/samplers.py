@@ -1,10 +1,11 @@
-"""Sampler checks shared by study files and the ``fit`` command: the backend's keyword arguments
-of a ``[sampler]`` section, the emcee walkers a program needs, the retry target, the draws
+"""Sampler checks shared by study files and the ``fit`` command that need more than the settings
+(each setting, the retry target among them, is checked by
+:class:`~bayesfric.inference.config.SamplerConfig`): the emcee walkers a program needs, the draws
 bridge sampling needs. Re-exported by :mod:`bayesfric.study.config`."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpyro import handlers
@@ -12,15 +13,10 @@ from numpyro import handlers
 if TYPE_CHECKING:
     from bayesfric.model import Program
 
-__all__ = ["EVIDENCE_MIN_DRAWS", "sampler_settings", "free_parameter_count", "walkers_problem", "retry_problem"]
+__all__ = ["EVIDENCE_MIN_DRAWS", "free_parameter_count", "walkers_problem"]
 
 #: Bridge sampling splits every chain in halves of at least 20 draws.
 EVIDENCE_MIN_DRAWS = 40
-
-
-def sampler_settings(section: dict[str, Any]) -> dict[str, Any]:
-    """Backend keyword arguments of a parsed ``[sampler]`` section (no name, seed or unset values)."""
-    return {k: v for k, v in section.items() if k not in ("name", "seed") and v is not None}
 
 
 def free_parameter_count(program: Program) -> int:
@@ -37,12 +33,4 @@ def walkers_problem(program: Program, walkers: int | None) -> str | None:
     if walkers < 2 * ndim:
         return (f"emcee needs at least 2 × {ndim} = {2 * ndim} walkers for the {ndim} free parameters "
                 f"of law {program.law.name!r}, got {walkers}")
-    return None
-
-
-def retry_problem(sampler: dict[str, Any]) -> str | None:
-    """Why a parsed ``[sampler]`` section's retry target cannot be used (None if it can)."""
-    retry = sampler.get("retry_target_accept")
-    if retry and retry <= sampler["target_accept"]:
-        return f"must be above target_accept ({sampler['target_accept']}) or 0 (off), got {retry}"
     return None

@@ -2,19 +2,17 @@
 :data:`SAMPLER`, :data:`LAW` (``[[laws]]``), :data:`COMPARE` with :data:`BLOCKED`, :data:`SIZING`,
 :data:`CLAIM`, and :data:`FILE` over them all. :func:`bayesfric.study.schema.parse` derives
 validation, defaults and messages from them; the file format is described in
-:mod:`bayesfric.study.config`, which re-exports these tables. The sampler defaults are the
-backends' own (:data:`bayesfric.inference.SAMPLERS`); the ``fit`` command checks its sampler
-options against :data:`SAMPLER`.
+:mod:`bayesfric.study.config`, which re-exports these tables. :data:`SAMPLER` is built from the
+sampler configuration's rules and defaults (:data:`bayesfric.inference.config.RULES`,
+:class:`~bayesfric.inference.config.SamplerConfig`), which the ``fit`` command and
+``bayesfric.fit`` check their settings against.
 """
 
 from __future__ import annotations
 
-import inspect
 from typing import Any, get_args, get_type_hints
 
-from bayesfric.inference import SAMPLERS
-from bayesfric.inference.engine import METRICS
-from bayesfric.inference.init import INITS
+from bayesfric.inference.config import METRICS, RULES, default_of
 from bayesfric.laws import get_law
 from bayesfric.model import Noise
 from bayesfric.study.claimspec import BASES, KINDS
@@ -24,9 +22,12 @@ __all__ = ["STUDY", "DATA", "NOISE", "SAMPLER", "LAW", "BLOCKED", "COMPARE", "SI
            "law_files_problem"]
 
 
-def _backend(key: str):
-    """Default of a sampler setting: the chosen backend's own keyword default."""
-    return lambda section: inspect.signature(SAMPLERS[section["name"]]).parameters[key].default
+def _sampler_field(key: str) -> Field:
+    """The ``[sampler]`` field of a setting: its rule, and its default under the chosen backend."""
+    rule = RULES[key]
+    default = {"name": "nuts", "seed": 0}.get(key, lambda section: default_of(section["name"], key))
+    return Field(key, rule.kind, default, min=rule.min, max=rule.max, gt=rule.gt, lt=rule.lt, choices=rule.choices,
+                 only=("name", rule.only) if rule.only else None, doc=rule.doc)
 
 
 def _known_law(name: str) -> str | None:
@@ -67,26 +68,7 @@ NOISE = Schema((
           doc="observation noise model"),
     Field("group", "str", None, doc="group coordinate of partial-pooled offsets"),
 ))
-SAMPLER = Schema((
-    Field("name", "str", "nuts", choices=tuple(SAMPLERS), doc="sampling backend"),
-    Field("seed", "int", 0, min=0, max=2**32 - 1, doc="seed of every random draw"),
-    Field("draws", "int", _backend("draws"), min=1, doc="draws per chain (emcee: steps before thinning)"),
-    Field("tune", "int", _backend("tune"), min=0, doc="warm-up draws (emcee: burn-in steps)"),
-    Field("chains", "int", _backend("chains"), min=1, only=("name", NUTS), doc="NUTS chains"),
-    Field("target_accept", "number", _backend("target_accept"), gt=0, lt=1, only=("name", NUTS),
-          doc="NUTS target acceptance probability"),
-    Field("retry_target_accept", "number", _backend("retry_target_accept"), min=0, lt=1, only=("name", NUTS),
-          doc="draws with divergent transitions are sampled again at this target acceptance "
-              "(above target_accept); 0 switches the retry off"),
-    Field("metric", "str", _backend("metric"), choices=METRICS, only=("name", NUTS),
-          doc="mass matrix of the warm-up: auto (dense where the warm-up finds strong correlations, "
-              "else diagonal), diag, or dense"),
-    Field("init", "str", _backend("init"), choices=INITS, only=("name", NUTS),
-          doc="chain starts: prior medians, or multi-path Pathfinder draws (posteriors with minor modes)"),
-    Field("walkers", "int", _backend("walkers"), min=2, only=("name", EMCEE),
-          doc="emcee walkers: at least 2 × free parameters (default max(32, 4 × free parameters))"),
-    Field("thin", "int", _backend("thin"), min=1, only=("name", EMCEE), doc="emcee thinning"),
-), only_label="sampler")
+SAMPLER = Schema(tuple(_sampler_field(key) for key in RULES), only_label="sampler")
 
 
 def _names(value: Any) -> str | None:

@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from bayesfric.errors import UserError
+from bayesfric.inference.config import SamplerConfig
 from bayesfric.laws import Law, get_law
 from bayesfric.laws.plugins import load_modules
 from bayesfric.laws.variants import vary
@@ -50,9 +51,9 @@ class LawSpec:
     modules: tuple[str, ...] = ()  # the study's law files (absolute): loaded before the name is resolved
     companion_of: str = ""  # added by the study: the reduced variant of this entry (bayesfric.identifiability)
 
-    def settings(self, study_settings: dict[str, Any]) -> dict[str, Any]:
-        """The sampler settings this law runs with: the study's, with the entry's own metric."""
-        return study_settings if self.metric is None else study_settings | {"metric": self.metric}
+    def config(self, study: SamplerConfig) -> SamplerConfig:
+        """The sampler configuration this law runs with: the study's, with the entry's own metric."""
+        return study if self.metric is None else study.replace(metric=self.metric)
 
     def build(self) -> Law:
         """The entry's law: the registered law with its options applied, named by the label.
@@ -129,3 +130,8 @@ class Study:
     every: int = 1  # [data] every: keep every n-th row (datasets.views.thin)
     companions: bool = True  # [compare] companions: add a reduced variant where the data do not identify a law
     identifiability: list = field(default_factory=list)  # identifiability.Check per law, filled by study.plan
+
+    @property
+    def sampler_config(self) -> SamplerConfig:
+        """The study's sampler configuration: its ``[sampler]`` table, checked when the file loaded."""
+        return SamplerConfig.from_table(self.sampler)

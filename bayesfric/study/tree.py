@@ -329,7 +329,7 @@ def _quick(quick: QuickRun | None) -> dict[str, xr.Dataset]:
     if quick is None:
         return {}
     asked, used = quick.kfold
-    attrs = {k: v for k, v in quick.settings.items() if k in QUICK_SETTINGS}
+    attrs = {k: v for k, v in quick.config.settings().items() if k in QUICK_SETTINGS}
     return {"quick": xr.Dataset(attrs=attrs | {"kfold_asked": int(asked), "kfold_used": int(used)})}
 
 

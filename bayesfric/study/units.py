@@ -5,7 +5,8 @@ Units of one law (:func:`plan_law`): ``fit`` (the full fit), then — all readin
 ``bridge`` and ``importance`` evidence estimates, ``smc`` (opt-in) and ``checks`` (prior
 predictive, LOO-PIT, power-scaling sensitivity, residual structure). Every unit runs through
 :func:`compute`, a pure function of a :class:`LawJob` (the law, its priors and constants, noise,
-selected data, sampler settings, seed), the :class:`Unit` and the fit; it returns the fit (a DataTree) or the unit's
+selected data, the sampler's :class:`~bayesfric.inference.config.SamplerConfig` with its seed), the
+:class:`Unit` and the fit; it returns the fit (a DataTree) or the unit's
 ``xarray.Dataset`` (its scorer's result: :func:`loo_dataset`, :func:`cv_dataset`,
 :func:`evidence_dataset`, :func:`checks_dataset`), which the run store writes as NetCDF and reads
 back (:mod:`bayesfric.study.store`) and a Dask worker sends as it is; in one process the units hand
@@ -14,6 +15,10 @@ stream is shared between units), so the order in which units run — serially or
 workers — does not change a number. :func:`rebuild` turns a law's Datasets into the compare
 layer's result objects (fresh and stored alike), which the runner weighs and flattens into the
 law's result (:mod:`bayesfric.study.lawresult`).
+
+A law's full fit and its fold refits share one compiled engine: the caller that runs the units
+keeps it in an :class:`Engines` (the serial executor one per run, a Dask worker one per worker
+process) and passes it to :func:`compute`; nothing is kept in this module.
 
 The fit's verdict decides the rest: under ``[compare] failed_fits = "skip"`` (the default) a law
 whose full fit failed the diagnostics gate gets no CV refits and no evidence (the costly stages);
@@ -39,9 +44,12 @@ import xarray as xr
 from bayesfric import compare
 from bayesfric.compare.heldout import HeldOut
 from bayesfric.compare.loo import loo_from_values
+from bayesfric.errors import InternalError
 from bayesfric.fingerprint import data_fingerprint, law_fingerprint, unit_key
 from bayesfric.inference import MAPPINGS_BUDGET, SAMPLERS, release_compiled_code
+from bayesfric.inference.config import SamplerConfig
 from bayesfric.inference.diagnostics import Verdict
+from bayesfric.inference.engine import NutsEngine, build
 from bayesfric.inference.modes import single_mode_note
 from bayesfric.model import Noise, build_program
 from bayesfric.study.store import Result
@@ -49,8 +57,8 @@ from bayesfric.study.store import Result
 if TYPE_CHECKING:
     from bayesfric.compare.structure import StructureCheck
 
-__all__ = ["LawJob", "Unit", "make_job", "plan_law", "compute", "compute_seconds", "rebuild", "Scored", "COSTLY",
-           "loo_dataset", "cv_dataset", "evidence_dataset", "checks_dataset"]
+__all__ = ["LawJob", "Unit", "Engines", "make_job", "plan_law", "compute", "compute_seconds", "rebuild", "Scored",
+           "COSTLY", "loo_dataset", "cv_dataset", "evidence_dataset", "checks_dataset"]
 
 #: Stages skipped for a law whose full fit failed the gate under ``failed_fits = "skip"``.
 COSTLY = ("cv", "bridge", "importance", "smc")
@@ -65,10 +73,23 @@ class LawJob:
     spec: Any  # bayesfric.study.config.LawSpec
     noise: Noise
     ds: xr.Dataset
-    sampler: str
-    settings: dict
-    seed: int
+    config: SamplerConfig
     key: str  # hash of all of the above (with the law's and the package's code)
+
+    @property
+    def sampler(self) -> str:
+        """The backend of the law's fit."""
+        return self.config.name
+
+    @property
+    def settings(self) -> dict[str, Any]:
+        """The backend's settings, as hashed into the key (:meth:`SamplerConfig.settings`)."""
+        return self.config.settings()
+
+    @property
+    def seed(self) -> int:
+        """The study's seed: every unit gets it explicitly."""
+        return self.config.seed
 
 
 @dataclass(frozen=True)
@@ -91,14 +112,15 @@ class Unit:
         return f"{self.law} {self.label if self.stage != 'cv' else 'cv ' + self.label}"
 
 
-def make_job(spec, noise: Noise, ds: xr.Dataset, sampler: str, settings: dict, seed: int) -> LawJob:
-    """The :class:`LawJob` of a study's law, keyed by everything the law's results depend on."""
+def make_job(spec, noise: Noise, ds: xr.Dataset, config: SamplerConfig) -> LawJob:
+    """The :class:`LawJob` of a study's law, keyed by everything the law's results depend on
+    (of the sampler: its backend, :meth:`SamplerConfig.settings` and seed)."""
     program = build_program(spec.build(), ds, priors=spec.priors, noise=noise)
     law = program.law  # the entry's variant as it runs on this data, named by the entry's label
     key = unit_key(law=law.name, law_code=law_fingerprint(law), priors=dict(program.priors),
                    resolved=dict(program.resolved), noise=noise, constants=dict(program.constants),
-                   data=data_fingerprint(ds), sampler=sampler, settings=settings, seed=seed)
-    return LawJob(spec, noise, ds, sampler, dict(settings), seed, key)
+                   data=data_fingerprint(ds), sampler=config.name, settings=config.settings(), seed=config.seed)
+    return LawJob(spec, noise, ds, config, key)
 
 
 def plan_law(job: LawJob, study, schemes: list[tuple[str, Any, str]]) -> tuple[Unit, list[Unit]]:
@@ -123,37 +145,52 @@ def plan_law(job: LawJob, study, schemes: list[tuple[str, Any, str]]) -> tuple[U
 
 
 # -- computing ------------------------------------------------------------------------------------
-_ENGINES: dict[str, Any] = {}  # this process's compiled engine of ONE law (fit and folds: one compilation)
-
-
 def _program(job: LawJob):
     return build_program(job.spec.build(), job.ds, priors=job.spec.priors, noise=job.noise)
 
 
-def _base_engine(job: LawJob):
-    """The law's compiled NUTS engine: its full fit and every fold refit in this process.
+class Engines:
+    """The compiled NUTS engine of the law whose units run now: its full fit and every fold
+    refit share one compilation. Owned by whoever runs the units (:func:`compute`'s caller);
+    holds one law's engine at a time and releases the previous law's compiled code when the
+    next law's first unit asks (:func:`bayesfric.inference.release_compiled_code`).
+
+    Examples
+    --------
+    >>> engines = Engines()
+    >>> fit, _ = compute(job, fit_unit, engines=engines)              # doctest: +SKIP
+    >>> loo, _ = compute(job, loo_unit, fit, engines=engines)         # the same compiled sampler  # doctest: +SKIP
+    """
+
+    def __init__(self):
+        self._key: str | None = None
+        self._engine: NutsEngine | None = None
+
+    def of(self, job: LawJob) -> NutsEngine:
+        """The law's engine (see :func:`_base_engine`), compiled on its first unit in this process."""
+        if self._key != job.key:
+            if self._key is not None:  # the previous law's samplers are not reused
+                self._key, self._engine = None, None
+                release_compiled_code(when_mapped_above=MAPPINGS_BUDGET)
+            self._engine, self._key = _base_engine(job), job.key
+        return self._engine
+
+
+def _base_engine(job: LawJob) -> NutsEngine:
+    """The law's compiled NUTS engine: its full fit and every fold refit.
 
     The engine's compiled warm-up is the study's ``tune``; the full fit uses all of it. Folds
     that remove a region or series start cold with a Stan warm-up of at most 500 steps, folds
     that drop a few points start from the full fit (:func:`_engine`); both run inside the same
     compiled sampler. An emcee study's folds are refitted with NUTS at the NUTS defaults' length.
     """
-    if any(k != job.key for k in _ENGINES):
-        _ENGINES.clear()
-        release_compiled_code(when_mapped_above=MAPPINGS_BUDGET)  # the previous law's samplers are not reused
-    if job.key not in _ENGINES:
-        s = job.settings
-        nuts_keys = ("target_accept", "retry_target_accept", "max_tree_depth", "metric", "init")
-        settings = (dict(draws=s["draws"], tune=s["tune"], chains=s.get("chains", 4),
-                         **{k: s[k] for k in nuts_keys if k in s})
-                    if job.sampler == "nuts" else dict(draws=1000, tune=500, chains=4))
-        _ENGINES[job.key] = compare.RefitEngine(_program(job), seed=job.seed, **settings)
-    return _ENGINES[job.key]
+    config = job.config if job.sampler == "nuts" else SamplerConfig(draws=1000, tune=500, chains=4, seed=job.seed)
+    return build(_program(job), config)
 
 
-def _engine(job: LawJob, fit: xr.DataTree, warm: bool):
+def _engine(job: LawJob, fit: xr.DataTree, warm: bool, engines: Engines):
     """The law's engine, warm-started from ``fit`` (a 250-step warm-up) or cold (≤ 500 steps)."""
-    base = _base_engine(job)
+    base = engines.of(job)
     warm_tune = min(250, base.tune)  # a warm start needs ≥ 120 warm-up steps within the engine's
     if warm and warm_tune >= 120:
         return base.warm_started(fit, warm_tune)
@@ -238,20 +275,20 @@ def _checks_unit(job: LawJob, fit: xr.DataTree, program) -> xr.Dataset:
     return out
 
 
-def _compute_rest(job: LawJob, unit: Unit, fit: xr.DataTree) -> xr.Dataset:
+def _compute_rest(job: LawJob, unit: Unit, fit: xr.DataTree, engines: Engines) -> xr.Dataset:
     """The Dataset of a unit after the fit (its scorer's result)."""
     passed = compare.verdict_of(fit).passed
     if unit.stage == "loo":
         # refits that drop one point start from the full fit's draws when it passed the gate; a
         # failed fit gets PSIS only unless the study runs failed fits' costly stages (issue 50)
         refit = passed or unit.params.get("failed_fits") == "run"
-        return loo_dataset(compare.psis_loo(fit, engine=lambda: _engine(job, fit, warm=passed), seed=job.seed,
+        return loo_dataset(compare.psis_loo(fit, engine=lambda: _engine(job, fit, passed, engines), seed=job.seed,
                                             no_refit="" if refit else NO_REFIT))
     if unit.stage == "cv":
         # random K-fold drops a few points (warm start); grouped and blocked folds start cold
         p = unit.params
         folds = compare.Folds(np.asarray(p["train"]), np.asarray(p["heldout"]), p["scheme"], p["labels"])
-        return cv_dataset(compare.cross_validate(_engine(job, fit, warm=passed and p["kind"] == "kfold"), folds,
+        return cv_dataset(compare.cross_validate(_engine(job, fit, passed and p["kind"] == "kfold", engines), folds,
                                                  seed=job.seed, predictive=p["kind"] in ("blocked", "forecast"),
                                                  joint=p["kind"] in ("grouped", "forecast")))
     program = _program(job)
@@ -267,24 +304,28 @@ def _compute_rest(job: LawJob, unit: Unit, fit: xr.DataTree) -> xr.Dataset:
                                                          runs=unit.params["runs"]))
     if unit.stage == "checks":
         return _checks_unit(job, fit, program)  # the LOO-PIT values and band: the report draws them
-    raise ValueError(f"unknown unit stage {unit.stage!r}")
+    raise InternalError(f"unknown unit stage {unit.stage!r}")
 
 
-def compute(job: LawJob, unit: Unit, fit: xr.DataTree | None = None) -> tuple[Result, float]:
+def compute(job: LawJob, unit: Unit, fit: xr.DataTree | None = None,
+            engines: Engines | None = None) -> tuple[Result, float]:
     """Compute one unit; return its result (the fit, or the unit's Dataset) and its wall seconds.
 
     ``fit`` (the law's fit) is required by every unit except the fit itself. Runs in this process
     or on a Dask worker alike. A unit's Dataset carries its ``key``, ``stage`` and ``compute_s``
     (the seconds it took) as attributes: the run store trusts an entry only under its own key.
+    ``engines`` keeps the law's compiled engine from one unit to the next (one compilation for
+    the fit and every refit); without it each unit builds its own (read back from disk).
     """
+    engines = Engines() if engines is None else engines
     start = time.perf_counter()
     if unit.stage == "fit":
         if job.sampler == "nuts":  # the all-true mask of the engine its folds will use
-            dt = _base_engine(job).fit(job.ds)
+            dt = engines.of(job).fit(job.ds)
         else:
-            dt = SAMPLERS[job.sampler](_program(job), job.ds, seed=job.seed, **job.settings)
+            dt = SAMPLERS[job.sampler](_program(job), job.ds, job.config)
         return dt, time.perf_counter() - start
-    result = _compute_rest(job, unit, fit)
+    result = _compute_rest(job, unit, fit, engines)
     seconds = time.perf_counter() - start
     result.attrs.update(key=unit.key, stage=unit.stage, compute_s=seconds)
     return result, seconds

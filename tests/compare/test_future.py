@@ -29,7 +29,7 @@ def test_one_recording_is_cross_validated_past_to_future():
                   seed=4, groups={"run": np.zeros(t.size, dtype=int)}, trajectory="run")
     folds = blocked_masks(ds, "time", threshold=12.0, future=True)
     assert folds.heldout[0].sum() == int((t > 12.0).sum())
-    engine = RefitEngine(build_program(law, ds), draws=500, tune=500, chains=2, seed=1)
+    engine = RefitEngine.build(build_program(law, ds), draws=500, tune=500, chains=2, seed=1)
     result = cross_validate(engine, folds, seed=1)
     scored = result.elpd_i[result.heldout]
     assert np.isfinite(scored).all()

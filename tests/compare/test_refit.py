@@ -1,5 +1,7 @@
 """Compile-once refits and cross-validation scores."""
 
+from dataclasses import replace
+
 import jax
 import numpy as np
 import pytest
@@ -25,8 +27,8 @@ def viscous_data():
 
 @pytest.fixture(scope="module")
 def engine(viscous_data):
-    return RefitEngine(build_program(get_law("coulomb_viscous"), viscous_data), fold_batch=1,
-                       **SMALL)
+    return RefitEngine.build(build_program(get_law("coulomb_viscous"), viscous_data), fold_batch=1,
+                             **SMALL)
 
 
 def test_pointwise_lpd_is_log_mean_exp_over_draws():
@@ -42,7 +44,7 @@ def test_k_folds_and_seeds_compile_once(engine, viscous_data):
     second = cross_validate(engine, folds, seed=1)
     blocked = cross_validate(engine, blocked_masks(viscous_data, "velocity", quantile=0.8))
     assert engine.compilations == 1
-    assert engine._sampler.fallbacks == 0  # every call ran the one ahead-compiled executable
+    assert engine.kernel.sampler.fallbacks == 0  # every call ran the one ahead-compiled executable
     for result in (first, second):
         assert result.heldout.all() and np.isfinite(result.elpd_i).all()
         assert result.elpd == pytest.approx(result.elpd_i.sum())
@@ -65,11 +67,8 @@ def test_fold_posterior_recovers_the_truth(engine, viscous_data):
 
 def test_failing_folds_are_flagged(engine, viscous_data):
     """An unattainable ESS threshold flags every fold (the compiled sampler is reused)."""
-    engine.gate, project_gate = Gate(ess_bulk_min=1e9), engine.gate
-    try:
-        result = cross_validate(engine, kfold_masks(viscous_data, k=2))
-    finally:
-        engine.gate = project_gate
+    strict = replace(engine, gate=Gate(ess_bulk_min=1e9))  # a new engine of the same kernel
+    result = cross_validate(strict, kfold_masks(viscous_data, k=2))
     assert result.failed_folds == [0, 1] and not result.reliable
     assert "FLAGGED" in str(result)
     assert engine.compilations == 1
@@ -82,8 +81,8 @@ def test_vectorised_folds_match_sequential_folds(engine, viscous_data):
     on lpd; hence 4 chains, two per vmapped group, on both sides.)"""
     folds = kfold_masks(viscous_data, k=3, seed=0)
     settings = dict(SMALL, chains=4, chain_batch=2)
-    batched = RefitEngine(engine.program, fold_batch=2, **settings)  # 3 folds: one padded batch
-    single = RefitEngine(engine.program, fold_batch=1, **settings)
+    batched = RefitEngine.build(engine.program, fold_batch=2, **settings)  # 3 folds: one padded batch
+    single = RefitEngine.build(engine.program, fold_batch=1, **settings)
     np.testing.assert_allclose(batched.run(folds.train).lpd, single.run(folds.train).lpd, rtol=1e-6)
     assert batched.compilations == 1
 
@@ -94,7 +93,7 @@ def test_blocked_cv_prefers_the_true_law_beyond_the_envelope(viscous_data):
     blocked = blocked_masks(viscous_data, "velocity", quantile=0.7)
     scores = {}
     for name in ("coulomb_viscous", "coulomb"):
-        engine = RefitEngine(build_program(get_law(name), viscous_data), fold_batch=1, **SMALL)
+        engine = RefitEngine.build(build_program(get_law(name), viscous_data), fold_batch=1, **SMALL)
         scores[name] = cross_validate(engine, blocked)
     assert scores["coulomb_viscous"].elpd > scores["coulomb"].elpd + 10.0
 
@@ -108,25 +107,41 @@ def full_fit(viscous_data):
 
 def test_warm_start_begins_at_the_full_posterior(viscous_data, full_fit):
     program = build_program(get_law("coulomb_viscous"), viscous_data)
-    warm = RefitEngine(program, warm_start=full_fit, warm_tune=150, metric="diag", **SMALL)
+    warm = RefitEngine.build(program, warm_start=full_fit, warm_tune=150, metric="diag", **SMALL)
     assert warm.tune == 150 and warm.settings["warm_start"] != "no"
     # the 150-step schedule: fast 50, one slow window of 50 ending in a mass-matrix update, fast 50
-    stages, ends = warm._schedule[:150, 0], warm._schedule[:150, 1]
+    stages, ends = warm.start.schedule[:150, 0], warm.start.schedule[:150, 1]
     assert stages.tolist() == [0] * 50 + [1] * 50 + [0] * 50 and ends.sum() == 1 and ends[99]
     # initial points are posterior draws (T_C and c_v are positive: log-transformed)
     post = full_fit["posterior"]
-    starts = [program.density().unravel(x) for x in warm._init_z]  # flat vectors of the one density
+    starts = [program.density().unravel(x) for x in warm.start.positions]  # flat vectors of the one density
     for name in ("T_C", "c_v"):
         drawn = np.exp([np.asarray(z[name]) for z in starts])
         assert all(np.isclose(post[name].values, x).any() for x in drawn)
     # inverse mass matrix = variance of the unconstrained draws (log scale here)
     expected = sorted(np.var(np.log(post[n].values)) for n in ("T_C", "c_v", "sigma"))
-    np.testing.assert_allclose(sorted(np.asarray(warm._init_imm)), expected, rtol=1e-6)
+    np.testing.assert_allclose(sorted(np.asarray(warm.start.inverse_mass)), expected, rtol=1e-6)
     # the auto metric (default): a matrix whose diagonal is that variance (shrunk by n / (n + 5)
     # where the draws are strongly correlated and the matrix is their covariance)
-    auto = np.asarray(RefitEngine(program, warm_start=full_fit, warm_tune=150, **SMALL)._init_imm)
+    auto = np.asarray(RefitEngine.build(program, warm_start=full_fit, warm_tune=150, **SMALL).start.inverse_mass)
     assert auto.shape == (3, 3)
     np.testing.assert_allclose(sorted(np.diag(auto)), expected, rtol=0.01)
+
+
+def test_an_engine_variation_is_a_new_engine_of_the_same_kernel(engine, full_fit):
+    """Warm and cold starts and another response make new engines; the engine they come from is
+    unchanged and the compiled kernel is shared (one compilation): nothing is copied and changed."""
+    import dataclasses
+
+    start, program = engine.start, engine.program
+    cold, warm = engine.cold_started(150), engine.warm_started(full_fit, 150)
+    other = engine.with_response(program.response * 1.01)
+    assert engine.start is start and engine.program is program  # unchanged
+    assert cold.kernel is warm.kernel is other.kernel is engine.kernel and engine.compilations == 1
+    assert (cold.active_tune, cold.warm, warm.active_tune, warm.warm) == (150, False, 150, True)
+    assert other.tables is not engine.tables and warm.tables is engine.tables  # tables close over a response
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        engine.start = cold.start
 
 
 def test_warm_start_gives_the_same_fold_posteriors(engine, viscous_data, full_fit):
@@ -134,7 +149,7 @@ def test_warm_start_gives_the_same_fold_posteriors(engine, viscous_data, full_fi
     import arviz as az
 
     folds = kfold_masks(viscous_data, k=3, seed=0)
-    warm = RefitEngine(engine.program, warm_start=full_fit, **SMALL)
+    warm = RefitEngine.build(engine.program, warm_start=full_fit, **SMALL)
     a, b = engine.run(folds.train, seed=0), warm.run(folds.train, seed=0)
     for name in ("T_C", "c_v"):
         for k in range(3):
@@ -148,15 +163,15 @@ def test_warm_start_gives_the_same_fold_posteriors(engine, viscous_data, full_fi
 def test_warm_start_rejects_a_mismatched_fit_or_too_short_warm_up(viscous_data, full_fit):
     other = build_program(get_law("stribeck"), viscous_data)
     with pytest.raises(ValueError, match="lacks the sampled site"):
-        RefitEngine(other, warm_start=full_fit, **SMALL)
+        RefitEngine.build(other, warm_start=full_fit, **SMALL)
     program = build_program(get_law("coulomb_viscous"), viscous_data)
-    with pytest.raises(ValueError, match="warm_tune must be at least 120"):
-        RefitEngine(program, warm_start=full_fit, warm_tune=100, **SMALL)
+    with pytest.raises(ValueError, match="warm_tune: must be at least 120"):
+        RefitEngine.build(program, warm_start=full_fit, warm_tune=100, **SMALL)
 
 
 def test_full_fit_and_every_fold_share_one_compilation(viscous_data):
     """The full fit is the all-true mask of the engine that runs cold and warm-started folds."""
-    engine = RefitEngine(build_program(get_law("coulomb_viscous"), viscous_data), seed=1, **SMALL)
+    engine = RefitEngine.build(build_program(get_law("coulomb_viscous"), viscous_data), seed=1, **SMALL)
     dt = engine.fit(viscous_data)
     assert dt["posterior"]["T_C"].shape == (2, 300)
     assert {"diverging", "energy", "n_steps", "acceptance_rate"} <= set(dt["sample_stats"].data_vars)
@@ -165,7 +180,7 @@ def test_full_fit_and_every_fold_share_one_compilation(viscous_data):
     near = engine.warm_started(dt, warm_tune=150)
     kfold = cross_validate(near, kfold_masks(viscous_data, k=3, seed=0))
     short = cross_validate(engine.cold_started(200), blocked_masks(viscous_data, "velocity", quantile=0.8))
-    assert engine.compilations == 1 and engine._sampler.fallbacks == 0
+    assert engine.compilations == 1 and engine.kernel.sampler.fallbacks == 0
     assert near.settings["tune"] == 150 and engine.settings["tune"] == 300
     assert engine.cold_started(200).settings["tune"] == 200 and np.isfinite(short.elpd)
     with pytest.raises(ValueError, match="cold warm-up needs 120 to 300"):
@@ -182,17 +197,17 @@ def test_the_inputs_are_constants_and_the_response_an_argument(viscous_data):
     With the inputs as arguments, input-only work (the skf_2014 ball-load solve) ran at every
     leapfrog step; as constants XLA evaluates it once, at compile time.
     """
-    engine = RefitEngine(build_program(get_law("coulomb_viscous"), viscous_data), **SMALL)
+    engine = RefitEngine.build(build_program(get_law("coulomb_viscous"), viscous_data), **SMALL)
     masks = np.ones((1, viscous_data.sizes["obs"]), dtype=bool)
     keys = np.zeros((1, engine.chain_batch, 2), dtype=np.uint32)  # one group of a fold's chains
     y = engine.program.response
-    starts = np.asarray(engine._starts()[:engine.chain_batch])
-    sampler = engine._sampler  # start, advance (the chains' chunks) and finish programs
-    lowered = sampler.start.lower(keys, masks, y, starts, engine._init_imm)
+    starts = np.asarray(engine.kernel.positions(engine.start)[:engine.chain_batch])
+    sampler = engine.kernel.sampler  # start, advance (the chains' chunks) and finish programs
+    lowered = sampler.start.lower(keys, masks, y, starts, engine.start.inverse_mass)
     assert [tuple(a.shape) for a in lowered.in_avals[0]] == [keys.shape, masks.shape, y.shape, starts.shape,
-                                                              tuple(engine._init_imm.shape)]
-    leaves, step = sampler.start(keys, masks, y, starts, engine._init_imm)
-    rows = np.asarray(engine._schedule)[:sampler.chunk]
+                                                              tuple(engine.start.inverse_mass.shape)]
+    leaves, step = sampler.start(keys, masks, y, starts, engine.start.inverse_mass)
+    rows = np.asarray(engine.start.schedule)[:sampler.chunk]
     lowered = sampler.advance.lower(leaves, np.asarray(step)[:, :, :sampler.chunk], masks, y, rows, 0.9, 20.0)
     shapes = [tuple(a.shape) for a in jax.tree.leaves(lowered.in_avals[0])][len(leaves):]
     assert shapes == [(1, engine.chain_batch, sampler.chunk, 2), masks.shape, y.shape, rows.shape, (), ()]
@@ -203,20 +218,20 @@ def test_another_response_is_refitted_by_the_same_compiled_sampler(viscous_data)
     from dataclasses import replace
 
     program = build_program(get_law("coulomb_viscous"), viscous_data)
-    engine = RefitEngine(program, seed=3, **SMALL)
+    engine = RefitEngine.build(program, seed=3, **SMALL)
     all_true = np.ones((1, program.n_obs), dtype=bool)
     base = engine.run(all_true).samples["T_C"]
     shifted = engine.with_response(program.response + 2.0)  # T_C 1.0 -> 3.0
     moved = shifted.run(all_true).samples["T_C"]
-    assert engine.compilations == 1 and engine._sampler.fallbacks == 0
+    assert engine.compilations == 1 and engine.kernel.sampler.fallbacks == 0
     assert abs(np.median(base) - 1.0) < 0.1 and abs(np.median(moved) - 3.0) < 0.1
     # the same draws as an engine built on that response with the same priors
-    fresh = RefitEngine(replace(program, response=program.response + 2.0), seed=3, **SMALL)
+    fresh = RefitEngine.build(replace(program, response=program.response + 2.0), seed=3, **SMALL)
     np.testing.assert_allclose(fresh.run(all_true).samples["T_C"], moved, rtol=1e-10)
     assert shifted.program.response[0] == pytest.approx(program.response[0] + 2.0)
     with pytest.raises(AttributeError):
         engine.program = program  # a swapped program would not reach the compiled sampler
-    with pytest.raises(ValueError, match="response must have shape"):
+    with pytest.raises(ValueError, match="response: must have shape"):
         engine.with_response(program.response[:-1])
 
 
@@ -227,8 +242,8 @@ def test_chain_groups_on_threads_give_the_draws_of_one_thread(viscous_data, chai
     CPUs: one chain per call (no vmap); 2: two groups of two vmapped chains."""
     program = build_program(get_law("coulomb_viscous"), viscous_data)
     masks = kfold_masks(viscous_data, k=3, seed=0).train
-    one = RefitEngine(program, draws=200, tune=200, chains=4, threads=1, seed=1, chain_batch=chain_batch)
-    two = RefitEngine(program, draws=200, tune=200, chains=4, threads=2, seed=1, chain_batch=chain_batch)
+    one = RefitEngine.build(program, draws=200, tune=200, chains=4, threads=1, seed=1, chain_batch=chain_batch)
+    two = RefitEngine.build(program, draws=200, tune=200, chains=4, threads=2, seed=1, chain_batch=chain_batch)
     assert one.chain_batch == two.chain_batch == (chain_batch or 1)
     a, b = one.run(masks, seed=5), two.run(masks, seed=5)
     assert a.samples["T_C"].shape == (3, 4, 200)
@@ -244,8 +259,8 @@ def test_chain_groups_on_threads_give_the_draws_of_one_thread(viscous_data, chai
 
 def test_chain_batch_must_divide_the_chains(viscous_data):
     program = build_program(get_law("coulomb_viscous"), viscous_data)
-    with pytest.raises(ValueError, match="chain_batch must divide"):
-        RefitEngine(program, chains=4, chain_batch=3)
+    with pytest.raises(ValueError, match="chain_batch: must divide"):
+        RefitEngine.build(program, chains=4, chain_batch=3)
 
 
 def test_a_diverging_fold_is_sampled_again_at_the_retry_target(viscous_data):
@@ -256,10 +271,10 @@ def test_a_diverging_fold_is_sampled_again_at_the_retry_target(viscous_data):
     program = build_program(get_law("coulomb_viscous"), viscous_data)
     folds = kfold_masks(viscous_data, k=2, seed=0).train
     settings = dict(draws=200, tune=200, chains=4, seed=2, target_accept=0.3)
-    plain = RefitEngine(program, retry_target_accept=None, **settings).run(folds)
+    plain = RefitEngine.build(program, retry_target_accept=None, **settings).run(folds)
     assert plain.stats["diverging"].sum(axis=(1, 2)).min() > 0  # the premise: both folds diverge
     assert (plain.target_accept == 0.3).all()
-    engine = RefitEngine(program, retry_target_accept=0.99, **settings)
+    engine = RefitEngine.build(program, retry_target_accept=0.99, **settings)
     retried = engine.run(folds)
     assert (retried.target_accept == 0.99).all() and engine.compilations == 1
     assert retried.stats["diverging"].sum() < plain.stats["diverging"].sum()
@@ -275,7 +290,7 @@ def test_a_dense_fold_that_failed_tries_the_diagonal_metric_before_a_raised_targ
     passed is never sampled again."""
     from bayesfric.inference.diagnostics import Verdict
 
-    engine = RefitEngine(build_program(get_law("coulomb_viscous"), viscous_data), draws=10, tune=10, chains=2)
+    engine = RefitEngine.build(build_program(get_law("coulomb_viscous"), viscous_data), draws=10, tune=10, chains=2)
     calls = []
     # (fold, target, diagonal forced) -> divergences, or -1: fails the gate without any.
     # fold 0: dense, diverges dense and diagonal -> 0.99; fold 1: dense, passes diagonal at 0.9;
@@ -301,8 +316,9 @@ def test_a_dense_fold_that_failed_tries_the_diagonal_metric_before_a_raised_targ
         return [Verdict(not fail, 1.0, 1e3, 1e3, int(d.sum()), None, None)
                 for fail, d in zip(stats["fail"], stats["diverging"], strict=True)]
 
-    monkeypatch.setattr(engine, "_sample", sample)
-    monkeypatch.setattr(engine, "_verdicts", verdicts)
+    # the engine is frozen: its class's methods are replaced, for this test only
+    monkeypatch.setattr(RefitEngine, "_sample", lambda self, *args: sample(*args))
+    monkeypatch.setattr(RefitEngine, "_verdicts", lambda self, *args: verdicts(*args))
     fits = engine.run(np.ones((5, viscous_data.sizes["obs"]), bool))
     assert calls == [((0, 1, 2, 3, 4), 0.9, False), ((0, 1, 4), 0.9, True), ((0, 2, 4), 0.99, True)]
     assert fits.target_accept.tolist() == [0.99, 0.9, 0.99, 0.9, 0.99]
@@ -317,7 +333,7 @@ def test_a_retried_full_fit_says_so_in_its_settings_and_report(viscous_data):
     from bayesfric.report.tables import fit_report, retry_note
 
     program = build_program(get_law("coulomb_viscous"), viscous_data)
-    engine = RefitEngine(program, draws=200, tune=200, chains=4, seed=2, target_accept=0.3)
+    engine = RefitEngine.build(program, draws=200, tune=200, chains=4, seed=2, target_accept=0.3)
     dt = engine.fit(viscous_data)
     settings = json.loads(dt.attrs["sampler_settings"])
     # here the warm-up went dense: the diagonal metric at 0.3 first, then the raised target
