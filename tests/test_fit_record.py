@@ -115,7 +115,7 @@ def test_a_fit_of_a_law_in_a_law_file_rebuilds_in_a_fresh_process(tmp_path, clea
     run = subprocess.run([sys.executable, "-c", code.replace("'v_eps'", "'c_v'"), str(path)], capture_output=True,
                          text=True, timeout=300)
     assert run.returncode == 0, run.stderr[-2000:]
-    assert run.stdout.split("\n")[-2] == "tanh_friction ['T_C'] 0.5"
+    assert run.stdout.split("\n")[-2] == "tanh_friction_c_v_eq_0.5 ['T_C'] 0.5"
     law_file.unlink()  # the recorded file gone: one line naming it, exit 2
     gone = subprocess.run([sys.executable, "-m", "bayesfric", "size", str(path), "--at", "velocity=2 rad/s"],
                           capture_output=True, text=True, timeout=300)

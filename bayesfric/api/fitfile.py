@@ -49,7 +49,7 @@ def load_fit(path: str | Path) -> tuple[xr.DataTree, Program]:
     >>> path = save_fit(f, pathlib.Path(tempfile.mkdtemp()) / "fit.nc")
     >>> tree, program = bayesfric.load_fit(path)
     >>> program.law.name, dict(program.law.recipe["fixed"]), list(program.law.params)
-    ('coulomb_viscous', {'c_v': 0.5}, ['T_C'])
+    ('coulomb_viscous_c_v_eq_0.5', {'c_v': 0.5}, ['T_C'])
     """
     from bayesfric.laws.plugins import LawModuleError
     from bayesfric.model import program_of_fit

@@ -213,14 +213,14 @@ def _with(out, name: str, law, fit):
 
 
 def test_claim_on_an_offset_variant_predicts_with_the_offset(study, tmp_path):
-    """A variant entry without a label keeps the base law's name (``coulomb_viscous`` + offset):
-    the claim must predict with the fitted program (offset included), not the base law looked up
+    """A study entry without a label is labelled by the base law's name (``coulomb_viscous`` +
+    offset, named so here as the study names it): the claim must predict with the fitted program (offset included), not the base law looked up
     by name, which would silently drop the offset: 14/10 − 1 = 0.4, not 11/7 − 1 = 0.571."""
     from bayesfric.laws.variants import vary
     from bayesfric.study.claims import mean_draws
 
-    law = vary(get_law("coulomb_viscous"), offset=True)
-    assert law.name == "coulomb_viscous"
+    law = vary(get_law("coulomb_viscous"), offset=True, name="coulomb_viscous")
+    assert law.name == "coulomb_viscous" and "offset" in law.params
     fit = _variant_fit(law, {"T_C": 5.0, "c_v": 2.0, "offset": 3.0})
     out = _with(outcome(study, tmp_path), "coulomb_viscous", law, fit)
     c = make_claim(parse(CLAIM, {"text": "t", "source": "s", "kind": "ratio", "law": "coulomb_viscous",
