@@ -58,11 +58,11 @@ from bayesfric.hierarchy import (
     observed_levels,
     site_names,
 )
-from bayesfric.laws.base import TRAJECTORY_START, Law
+from bayesfric.laws.base import TRAJECTORY_START, Law, SampledAs
 from bayesfric.laws.plugins import law_files
 from bayesfric.laws.variants import for_data, law_of_fit
 from bayesfric.noise import AR1Residuals
-from bayesfric.priors import DataScale, Prior, PriorError, resolve_all
+from bayesfric.priors import DataScale, Prior, PriorError, rescaled, resolve_all
 from bayesfric.runtime import configure
 from bayesfric.studentt import StudentT
 from bayesfric.trend import trend_prior
@@ -188,12 +188,7 @@ class Program:
         argument, so that the prior, the constrained draws and the pointwise likelihood of a
         fold's draws read them as its sampler did; None: every level as its column says."""
         law = self.law
-        params = {}
-        for name, declared in law.params.items():
-            prior = self.resolved[name].to_numpyro()
-            if declared.shape:
-                prior = prior.expand(declared.shape).to_event(len(declared.shape))
-            params[name] = numpyro.sample(name, prior)
+        params = self._sample_params()
         for name, value in law.derived_values(params).items():
             numpyro.deterministic(name, value)
         # Data arrays stay concrete inside the sampler's trace, so input-only computations of a
@@ -214,6 +209,23 @@ class Program:
         with numpyro.plate(OBS_DIM, mu.shape[0]):
             with numpyro.handlers.mask(mask=True if mask is None else mask):
                 numpyro.sample(OBS_SITE, likelihood, obs=response)
+
+    def _sample_params(self) -> dict[str, Any]:
+        """Sample the law's parameters from their priors; one with a usable
+        :class:`~bayesfric.laws.base.SampledAs` after those it reads, on its declared coordinate."""
+        law, params = self.law, {}
+        recoordinated = sampled_as(law, self.constants)
+        for name in sorted(law.params, key=lambda n: n in recoordinated):  # stable: declared order otherwise
+            declared = law.params[name]
+            prior = self.resolved[name].to_numpyro()
+            if declared.shape:
+                prior = prior.expand(declared.shape).to_event(len(declared.shape))
+            if name in recoordinated:
+                how = recoordinated[name]
+                values = {k: params[k] if k in params else self.constants[k] for k in how.reads}
+                prior = rescaled(prior, how.fn(self.scale.factor(how.scaled_by), **values))
+            params[name] = numpyro.sample(name, prior)
+        return params
 
     def _likelihood(self, mu, mask=None, response=None):
         r = self.resolved
@@ -364,6 +376,21 @@ def build_program(
         response_se=response_se(ds),
         groupings=groupings_of(law, ds),
     )
+
+
+def sampled_as(law: Law, constants: Mapping[str, Any]) -> dict[str, SampledAs]:
+    """Parameter -> its :class:`~bayesfric.laws.base.SampledAs`, where the law has everything it
+    reads (other scalar parameters that read none themselves, or constants) and the parameter is a
+    scalar that varies between no groups; the others are sampled on their own scale."""
+    found = {}
+    for name, p in law.params.items():
+        how = p.sampled_as
+        if how is None or p.shape or name in law.varying:
+            continue
+        if all((k in constants or (k in law.params and k != name and law.params[k].sampled_as is None
+                                   and not law.params[k].shape)) for k in how.reads):
+            found[name] = how
+    return found
 
 
 def _chain_starts(law: Law, noise: Noise, ds: xr.Dataset) -> np.ndarray | None:

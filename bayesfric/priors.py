@@ -54,7 +54,7 @@ import numpyro.distributions as dist
 
 from bayesfric.errors import UserError
 
-__all__ = ["Prior", "DataScale", "PriorError", "DISTRIBUTIONS", "MAX_POWER", "MAX_LOG10", "resolve_all"]
+__all__ = ["Prior", "DataScale", "PriorError", "DISTRIBUTIONS", "MAX_POWER", "MAX_LOG10", "resolve_all", "rescaled"]
 
 #: Largest |power| of a data scale in ``scaled_by`` (module docstring).
 MAX_POWER = 2.0
@@ -269,6 +269,73 @@ def resolve_all(priors: Mapping[str, Prior], scale: DataScale | None) -> dict[st
         except PriorError as exc:
             raise exc.within(f"priors.{name}") from None
     return resolved
+
+
+class _Scaled(dist.constraints.Constraint):
+    """The support of :class:`_Rescaled`: the base support (closed under positive scaling), whose
+    bijection from the unconstrained line is followed by a multiplication by ``factor``."""
+
+    def __init__(self, base: dist.constraints.Constraint, factor: Any):
+        self.base, self.factor, self.event_dim = base, factor, base.event_dim
+
+    def __call__(self, x):
+        return self.base(x)
+
+    def feasible_like(self, prototype):
+        return self.base.feasible_like(prototype)
+
+    def tree_flatten(self):
+        return (self.factor,), (("factor",), {"base": self.base, "event_dim": self.event_dim})
+
+
+@dist.biject_to.register(_Scaled)
+def _scaled_bijection(constraint: _Scaled) -> dist.transforms.Transform:
+    return dist.transforms.ComposeTransform([dist.biject_to(constraint.base),
+                                             dist.transforms.AffineTransform(0.0, constraint.factor)])
+
+
+class _Rescaled(dist.Distribution):
+    """``base`` unchanged (samples, density), with the unconstrained coordinate of ``value / factor``."""
+
+    arg_constraints: dict = {}
+    pytree_data_fields = ("base", "factor")
+
+    def __init__(self, base: dist.Distribution, factor: Any):
+        self.base, self.factor = base, factor
+        super().__init__(batch_shape=base.batch_shape, event_shape=base.event_shape)
+
+    @property
+    def support(self):
+        return _Scaled(self.base.support, self.factor)
+
+    def sample(self, key, sample_shape=()):
+        return self.base.sample(key, sample_shape)
+
+    def log_prob(self, value):
+        return self.base.log_prob(value)
+
+
+def rescaled(distribution: dist.Distribution, factor: Any) -> dist.Distribution:
+    """``distribution`` as it is, but sampled (NUTS, optimisers) on the unconstrained scale of
+    ``value / factor``: a log scale ``log(value / factor)`` for a positive one.
+
+    Why: where the data pin a parameter only through its product with a function of other
+    parameters (``value / factor``), this makes the pinned combination a coordinate of the sampler,
+    and a curved, thin ridge an axis-aligned one. Exact: the distribution, and so every prior and
+    posterior, is unchanged; only the coordinates move (their Jacobian, ``log factor``, comes with
+    the bijection). ``factor`` (> 0) may depend on parameters sampled before. A support not
+    closed under positive scaling (an interval) is returned as it is.
+
+    Parameters
+    ----------
+    distribution : numpyro Distribution
+        A prior with support ``positive`` or ``real``.
+    factor : array
+        Positive; broadcast against the distribution's values.
+    """
+    if distribution.support not in (dist.constraints.positive, dist.constraints.real):
+        return distribution
+    return _Rescaled(distribution, factor)
 
 
 def _check_powers(scaled_by: object) -> None:

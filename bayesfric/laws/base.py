@@ -36,6 +36,7 @@ from bayesfric.quantities import DERIVED_POSITIONS, QUANTITIES, RESPONSES, UnitE
 
 __all__ = [
     "Param",
+    "SampledAs",
     "Constant",
     "Derived",
     "Law",
@@ -88,6 +89,41 @@ class Param:
     source: str
     shape: tuple[int, ...] = ()
     translational: Prior | None = None
+    sampled_as: SampledAs | None = None
+
+
+@dataclass(frozen=True)
+class SampledAs:
+    """The coordinate the sampler moves a parameter ``p`` on: the unconstrained scale of ``p / c``
+    (``log(p / c)`` for a positive ``p``), ``c = fn(reference, **others) > 0``.
+
+    Why: where the data pin ``p`` only in a combination ``p / c`` with other parameters (LuGre's
+    Stribeck curve at the one speed of a drive), that combination becomes a coordinate and a thin,
+    curved ridge of the posterior an axis-aligned one. The model is unchanged: ``p`` keeps its
+    prior, the posterior is the same; only the sampler's coordinates move
+    (:func:`bayesfric.priors.rescaled`).
+
+    Parameters
+    ----------
+    fn : callable
+        ``fn(reference, **others)``: ``reference`` the data scale of ``scaled_by`` (the priors'
+        rule, :class:`bayesfric.priors.DataScale`), ``others`` parameters or constants of the law
+        by name. A law without one of them (a variant that split or renamed it), or a ``p`` that
+        varies between groups, is sampled on its own scale.
+    scaled_by : mapping
+        Powers of the data scales that make ``reference``, as a prior's ``scaled_by``.
+    meaning : str
+        What ``p / c`` is, one line.
+    """
+
+    fn: Callable[..., Any]
+    scaled_by: Mapping[str, float]
+    meaning: str
+
+    @property
+    def reads(self) -> tuple[str, ...]:
+        """The parameters or constants ``fn`` reads (its arguments after ``reference``)."""
+        return tuple(p for p in inspect.signature(self.fn).parameters if p != "reference")
 
 
 @dataclass(frozen=True)

@@ -56,11 +56,20 @@ Parametrisation (issue 29). The Stribeck curve is sampled as F_c and the ratio r
 identify only g(v₀) = F_c (1 + (1/r − 1) e^(−(v₀/v_s)²)), and in (log F_c, logit r, log v_s) that
 ridge has the same width everywhere, whereas with F_c and F_s − F_c it narrowed to a funnel where
 v_s ≪ v₀ (F_c pinned) and widened where v_s ≳ v₀ (measured on ``dahl_duplex``: tail ESS 254,
-divergences at target_accept 0.9). σ0 stays a parameter: it is g(v₀)/z_ss(v₀), the rest stiffness
-the loop fixes whatever the split of g. Preload: like Dahl (seed 001 Fig. 12 and §V, knee
-independent of preload) the bristle force scales as (P/P_ref)^γ, F = (P/P_ref)^γ (σ0 z + σ1 ż) + σ2 v;
-scaling σ0 and g together leaves z unchanged, so the knee g/σ0 is the same at every preload. On
-data without a preload column P = P_ref and γ is fixed at 0 (:class:`OptionalInput`).
+divergences at target_accept 0.9). That ridge still bends where v_s crosses v₀: below, F_c is
+pinned and r, v_s are free; above, F_c = r·g(v₀) slides with r; between, e^(−(v₀/v_s)²) turns
+from 0 to 1 within about one unit of log v_s, and NUTS diverged there (1-2 divergent transitions
+per fit at target_accept 0.99, every one at v_s = 0.6-1.05 v₀, tail ESS 213-649, 85-126 leapfrog
+steps per draw; seeds 0-2). So the sampler moves F_c on log g(v_ref), the Stribeck curve at the
+data's largest speed v_ref (:class:`~bayesfric.laws.base.SampledAs`): at one drive speed that is
+the pinned quantity, and the ridge is straight (no divergence at the default target, bulk and
+tail ESS ≥ 1400, about 20 steps per draw, same seeds). The model is unchanged -- F_c keeps its
+prior and the posterior is the same; only the sampler's coordinate moved. σ0 stays a parameter:
+it is g(v₀)/z_ss(v₀), the rest stiffness the loop fixes whatever the split of g. Preload: like
+Dahl (seed 001 Fig. 12 and §V, knee independent of preload) the bristle force scales as
+(P/P_ref)^γ, F = (P/P_ref)^γ (σ0 z + σ1 ż) + σ2 v; scaling σ0 and g together leaves z unchanged,
+so the knee g/σ0 is the same at every preload. On data without a preload column P = P_ref and γ is
+fixed at 0 (:class:`OptionalInput`).
 
 What seed 001 says against LuGre on its loops: the triangle drive holds one speed, "well below
 those where viscous friction effects would become troublesome" (§III), so F_c, r and v_s are
@@ -78,7 +87,7 @@ import math
 import jax.numpy as jnp
 from jax import lax
 
-from bayesfric.laws.base import TRAJECTORY_START, Constant, Derived, OptionalInput, Param, law
+from bayesfric.laws.base import TRAJECTORY_START, Constant, Derived, OptionalInput, Param, SampledAs, law
 from bayesfric.numerics import positive_power, power_ratio
 from bayesfric.priors import Prior
 
@@ -353,6 +362,12 @@ def lugre_bristle(velocity, time, trajectory_start, sigma0, F_c, dF_s, v_s, F_st
     return z, g(v)
 
 
+def _coulomb_share(reference, F_ratio, v_s):
+    """F_c / g(v_ref) = 1/(1 + (1/r − 1) e^(−(v_ref/v_s)²)), v_ref the data's largest speed:
+    the sampler moves F_c on log g(v_ref) (module doc, :class:`SampledAs`)."""
+    return 1.0 / (1.0 + (1.0 / F_ratio - 1.0) * jnp.exp(-((reference / v_s) ** 2)))
+
+
 def lugre_steady(velocity, preload, sigma0, rho1, sigma2, F_c, F_ratio, v_s, gamma, F_start, P_ref):
     """LuGre at constant speed: ż = 0 at z = g(v) sgn v/σ0, so T = (P/P_ref)^γ g(v) sgn v + σ2 v."""
     v = jnp.asarray(velocity, dtype=float)
@@ -391,7 +406,9 @@ def lugre_steady(velocity, preload, sigma0, rho1, sigma2, F_c, F_ratio, v_s, gam
             f"{LUGRE}; {_GENERIC}",
         ),
         "F_c": Param("N*m", Prior("HalfNormal", scale=1.0, scaled_by={"response": 1}),
-                     "Coulomb friction torque F_c at P_ref", f"{LUGRE}; {_GENERIC}"),
+                     "Coulomb friction torque F_c at P_ref", f"{LUGRE}; {_GENERIC}",
+                     sampled_as=SampledAs(_coulomb_share, {"velocity": 1},
+                                          "g(v_ref) = F_c/c, the Stribeck curve at the data's largest speed")),
         "F_ratio": Param(
             "1",
             # median 0.69 (F_s ≈ 1.46 F_c), 90 % in [0.34, 0.92]: the median ratio the former

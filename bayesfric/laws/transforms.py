@@ -268,7 +268,9 @@ def translational(law: Law) -> Law:
     def param(p: Param) -> Param:
         prior = p.translational or Prior(
             p.prior.dist, scaled_by={to.get(k, k): v for k, v in p.prior.scaled_by.items()}, **p.prior.args)
-        return dataclasses.replace(p, unit=translational_unit(p.unit), prior=prior,
+        how = p.sampled_as and dataclasses.replace(
+            p.sampled_as, scaled_by={to.get(k, k): v for k, v in p.sampled_as.scaled_by.items()})
+        return dataclasses.replace(p, unit=translational_unit(p.unit), prior=prior, sampled_as=how,
                                    meaning=p.meaning.replace("torque", "force"))
 
     own = list(law.inputs) + list(law.params) + list(law.constants)
