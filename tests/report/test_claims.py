@@ -214,8 +214,9 @@ def _with(out, name: str, law, fit):
 
 def test_claim_on_an_offset_variant_predicts_with_the_offset(study, tmp_path):
     """A study entry without a label is labelled by the base law's name (``coulomb_viscous`` +
-    offset, named so here as the study names it): the claim must predict with the fitted program (offset included), not the base law looked up
-    by name, which would silently drop the offset: 14/10 − 1 = 0.4, not 11/7 − 1 = 0.571."""
+    offset, named so here as the study names it): the claim must predict with the fitted program
+    (offset included), not the base law looked up by name, which would silently drop the offset:
+    14/10 − 1 = 0.4, not 11/7 − 1 = 0.571."""
     from bayesfric.laws.variants import vary
     from bayesfric.study.claims import mean_draws
 
