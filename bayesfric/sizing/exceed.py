@@ -41,6 +41,7 @@ import jax.numpy as jnp
 import numpy as np
 import xarray as xr
 
+from bayesfric.errors import UserError
 from bayesfric.sizing.calibration import Miss
 from bayesfric.sizing.forecast import allowance, widen_curves
 from bayesfric.sizing.points import SizingError, parse_capacity, parse_horizon, parse_value
@@ -267,7 +268,7 @@ def combine(results: Mapping[str, xr.Dataset], weights: Mapping[str, float], see
     """
     names = [n for n in results if weights.get(n, 0.0) > 0]
     if not names:
-        raise ValueError("no law with a positive weight to combine")
+        raise UserError("no law with a positive weight to combine", "weights")
     w = np.asarray([weights[n] for n in names], dtype=float)
     w = w / w.sum()
     rng = np.random.default_rng(seed)
