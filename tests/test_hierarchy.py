@@ -240,3 +240,7 @@ def test_a_study_of_runs_ranks_the_hierarchical_law_first_by_leave_one_run_out(t
     diag = result.tree["diagnostics"].to_dataset()
     assert 0.75 <= float(diag["group_coverage_90"].sel(law=hier)) <= 1.0
     assert f"{hier.replace('_', chr(92) + '_')} {float(diag['group_coverage_90'].sel(law=hier)):.0%}" in checked
+    # inside the tested speeds, the new-run answer is weighed by how well each law predicted a run it had not seen
+    assert set(result.sizing["basis"]) == {"stacking leave-one-group-out"}
+    weights = result.tree["weights"].to_dataset()["weight"].sel(law=hier)
+    assert float(weights.sel(weighting=next(w for w in weights["weighting"].values if "run" in str(w)))) > 0.5

@@ -87,3 +87,17 @@ def test_the_miss_rate_is_recovered_and_is_zero_for_a_law_that_does_not_miss():
     y[heldout] = mu.mean(axis=0)  # no miss at all
     none = measure_miss(_cv(y, mu, heldout), ds.assign(torque=("obs", y)), scheme)
     assert none.rate == 0.0
+
+
+def test_a_new_group_answer_inside_the_envelope_is_weighed_by_leave_one_group_out():
+    from bayesfric.sizing import NEW_GROUP
+
+    inside = {"temperature": np.array([300.0]), "velocity": np.array([100.0])}
+    grouped = {"a": {**WEIGHTS["a"], NEW_GROUP: 0.95}, "b": {**WEIGHTS["b"], NEW_GROUP: 0.05}}
+    basis = choose_basis(inside, DATA, [WARM, COLD], ["a", "b"], grouped, {}, {})
+    assert basis.key == "stacking leave-one-group-out" and basis.weights == pytest.approx({"a": 0.95, "b": 0.05})
+    assert "a whole group it had not seen" in basis.note and not basis.schemes
+    cold_start = {"temperature": np.array([278.15]), "velocity": np.array([140.0])}  # a blocked fold scores it
+    assert choose_basis(cold_start, DATA, [WARM, COLD], ["a", "b"], grouped, {}, {}).weights == pytest.approx(
+        {"a": 0.2, "b": 0.8})
+    assert _basis(inside, [WARM, COLD]).key == "stacking LOO"  # no group terms: LOO as before

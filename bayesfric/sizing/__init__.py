@@ -24,7 +24,7 @@ import xarray as xr
 from bayesfric.datasets.provenance import provenance_label
 from bayesfric.quantities import QUANTITIES, conversion
 from bayesfric.sizing.answer import answer, answer_question
-from bayesfric.sizing.basis import LOO, NO_EXTRAPOLATION, Basis, choose_basis
+from bayesfric.sizing.basis import LOO, NEW_GROUP, NO_EXTRAPOLATION, Basis, choose_basis
 from bayesfric.sizing.calibration import Miss, Scheme, measure_miss
 from bayesfric.sizing.compute import (
     EXTRAPOLATION_WARN,
@@ -57,7 +57,7 @@ from bayesfric.sizing.steady import STEADY_NOTE, sizing_law, tested_values
 from bayesfric.sizing.store import basis_node, basis_schemes, exclusion, read_basis, sources
 
 __all__ = [
-    "LOO", "NO_EXTRAPOLATION", "Basis", "choose_basis", "Miss", "Scheme", "measure_miss", "basis_schemes",
+    "LOO", "NEW_GROUP", "NO_EXTRAPOLATION", "Basis", "choose_basis", "Miss", "Scheme", "measure_miss", "basis_schemes",
     "CLI_KEYS", "EXTRAPOLATION_WARN", "FAN_POINTS", "LEVELS", "RANGE_POINTS", "Answer", "LawSource",
     "Mixture", "SizingAnswer",
     "SizingError", "SizingQuestion", "SizingResult", "Value", "answer", "answer_question", "check_question",

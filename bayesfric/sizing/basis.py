@@ -7,7 +7,10 @@ question from the direction its points lie in (:mod:`bayesfric.sizing.calibratio
 * Some point lies beyond the data in a direction no scheme tests (a cold start against a
   warm-side fold): LOO stacking weights, widened along that input by the largest miss any law
   showed on any scheme, and the answer says so first.
-* Every point inside the data: LOO stacking weights, no widening.
+* Every point inside the data: LOO stacking weights, no widening; for an answer about a NEW
+  group (run, series, unit) of laws with group terms, the stacking weights of leave-one-group-out
+  instead (:data:`NEW_GROUP`: how well each law predicted a whole group it had not seen, the
+  question asked), also where LOO weights stand in for a direction no scheme tests.
 * **No law extrapolates**: on a matched scheme every law loses more than
   :data:`NO_EXTRAPOLATION` nats per held-out point against its LOO score (the extrapolation
   penalty); the answer says so first and quotes only calibrated numbers.
@@ -23,10 +26,12 @@ import numpy as np
 
 from bayesfric.sizing.calibration import Miss, Scheme, matching, per_range
 
-__all__ = ["LOO", "NO_EXTRAPOLATION", "Basis", "choose_basis"]
+__all__ = ["LOO", "NEW_GROUP", "NO_EXTRAPOLATION", "Basis", "choose_basis"]
 
 #: Weighting key of PSIS-LOO stacking (blocked schemes are keyed by their label).
 LOO = "LOO"
+#: Weighting key of leave-one-group-out stacking, answering for a new group (:func:`bayesfric.sizing.sources`).
+NEW_GROUP = "new group"
 #: Extrapolation penalty (nats per held-out point) above which a law is taken not to extrapolate.
 NO_EXTRAPOLATION = 2.0
 
@@ -88,7 +93,7 @@ def choose_basis(grid: Mapping[str, np.ndarray], data: Mapping[str, np.ndarray],
     """The basis of one question (see the module).
 
     ``names``: the laws sizing may use; ``weights``: law -> {weighting key -> weight}
-    (:data:`LOO` or a blocked label); ``misses``: law -> {blocked label -> Miss};
+    (:data:`LOO`, :data:`NEW_GROUP` or a blocked label); ``misses``: law -> {blocked label -> Miss};
     ``penalties``: law -> {blocked label -> nats per held-out point}.
     """
     matched, uncovered = matching(grid, data, schemes)
@@ -101,12 +106,15 @@ def choose_basis(grid: Mapping[str, np.ndarray], data: Mapping[str, np.ndarray],
         key = "stacking " + " + ".join(f"'{s.label}'" for s in matched)
         notes.append(f"weights: stacking on the blocked fold(s) that extrapolate in this direction ({key[9:]})")
     else:
-        key = f"stacking {LOO}"
-        chosen = _mean_weights(names, weights, [LOO]) or ({names[0]: 1.0} if len(names) == 1 else {})
+        grouped = _mean_weights(names, weights, [NEW_GROUP])
+        key = "stacking leave-one-group-out" if grouped is not None else f"stacking {LOO}"
+        what = ("leave-one-group-out stacking weights (how well each law predicted a whole group it had not "
+                "seen: the answer is for a new group)" if grouped is not None else "LOO stacking weights")
+        chosen = grouped or _mean_weights(names, weights, [LOO]) or ({names[0]: 1.0} if len(names) == 1 else {})
         if matched or uncovered:
-            notes.append("no blocked fold with usable weights extrapolates in this direction: LOO stacking weights")
+            notes.append(f"no blocked fold with usable weights extrapolates in this direction: {what}")
         else:
-            notes.append("every point lies inside the tested envelope: LOO stacking weights")
+            notes.append(f"every point lies inside the tested envelope: {what}")
     if uncovered:
         sides = ", ".join(_side(s) for s in uncovered)
         widen = (f"widened by the largest miss any law showed on any blocked fold ({fallback:.2g} relative per "

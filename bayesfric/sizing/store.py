@@ -32,7 +32,7 @@ import numpy as np
 import xarray as xr
 
 from bayesfric.inference import load_fit
-from bayesfric.sizing.basis import LOO
+from bayesfric.sizing.basis import LOO, NEW_GROUP
 from bayesfric.sizing.calibration import Miss, Scheme
 from bayesfric.sizing.compute import LawSource
 from bayesfric.sizing.points import SizingError
@@ -61,10 +61,11 @@ def schemes_of(study, data: xr.Dataset, blocked: Sequence[str]) -> list[Scheme]:
     return out
 
 
-def basis_node(laws: Sequence[xr.Dataset], schemes: Sequence[Scheme]) -> xr.Dataset:
+def basis_node(laws: Sequence[xr.Dataset], schemes: Sequence[Scheme], grouped: Sequence[str] = ()) -> xr.Dataset:
     """The ``/sizing_basis`` node from each law's result Dataset (after its weights,
     :mod:`bayesfric.study.lawresult`): fit files, evidence disagreement, misses on ``schemes``
-    (:func:`schemes_of`), penalties and the blocked schemes."""
+    (:func:`schemes_of`), penalties, the blocked schemes and the leave-one-group-out labels
+    (``grouped``, attr ``grouped``, one per line) whose stacking weights answer for a new group."""
     names = [str(w.attrs["law"]) for w in laws]
     labels = list(dict.fromkeys(str(k) for w in laws for k, done in zip(w["scheme"].values,
                                                                          w["penalty_computed"].values, strict=True)
@@ -80,7 +81,8 @@ def basis_node(laws: Sequence[xr.Dataset], schemes: Sequence[Scheme]) -> xr.Data
                 "axis": ("scheme", [s.axis for s in schemes]),
                 "direction": ("scheme", [s.direction for s in schemes]),
                 "use_abs": ("scheme", [s.use_abs for s in schemes])},
-        attrs={"description": "what sizing reads besides /weights and /diagnostics (bayesfric.sizing.store)"})
+        attrs={"description": "what sizing reads besides /weights and /diagnostics (bayesfric.sizing.store)",
+               "grouped": "\n".join(grouped)})
     node["miss_n"].attrs["description"] = "held-out points of the blocked fold's miss; -1: no miss measured"
     node["penalty"].attrs.update(units="nats per held-out point")
     return node
@@ -135,8 +137,9 @@ def basis_schemes(basis: xr.DataTree) -> list[Scheme]:
                 strict=True)]
 
 
-def _law_terms(basis: xr.DataTree, name: str) -> tuple[dict, str, dict, dict]:
-    """(stacking weights by basis key, weight note, misses, penalties) of one law."""
+def _law_terms(basis: xr.DataTree, name: str, new_group: bool = True) -> tuple[dict, str, dict, dict]:
+    """(stacking weights by basis key, weight note, misses, penalties) of one law; with
+    ``new_group``, the first leave-one-group-out weighting also under :data:`NEW_GROUP`."""
     weights, notes = {}, []
     node = basis["weights"].to_dataset().sel(law=name)
     for key, value, excluded in zip(node["weighting"].values, node["weight"].values, node["excluded"].values,
@@ -146,6 +149,9 @@ def _law_terms(basis: xr.DataTree, name: str) -> tuple[dict, str, dict, dict]:
             weights[LOO if key == "stacking LOO" else key.removeprefix("stacking ")] = float(value)
         if str(excluded):
             notes.append(f"{key}: {excluded}")
+    grouped = [g for g in str(basis["sizing_basis"].attrs.get("grouped", "")).split("\n") if g in weights]
+    if new_group and grouped:
+        weights[NEW_GROUP] = weights[grouped[0]]
     row = basis["sizing_basis"].to_dataset().sel(law=name)
     misses = {str(label): Miss(str(label), *(float(row[f"miss_{k}"].values[j]) for k in ("rate", "beta", "se")),
                                int(row["miss_n"].values[j]), float(row["miss_reach"].values[j]))

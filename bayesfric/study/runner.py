@@ -76,7 +76,8 @@ def run_laws(study: Study, work: Path, plans: list, schemes, *, out_root: Path, 
 
 
 def _weights(study: Study, blocked: list[str], scored: dict, fits: dict) -> tuple[dict, list]:
-    """Stacking and pseudo-BMA+ weights from LOO and stacking from every blocked scheme, by law,
+    """Stacking and pseudo-BMA+ weights from LOO and stacking from every scheme in ``blocked``
+    (blocked, leave-future-out and leave-one-group-out labels), by law,
     and the weightings that could not be computed (why). Failed fits are excluded unless the
     study says otherwise."""
     bases = []
@@ -133,7 +134,8 @@ def result_tree(study: Study, ds, schemes: list, fits: dict, scored: dict, rows:
     their weights, the ranking's prior sensitivity and each law's result Dataset."""
     blocked = [label for label, _, kind in schemes if kind == "blocked"]
     forecast = [label for label, _, kind in schemes if kind == "forecast"]  # time to exceed weighs by these
-    weights, errors = _weights(study, blocked + forecast, scored, fits)
+    grouped = [label for label, _, kind in schemes if kind == "grouped"]  # sizing for a new group weighs by these
+    weights, errors = _weights(study, blocked + forecast + grouped, scored, fits)
     laws = _law_results(study, ds, blocked, scored, fits, weights, rows,
                         "run" if quick is not None else study.failed_fits)
     checks = identifiability.checks_dataset(study.identifiability, identifiability.companions_of(study.laws))

@@ -392,7 +392,8 @@ def study_tree(study: Study, data: xr.Dataset, schemes: Sequence[tuple], laws: S
              "criteria": _criteria(criteria(study, [s[0] for s in schemes], blocked, laws)),
              "pointwise": _pointwise(laws, int(data.sizes["obs"]), schemes, axes),
              "weights": _weights(laws, weight_errors), "diagnostics": _diagnostics(laws), "checks": _checks(laws),
-             "sizing_basis": basis_node(laws, schemes_of(study, data, blocked))}
+             "sizing_basis": basis_node(laws, schemes_of(study, data, blocked),
+                                        grouped=[s[0] for s in schemes if s[2] == "grouped"])}
     nodes |= _sensitivity(sensitivity) | _quick(quick) | _fits(laws, fits) | mode_node(laws)
     if identifiability is not None and identifiability.sizes.get("requirement", 0):
         nodes["identifiability"] = identifiability
