@@ -244,3 +244,13 @@ def test_a_study_of_runs_ranks_the_hierarchical_law_first_by_leave_one_run_out(t
     assert set(result.sizing["basis"]) == {"stacking leave-one-group-out"}
     weights = result.tree["weights"].to_dataset()["weight"].sel(law=hier)
     assert float(weights.sel(weighting=next(w for w in weights["weighting"].values if "run" in str(w)))) > 0.5
+    # the report's band figure adds, for the law with group terms, where a NEW run may lie: wider than the tested runs'
+    from bayesfric.report.study_figures import _band, _new_group_band
+
+    data = bayesfric.load_data(tmp_path / "runs.csv")
+    axis = next(k for k, v in data.coords.items() if v.attrs.get("role") == "input")
+    grid, lo, hi = _new_group_band(data, "torque", result.fits[hier], axis, data[axis].values)
+    tested = _band(data, "torque", result.fits[hier])
+    top = np.argmax(data[axis].values)
+    assert hi[-1] - lo[-1] > 1.5 * (tested[2][top] - tested[0][top])
+    assert _new_group_band(data, "torque", result.fits["coulomb_viscous"], axis, data[axis].values) is None

@@ -58,6 +58,8 @@ __all__ = ["draw", "plot_ranking", "plot_penalty", "plot_bands", "plot_pairs", "
 MAX_DRAWS = 400
 #: Most laws drawn as separate panels of the predictive bands; trajectories shown per study.
 MAX_PANELS, MAX_TRAJECTORIES = 6, 6
+#: Speeds at which a law with group terms is drawn for a new group (a dashed 90 % band).
+NEW_BAND_POINTS = 60
 
 
 def _colours() -> list[str]:
@@ -151,6 +153,27 @@ def _band(ds, response: str, fit) -> np.ndarray:
     return out
 
 
+def _new_group_band(ds, response: str, fit, axis: str, x: np.ndarray) -> tuple[np.ndarray, ...] | None:
+    """(grid, 5 %, 95 %) in display units of a law with group terms, for a NEW group (run, unit)
+    at ``NEW_BAND_POINTS`` values of ``axis`` over the data (:func:`bayesfric.sizing.compute.predict`:
+    the group spread integrated over, with noise); None for a law without group terms or one that
+    reads more than ``axis``."""
+    from bayesfric.laws.variants import law_of_fit
+    from bayesfric.sizing.compute import predict
+    from bayesfric.sizing.points import SizingError
+
+    law = law_of_fit(fit.attrs)
+    if not law.varying or law.trajectory or list(law.operating_inputs) != [axis]:
+        return None
+    grid = np.linspace(float(np.min(x)), float(np.max(x)), NEW_BAND_POINTS)
+    try:
+        y = predict(fit, {axis: grid}).y.reshape(-1, grid.size)
+    except SizingError:
+        return None
+    lo, hi = np.quantile(_shown(ds, response, y), [0.05, 0.95], axis=0)
+    return _shown(ds, axis, grid), lo, hi
+
+
 def plot_bands(t: TreeView, ds: xr.Dataset, fits: Mapping[str, xr.DataTree], axis: str, path: Path,
                heldout: np.ndarray | None) -> Path:
     """One panel per law (best first, at most :data:`MAX_PANELS`): data against ``axis``, the
@@ -175,6 +198,10 @@ def plot_bands(t: TreeView, ds: xr.Dataset, fits: Mapping[str, xr.DataTree], axi
         if one_input:
             ax.fill_between(x[s], lo[s], hi[s], color=colour, alpha=0.25, lw=0)
             ax.plot(x[s], mid[s], "-", color=colour, lw=1.3)
+            if (new := _new_group_band(ds, response, fits[name], axis, ds[axis].values)) is not None:
+                ax.plot(new[0], new[1], "--", color=colour, lw=1.0, label="a new group, 90 %")
+                ax.plot(new[0], new[2], "--", color=colour, lw=1.0)
+                ax.legend(fontsize=6, loc="best")
         else:
             ax.vlines(x, lo, hi, color=colour, alpha=0.25, lw=2)
             ax.plot(x, mid, "_", color=colour, ms=6)
@@ -182,7 +209,8 @@ def plot_bands(t: TreeView, ds: xr.Dataset, fits: Mapping[str, xr.DataTree], axi
         ax.tick_params(labelsize=7)
     for ax in axes[len(order):]:
         ax.set_visible(False)
-    fig.supxlabel(f"{axis} [{_display(ds, axis)[0]}]   (green: trained region; red circles: held out)", fontsize=8)
+    fig.supxlabel(f"{axis} [{_display(ds, axis)[0]}]   (green: trained region; red circles: held out; band: the "
+                  "tested runs; dashed, laws with group terms: a NEW group)", fontsize=8)
     fig.supylabel(f"{response} [{_display(ds, response)[0]}]", fontsize=8)
     banner(fig, ds)
     return save(fig, path)
