@@ -92,8 +92,9 @@ def test_a_configuration_is_checked_frozen_and_varied_by_replace():
     with pytest.raises(UserError, match=r"^tune: must be an integer ≥ 0, got integer -1$"):
         config.replace(tune=-1)
     with pytest.raises(UserError, match=r"^retry_target_accept: must be above target_accept \(0.9\)"):
-        SamplerConfig(retry_target_accept=0.8)
+        SamplerConfig.from_table({"retry_target_accept": 0.8})  # asked for and unusable: said
     assert SamplerConfig(retry_target_accept=0).retry is None and SamplerConfig().retry == 0.99
+    assert SamplerConfig(target_accept=0.99).retry is None  # the default retry has nothing to raise
     assert (SamplerConfig().draws, SamplerConfig(name="emcee").tune) == (1000, 2500)  # each backend's own
     assert default_of("nuts", "chains") == 4 and default_of("emcee", "walkers") is None
 

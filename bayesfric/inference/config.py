@@ -182,9 +182,6 @@ class SamplerConfig:
             value = getattr(self, key)
             if value is not None and (problem := rule.problem(value)):
                 raise UserError(problem, key)
-        if self.retry_target_accept and self.retry_target_accept <= self.target_accept:
-            raise UserError(f"must be above target_accept ({self.target_accept}) or 0 (off), "
-                            f"got {self.retry_target_accept}", "retry_target_accept")
         for key, default in _BACKEND_DEFAULTS[self.name].items():  # fills the backend's defaults once, here
             if getattr(self, key) is None:
                 object.__setattr__(self, key, default)
@@ -195,8 +192,10 @@ class SamplerConfig:
 
     @property
     def retry(self) -> float | None:
-        """The retry target, None when the retry is off (0 or None)."""
-        return float(self.retry_target_accept) if self.retry_target_accept else None
+        """The retry target, None when the retry is off (0 or None) or not above ``target_accept``
+        (a target raised to the default retry's 0.99 already: nothing to raise it to)."""
+        r = self.retry_target_accept
+        return float(r) if r and r > self.target_accept else None
 
     def settings(self) -> dict[str, Any]:
         """The backend's settings a user may give, as recorded with results and hashed into a
@@ -242,6 +241,11 @@ class SamplerConfig:
             only = known[k].only if known[k] is not None else None
             if only is not None and name not in only:
                 raise UserError(f"applies only to sampler {' or '.join(only)} (here {name!r})", key(k))
+        retry, target = given.get("retry_target_accept"), given.get("target_accept", cls.target_accept)
+        numbers = all(isinstance(v, int | float) and not isinstance(v, bool) for v in (retry, target))
+        if numbers and retry and retry <= target:  # asked for, and cannot raise the target: say so
+            raise UserError(f"must be above target_accept ({target}) or 0 (off), got {retry}",
+                            key("retry_target_accept"))
         try:
             return cls(**given)
         except UserError as exc:
