@@ -250,6 +250,10 @@ def test_run_a_python_study_then_size_its_result(tmp_path):
     from bayesfric.report.sizing import records
 
     np.testing.assert_array_equal([r["p_exceed"] for r in records(own)], result.sizing["p_exceed"].to_numpy())
+    ran = result.sizing_answer  # the run's own object, of which sizing.csv is the table
+    assert isinstance(ran, bayesfric.SizingAnswer)
+    np.testing.assert_array_equal([r["p_exceed"] for r in records(ran)], result.sizing["p_exceed"].to_numpy())
+    np.testing.assert_array_equal(ran["required"].values, own["required"].values)  # and what size() answers
     with pytest.raises(UserError, match="at.temperature: 'temperature' is not an input of the data"):
         bayesfric.size(result, at={"temperature": (20, "degC"), "velocity": (5, "rad/s")})
     with pytest.raises(UserError, match="no report of study 'api_run' in .*bayesfric.run"):
@@ -258,6 +262,7 @@ def test_run_a_python_study_then_size_its_result(tmp_path):
     assert again.tree is not result.tree  # the first result was the run's own, in memory; this one is read back
     for table in ("scores", "ranking", "sizing"):  # the same tables either way, typed as pandas reads the CSV
         assert getattr(again, table).equals(getattr(result, table)), table
+    np.testing.assert_array_equal(again.sizing_answer["required"].values, ran["required"].values)  # read back
     assert again.scores.equals(pd.read_csv(result.folder / "scores.csv", keep_default_na=False, na_values=[""]))
     assert again.ranking.equals(pd.read_csv(result.folder / "ranking.csv"))
     for name, fit in result.fits.items():

@@ -259,7 +259,8 @@ class StudyResult:
     fits : dict of str to xarray.DataTree
         Each law's full fit (``fits/<law>.nc``).
     sizing : pandas.DataFrame or None
-        ``sizing.csv`` (every law and point of every ``[[sizing]]`` question), if the study asks any.
+        ``sizing.csv`` (every law and point of every ``[[sizing]]`` question), if the study asks any:
+        the table rendering of :attr:`sizing_answer`.
     tree : xarray.DataTree or None
         ``results.nc``: the same results as one DataTree (``/scores`` over law × criterion,
         ``/pointwise``, ``/weights``, ``/diagnostics``, ``/checks``, the tables, ``/fits/<law>``
@@ -274,6 +275,20 @@ class StudyResult:
     fits: dict[str, xr.DataTree] = field(repr=False)
     sizing: pd.DataFrame | None = None
     tree: xr.DataTree | None = field(default=None, repr=False)
+    answer: Any = field(default=None, repr=False, compare=False)  # the run's SizingAnswer, when it made one
+
+    @property
+    def sizing_answer(self):
+        """The study's sizing as one :class:`~bayesfric.sizing.SizingAnswer` (law × point ×
+        quantile, ``q(p)``, ``to_dataframe()``), of which :attr:`sizing` is the table; None when
+        the study asks no sizing question at a point. The run's own object when this process ran
+        the study; else answered once from the report (:func:`bayesfric.size`, the same seed:
+        the same numbers) and kept."""
+        if self.answer is None and self.sizing is not None:
+            from bayesfric.api.sizing import size
+
+            object.__setattr__(self, "answer", size(self))
+        return self.answer
 
     @classmethod
     def read(cls, study: config.Study, folder: str | Path) -> StudyResult:
@@ -293,7 +308,7 @@ class StudyResult:
 
     @classmethod
     def from_tree(cls, study: config.Study, folder: Path, tree: xr.DataTree,
-                  fits: Mapping[str, xr.DataTree]) -> StudyResult:
+                  fits: Mapping[str, xr.DataTree], answer: Any = None) -> StudyResult:
         """The result of ``study`` from its result tree and fits, in memory (:func:`run` after it
         wrote the report) or read back (:meth:`read`): the tables are the tree's table nodes, typed
         as pandas reads the CSV files (:func:`bayesfric.report.stored.table_frame`)."""
@@ -301,7 +316,7 @@ class StudyResult:
 
         sizing = table_frame(tree["sizing"].to_dataset()) if "sizing" in tree.children else None
         return cls(study, folder, table_frame(tree["score_rows"].to_dataset()),
-                   table_frame(tree["ranking"].to_dataset()), dict(fits), sizing, tree)
+                   table_frame(tree["ranking"].to_dataset()), dict(fits), sizing, tree, answer)
 
 
 def run(study: Study | str | Path, out: str | Path = "reports", *, quick: bool = False, fresh: bool = False,
@@ -366,5 +381,5 @@ def run(study: Study | str | Path, out: str | Path = "reports", *, quick: bool =
     done = execute_study(chosen, out_root=out, quick=quick, fresh=fresh, workers=workers)
     if done.tree is None:  # an unchanged rerun: the report of an earlier run, read from its folder
         return StudyResult.read(chosen, done.folder)
-    return StudyResult.from_tree(chosen, done.folder, done.tree, done.fits)
+    return StudyResult.from_tree(chosen, done.folder, done.tree, done.fits, done.sized)
 

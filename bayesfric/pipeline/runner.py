@@ -124,6 +124,7 @@ class StudyRun:
     folder: Path
     tree: xr.DataTree | None = None
     fits: Mapping[str, xr.DataTree] | None = None
+    sized: sizing.SizingAnswer | None = None  # the sizing answer the report rendered (questions at points)
 
 
 def run_study(path: str | Path | Study, out_root: str | Path = "reports", quick: bool = False, *, fresh: bool = False,
@@ -230,4 +231,4 @@ def _write_study(prepared, out_root: Path, quick: bool, fresh: bool, client, tim
         raise
     print(timing_table(rows, f"[{study.name}] time per stage"), flush=True)
     print(f"[{study.name}] report written to {final} ({time.perf_counter() - start:.0f} s)")
-    return StudyRun(final, tree, fits)
+    return StudyRun(final, tree, fits, sized)
