@@ -282,12 +282,14 @@ class StudyResult:
         """The study's sizing as one :class:`~bayesfric.sizing.SizingAnswer` (law × point ×
         quantile, ``q(p)``, ``to_dataframe()``), of which :attr:`sizing` is the table; None when
         the study asks no sizing question at a point. The run's own object when this process ran
-        the study; else answered once from the report (:func:`bayesfric.size`, the same seed:
-        the same numbers) and kept."""
+        the study; else answered once from the report (as :func:`bayesfric.size` answers it, the
+        same seed: the same numbers) and kept."""
         if self.answer is None and self.sizing is not None:
-            from bayesfric.api.sizing import size
+            from bayesfric.study.resize import size_from_report
 
-            object.__setattr__(self, "answer", size(self))
+            reports = self.folder.parent
+            object.__setattr__(self, "answer", size_from_report(
+                self.study, None, reports, keys={}, run_hint=f"bayesfric.run(study, out={str(reports)!r})"))
         return self.answer
 
     @classmethod
