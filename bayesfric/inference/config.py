@@ -81,7 +81,7 @@ class Rule(NamedTuple):
                       or (self.gt is not None and value <= self.gt) or (self.lt is not None and value >= self.lt))
         if ok and self.choices is not None:
             ok = value in self.choices
-        return None if ok else f"must be {self.describe()}, got {_got(value)}"
+        return None if ok else f"must be {self.describe()}, got {described(value)}"
 
 
 NUTS, EMCEE = ("nuts",), ("emcee",)
@@ -261,7 +261,8 @@ def _num(value: float) -> str:
     return f"{value:g}" if isinstance(value, float) else str(value)
 
 
-def _got(value: Any) -> str:
+def described(value: Any) -> str:
+    """A value as an error message names what it got (``integer 3``, ``string 'x'``, ``a table``)."""
     if isinstance(value, bool):
         return f"boolean {str(value).lower()}"
     if isinstance(value, int):
@@ -270,4 +271,8 @@ def _got(value: Any) -> str:
         return f"number {value:g}"
     if isinstance(value, str):
         return f"string {value!r}" if len(value) <= 60 else f"string {value[:57]!r}..."
+    if isinstance(value, Mapping):
+        return "a table"
+    if isinstance(value, list):
+        return "an array"
     return type(value).__name__

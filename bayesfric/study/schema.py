@@ -24,6 +24,7 @@ from typing import Any
 
 from bayesfric.errors import InternalError, UserError
 from bayesfric.fsutil import name_problem
+from bayesfric.inference.config import described
 
 __all__ = ["REQUIRED", "KINDS", "Field", "Schema", "SchemaError", "parse", "location"]
 
@@ -149,22 +150,6 @@ def _num(x: float) -> str:
     return str(int(x)) if float(x).is_integer() else f"{x:g}"
 
 
-def _got(value: Any) -> str:
-    if isinstance(value, bool):
-        return f"boolean {str(value).lower()}"
-    if isinstance(value, int):
-        return f"integer {value}"
-    if isinstance(value, float):
-        return f"number {value:g}"
-    if isinstance(value, str):
-        return f"string {value!r}" if len(value) <= 60 else f"string {value[:57]!r}..."
-    if isinstance(value, Mapping):
-        return "a table"
-    if isinstance(value, list):
-        return "an array"
-    return type(value).__name__
-
-
 def _kind_ok(kind: str, value: Any) -> bool:
     scalar = isinstance(value, str | int | float) and not (isinstance(value, float) and not math.isfinite(value))
     return {
@@ -184,7 +169,7 @@ def _kind_ok(kind: str, value: Any) -> bool:
 def _check(f: Field, value: Any, where: tuple) -> Any:
     """Check one value against its field; return it parsed (defaults of sub-tables filled)."""
     if not _kind_ok(f.kind, value):
-        raise SchemaError(where, f"must be {f.describe()}, got {_got(value)}")
+        raise SchemaError(where, f"must be {f.describe()}, got {described(value)}")
     if f.kind == "name" and (problem := name_problem(value)):
         raise SchemaError(where, problem)
     if f.kind == "number":
@@ -193,11 +178,11 @@ def _check(f: Field, value: Any, where: tuple) -> Any:
         bad = ((f.min is not None and value < f.min) or (f.max is not None and value > f.max)
                or (f.gt is not None and value <= f.gt) or (f.lt is not None and value >= f.lt))
         if bad:
-            raise SchemaError(where, f"must be {f.describe()}, got {_got(value)}")
+            raise SchemaError(where, f"must be {f.describe()}, got {described(value)}")
     if f.kind == "tables" and f.min is not None and len(value) < f.min:
         raise SchemaError(where, f"must be {f.describe()}, got {len(value)}")
     if f.choices is not None and value not in f.choices:
-        raise SchemaError(where, f"must be {f.describe()}, got {_got(value)}")
+        raise SchemaError(where, f"must be {f.describe()}, got {described(value)}")
     if f.kind == "table" and f.schema is not None:
         value = parse(f.schema, value, where)
     elif f.kind == "table" and f.items is not None:
@@ -220,7 +205,7 @@ def parse(schema: Schema, raw: Mapping[str, Any], where: tuple[str | int, ...] =
         key, a value of the wrong kind or out of range, or a broken ``exactly_one`` group.
     """
     if not isinstance(raw, Mapping):
-        raise SchemaError(where, f"must be a table, got {_got(raw)}")
+        raise SchemaError(where, f"must be a table, got {described(raw)}")
     allowed = schema.keys()
     for key in raw:
         if key not in allowed:
