@@ -110,12 +110,13 @@ class Density:
     @cached_property
     def log_joint_batch(self) -> Callable[[jax.Array], jax.Array]:
         """Compiled :meth:`log_joint` over a batch ``(n, dim)`` of flat vectors (traces kept on disk)."""
-        return program_jit(self.program, "log_joint_batch", jax.vmap(self.log_joint))
+        return program_jit(self.program, "log_joint_batch", jax.vmap(self.log_joint), optimised=True)
 
     @cached_property
     def neg_value_and_grad(self) -> Callable[[jax.Array], tuple[jax.Array, jax.Array]]:
         """Compiled ``x -> (-log_joint(x), -∇log_joint(x))``, for optimisers."""
-        return program_jit(self.program, "neg_value_and_grad", jax.value_and_grad(lambda x: -self.log_joint(x)))
+        return program_jit(self.program, "neg_value_and_grad", jax.value_and_grad(lambda x: -self.log_joint(x)),
+                           optimised=True)
 
     def log_prior(self, x: jax.Array) -> jax.Array:
         """``log p(θ(x)) + log|J|``: the log joint with every observation masked out."""
@@ -143,7 +144,7 @@ class Density:
         # one compiled program: run eagerly, the transforms dispatch (and the first time in a
         # process compile) op by op -- 27 s for a warm start of stribeck on the loaded 2-core box
         to_flat = jax.vmap(lambda p: ravel_pytree(unconstrain_fn(model, (), kwargs, p))[0])
-        return program_jit(self.program, "to_unconstrained", to_flat)(draws)
+        return program_jit(self.program, "to_unconstrained", to_flat, optimised=True)(draws)
 
 
 def _median_start(program: ProgramLike, key: jax.Array) -> dict[str, jax.Array]:
@@ -165,7 +166,7 @@ def _median_starts_jit(program: ProgramLike) -> Callable:
     def flat_starts(keys):
         return jax.vmap(lambda key: ravel_pytree(_median_start(program, key))[0])(keys)
 
-    return program_jit(program, "median_starts", flat_starts)
+    return program_jit(program, "median_starts", flat_starts, optimised=True)
 
 
 def _seed_keys(seeds: list[int]) -> jax.Array:

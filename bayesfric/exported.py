@@ -30,6 +30,18 @@ side by side while the caller waits for both: a warm ``joint_tribological`` fit 
 in-process with two threads against 1.72 s with one (8 interleaved pairs, 7 in favour), a cold
 ``stribeck`` fit 5.06 against 5.44 s (3 pairs).
 
+**Two optimisation levels.** A program run once per fit over its draws (the DataTree tables, the
+pointwise likelihood, the checks' curves) is compiled at XLA's CPU backend optimisation level 0
+(:data:`ONE_SHOT`) when its data set has at most :data:`ONE_SHOT_ROWS` rows. A program run in a
+loop (the sampler, an optimiser, emcee's batched density) or steering the sampler (chain starts:
+another level changes their last bits, and a trajectory follows them) is compiled at XLA's
+default level 2 (:data:`LOOPED`), so the draws are those of the default level. On the
+robot_joint study the once-run programs were about two thirds of a cold run's compilation; at
+level 0 they compile in about half the time and run 3-4x slower, on milliseconds (a fit's tables:
+0.017 -> 0.06 s; ``benchmarks/bench_xla_level.py``). Level 0 everywhere made the sampler slower
+than the compilation it saved. Above ``ONE_SHOT_ROWS`` rows the run dominates, and every program
+is compiled at the default level.
+
 With the cache switched off (``BAYESFRIC_NO_CACHE``) this is plain ``jax.jit``. A file that
 cannot be read back (truncated, another JAX) is traced again and replaced; writes are atomic;
 the folder keeps at most :data:`EXPORTED_MAX_BYTES`, the least recently used files leaving first.
@@ -56,7 +68,15 @@ from bayesfric.fingerprint import canonical, code_fingerprint
 from bayesfric.runtime import cache_dir
 
 __all__ = ["exported_jit", "program_jit", "forget_compiled", "finish_compilations", "set_compile_threads",
-           "AheadCompiled", "EXPORTED_MAX_BYTES", "SUFFIX", "COMPILE_THREADS"]
+           "AheadCompiled", "EXPORTED_MAX_BYTES", "SUFFIX", "COMPILE_THREADS", "ONE_SHOT", "LOOPED", "ONE_SHOT_ROWS",
+           "program_options"]
+
+#: XLA options of a program run once per fit (see the module notes).
+ONE_SHOT: dict[str, Any] = {"xla_backend_optimization_level": 0}
+#: XLA options of a program run in a loop: XLA's CPU default, stated so that no flag lowers it.
+LOOPED: dict[str, Any] = {"xla_backend_optimization_level": 2}
+#: Largest data set whose once-run programs are compiled with :data:`ONE_SHOT`.
+ONE_SHOT_ROWS = 5000
 
 #: Upper bound of the exported programs kept on disk (oldest read first to go).
 EXPORTED_MAX_BYTES = 512 * 1024**2
@@ -212,7 +232,7 @@ def _evict(folder: Path, keep: Path) -> None:
 
 
 def exported_jit(fn: Callable, parts: dict[str, Any], example_args: Sequence[Any],
-                 ahead: bool = False) -> tuple[Callable, bool]:
+                 ahead: bool = False, options: dict[str, Any] | None = None) -> tuple[Callable, bool]:
     """``jax.jit(fn)``, traced at most once per key across processes.
 
     Parameters
@@ -228,6 +248,8 @@ def exported_jit(fn: Callable, parts: dict[str, Any], example_args: Sequence[Any
     ahead : bool
         Return an :class:`AheadCompiled` whose compilation for ``example_args`` has started in
         the background (see the module notes) instead of a function compiled on first call.
+    options : dict, optional
+        XLA compiler options (:data:`ONE_SHOT`, :data:`LOOPED`); ``None`` is XLA's defaults.
 
     Returns
     -------
@@ -242,7 +264,7 @@ def exported_jit(fn: Callable, parts: dict[str, Any], example_args: Sequence[Any
     stored fit, and its chain starts, say, were compiled twice per law (once for the engine,
     once for the evidence estimators' optimisers), 1-1.5 s each on the 2-core machine.
     """
-    key = _key(parts, example_args)
+    key = _key(parts if options is None else parts | {"xla options": options}, example_args)
     if key in _KEPT:
         kept = _KEPT[key]
         if ahead and not isinstance(kept, AheadCompiled):
@@ -251,7 +273,7 @@ def exported_jit(fn: Callable, parts: dict[str, Any], example_args: Sequence[Any
     folder = _folder()
     loaded = False
     if folder is None:
-        jitted = jax.jit(fn)
+        jitted = jax.jit(fn, compiler_options=options)
     else:
         path = folder / f"{key}{SUFFIX}"
         exported = _load(path)
@@ -259,25 +281,41 @@ def exported_jit(fn: Callable, parts: dict[str, Any], example_args: Sequence[Any
         if not loaded:
             exported = jax.export.export(jax.jit(fn))(*example_args)
             _save(path, exported)
-        jitted = jax.jit(exported.call)
+        jitted = jax.jit(exported.call, compiler_options=options)
     _KEPT[key] = AheadCompiled(jitted, example_args) if ahead else jitted
     return _KEPT[key], loaded
 
 
-def program_jit(program: Any, what: str, fn: Callable) -> Callable:
+def program_jit(program: Any, what: str, fn: Callable, optimised: bool = False) -> Callable:
     """A drop-in ``jax.jit(fn)`` for a function of ``program``, its traces kept on disk.
 
     ``program`` is a :class:`bayesfric.model.Program`; ``what`` names the function and any
     setting it closes over besides the program (e.g. ``"draw_tables n_prior=500"``). The key's
     program part is :func:`bayesfric.fingerprint.program_parts`; each new combination of
     argument shapes is exported (or read back) on its first call, as ``jax.jit`` traces it.
+    ``optimised``: the function is called many times (an optimiser's step, emcee's density), or
+    its output steers the sampler (chain starts, warm starts), so it is compiled with
+    :data:`LOOPED` options: another level changes results in their last bits, and a chain's
+    trajectory follows them. Otherwise it is compiled with :data:`ONE_SHOT` on small data sets.
     """
-    return _ProgramJit(program, what, fn)
+    return _ProgramJit(program, what, fn, optimised)
+
+
+def program_options(n_obs: int, optimised: bool) -> dict[str, Any]:
+    """XLA options of a program over ``n_obs`` rows (see the module notes).
+
+    >>> program_options(111, optimised=False)["xla_backend_optimization_level"]
+    0
+    >>> program_options(111, optimised=True)["xla_backend_optimization_level"]
+    2
+    """
+    return ONE_SHOT if not optimised and n_obs <= ONE_SHOT_ROWS else LOOPED
 
 
 class _ProgramJit:
-    def __init__(self, program: Any, what: str, fn: Callable):
+    def __init__(self, program: Any, what: str, fn: Callable, optimised: bool = False):
         self._program, self._what, self._fn = program, what, fn
+        self._options = program_options(program.n_obs, optimised)
         self._parts: dict[str, Any] | None = None
         self._compiled: dict[Any, Callable] = {}
 
@@ -293,7 +331,7 @@ class _ProgramJit:
         args = jax.tree.unflatten(treedef, [np.asarray(a) if isinstance(a, jax.Array) else a for a in leaves])
         signature = _signature(treedef, leaves)
         if signature not in self._compiled:
-            self._compiled[signature] = exported_jit(self._fn, self._key_parts(), args)[0]
+            self._compiled[signature] = exported_jit(self._fn, self._key_parts(), args, options=self._options)[0]
         return self._compiled[signature](*args)
 
     def ahead(self, *example_args: Any) -> Any:
@@ -303,7 +341,8 @@ class _ProgramJit:
         leaves, treedef = jax.tree.flatten(example_args)
         signature = _signature(treedef, leaves)
         if signature not in self._compiled:
-            self._compiled[signature] = exported_jit(self._fn, self._key_parts(), example_args, ahead=True)[0]
+            self._compiled[signature] = exported_jit(self._fn, self._key_parts(), example_args, ahead=True,
+                                                     options=self._options)[0]
         compiled = self._compiled[signature]
         return compiled.out_shapes if isinstance(compiled, AheadCompiled) else None
 

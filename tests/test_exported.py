@@ -190,3 +190,44 @@ def test_compile_threads_run_side_by_side_up_to_the_setting():
             exported.set_compile_threads(0)
     finally:
         exported.set_compile_threads(exported.COMPILE_THREADS)
+
+
+def test_once_run_programs_of_small_data_compile_at_level_zero_and_sampler_inputs_at_the_default():
+    """The compile options by program: a once-run program over a small data set at level 0, a
+    looped or sampler-steering one (and every program above ONE_SHOT_ROWS rows) at XLA's default."""
+    assert exported.program_options(111, optimised=False) is exported.ONE_SHOT
+    assert exported.program_options(111, optimised=True) is exported.LOOPED
+    assert exported.program_options(exported.ONE_SHOT_ROWS + 1, optimised=False) is exported.LOOPED
+    assert exported.ONE_SHOT["xla_backend_optimization_level"] == 0
+    assert exported.LOOPED["xla_backend_optimization_level"] == 2
+
+
+def test_programs_steering_the_sampler_compile_at_the_default_level(data):
+    """Prior-median starts, Pathfinder's draws, the warm-start transform and emcee's density are
+    compiled at XLA's default level (a chain's trajectory follows the last bits of its start);
+    a fit's tables and the checks' curves at level 0 on this small data set."""
+    from bayesfric.density import _median_starts_jit
+    from bayesfric.inference.datatree import draw_tables_jit
+
+    program = build_program(get_law("coulomb_viscous"), data)
+    density = program.density(0)
+    assert _median_starts_jit(program)._options is exported.LOOPED
+    assert density.log_joint_batch._options is exported.LOOPED
+    assert density.neg_value_and_grad._options is exported.LOOPED
+    assert draw_tables_jit(program)._options is exported.ONE_SHOT
+
+
+def test_once_run_tables_at_level_zero_agree_with_the_default_level(cache, data):
+    """A fit's tables compiled at level 0 agree with the default level's to rounding."""
+    from functools import partial
+
+    from bayesfric.inference.datatree import _draw_tables, draw_tables_jit
+
+    program = build_program(get_law("coulomb_viscous"), data)
+    rng = np.random.default_rng(0)
+    flat = {"T_C": rng.uniform(0.9, 1.1, 200), "c_v": rng.uniform(0.4, 0.6, 200), "sigma": rng.uniform(0.04, 0.06, 200)}
+    key = jax.random.PRNGKey(1)
+    ours = draw_tables_jit(program, 50)(flat, key, key)
+    plain = jax.jit(partial(_draw_tables, program, 50))(flat, key, key)
+    for a, b in zip(jax.tree.leaves(ours), jax.tree.leaves(plain), strict=True):
+        np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-12, atol=1e-12)

@@ -134,10 +134,10 @@ def pathfinder_starts(program: Program, chains: int, seed: int, paths: int = PAT
     density = program.density(seed)
     what = f"pathfinder maxiter={MAXITER} paths_at_once={chosen.paths_at_once}"
     optimise, approximate = stages(density.log_joint, chosen)
-    paths = program_jit(program, f"{what} lbfgs", optimise)(starts)
+    paths = program_jit(program, f"{what} lbfgs", optimise, optimised=True)(starts)
     what += f" draws={DRAWS_PER_PATH} elbo_draws={ELBO_DRAWS} draws_at_once={chosen.draws_at_once}"
     keys = jax.random.split(jax.random.PRNGKey(seed), len(starts))
-    draws, log_w = program_jit(program, what, approximate)(keys, *paths)
+    draws, log_w = program_jit(program, what, approximate, optimised=True)(keys, *paths)
     draws = np.asarray(draws).reshape(-1, density.dim)
     log_w = np.asarray(log_w).ravel()
     finite = np.isfinite(log_w) & np.isfinite(draws).all(axis=1)
