@@ -101,6 +101,17 @@ def test_longest_study_starts_first(tmp_path, studies):
     assert [f.stem for f in study_order(files, out)] == ["beta", "alpha"]
 
 
+def test_a_study_not_run_before_counts_grouped_laws_as_several(tmp_path):
+    """With no previous report, a law with group or trend terms counts GROUPED_COST laws: the
+    seed studies' weighted counts are drum_campaigns 3 x 4 = 12, robot_joint 6 + 4 = 10,
+    dahl_duplex 6, pitch_bearing 6, unwinder 5, drum_rollout 2 (ties keep file order)."""
+    from bayesfric.study import STUDIES_DIR
+
+    files = sorted(STUDIES_DIR.glob("*.toml"))
+    order = [f.stem for f in study_order(files, tmp_path / "reports")]
+    assert order == ["drum_campaigns", "robot_joint", "dahl_duplex", "pitch_bearing", "unwinder", "drum_rollout"]
+
+
 @pytest.mark.parametrize("jobs", [1, 2])
 def test_a_bad_study_file_stops_the_main_job_before_anything_runs(tmp_path, studies, jobs):
     """Every study file is read and checked first: one bad file, one line, nothing written."""
