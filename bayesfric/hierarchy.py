@@ -51,6 +51,7 @@ import numpy as np
 import numpyro
 import numpyro.distributions as dist
 
+from bayesfric.exported import program_options
 from bayesfric.laws.base import Law
 from bayesfric.priors import Prior, PriorError
 from bayesfric.trend import centred_or_not, coordinates, forecast_u, sample_levels, span
@@ -328,7 +329,8 @@ def mean_draws(program, posterior, group: str | None = None, seed: int = 0, chun
     inputs = {k: jnp.asarray(v) for k, v in program.inputs.items()}
     n, s = program.n_obs, len(next(iter(values.values())))
     size = chunk or max(1, CHUNK_NUMBERS // max(1, n))
-    mean = jax.jit(jax.vmap(lambda p: law.mean(inputs, p, program.constants)))
+    mean = jax.jit(jax.vmap(lambda p: law.mean(inputs, p, program.constants)),
+                   compiler_options=program_options(n, optimised=False))
     parts = [np.broadcast_to(np.asarray(mean({k: jnp.asarray(v[a:a + size]) for k, v in values.items()}),
                                         dtype=float), (min(size, s - a), n)) for a in range(0, s, size)]
     mu = np.concatenate(parts) if len(parts) > 1 else parts[0].copy()

@@ -28,6 +28,7 @@ import numpy as np
 from bayesfric.compare.folds import Folds
 from bayesfric.compare.heldout import HeldOut, heldout_predictive
 from bayesfric.errors import UserError
+from bayesfric.exported import program_options
 from bayesfric.inference.diagnostics import Verdict
 from bayesfric.inference.engine import FoldFits, NutsEngine
 from bayesfric.model import program_from_fit  # re-exported: it lives below compare, in model
@@ -139,7 +140,7 @@ def joint_lpd(program, samples: dict[str, np.ndarray], rows: np.ndarray) -> floa
     density = program.density()
     s = int(np.prod(next(iter(samples.values())).shape[:2]))
     flat = {k: np.asarray(v).reshape((s,) + np.shape(v)[2:]) for k, v in samples.items()}
-    pointwise = jax.jit(jax.vmap(density.pointwise))
+    pointwise = jax.jit(jax.vmap(density.pointwise), compiler_options=program_options(program.n_obs, optimised=False))
     size = max(1, CHUNK_NUMBERS // max(1, program.n_obs))
     sums = np.concatenate([np.asarray(pointwise({k: v[a:a + size] for k, v in flat.items()}))[:, rows].sum(axis=1)
                            for a in range(0, s, size)])

@@ -68,6 +68,7 @@ from bayesfric.compare.structure_stats import (
 )
 from bayesfric.datasets.views import trajectory_starts
 from bayesfric.errors import UserError
+from bayesfric.exported import program_options
 from bayesfric.laws.base import Law
 from bayesfric.limits import CHUNK_NUMBERS
 from bayesfric.model import OBS_SITE, Program, program_of_fit
@@ -101,7 +102,7 @@ def _moments(program: Program):
         var = jnp.broadcast_to(obs.variance, jnp.shape(fn.loc))
         return fn.loc, jnp.where(jnp.isfinite(var), var, jnp.broadcast_to(obs.scale, var.shape) ** 2)
 
-    return jax.jit(jax.vmap(one))
+    return jax.jit(jax.vmap(one), compiler_options=program_options(program.n_obs, optimised=False))
 
 
 def fit_residuals(fit: xr.DataTree, program: Program | None = None,

@@ -42,6 +42,7 @@ import numpy as np
 import xarray as xr
 
 from bayesfric.errors import UserError
+from bayesfric.exported import program_options
 from bayesfric.sizing.calibration import Miss
 from bayesfric.sizing.forecast import allowance, widen_curves
 from bayesfric.sizing.points import SizingError, parse_capacity, parse_horizon, parse_value
@@ -106,7 +107,8 @@ def friction_curves(fit: xr.DataTree, at: Mapping[str, Any], times: Sequence[flo
     flat, labels = _flat(post), _labels(post)
     params = _trend_params(program, flat, labels, times, np.random.default_rng(seed), scatter)
     inputs = {k: jnp.broadcast_to(jnp.asarray(v), (times.size,)) for k, v in program.inputs.items()}
-    mean = jax.jit(jax.vmap(lambda p: law.mean(inputs, p, program.constants)))
+    mean = jax.jit(jax.vmap(lambda p: law.mean(inputs, p, program.constants)),
+                   compiler_options=program_options(times.size, optimised=False))
     s = next(iter(flat.values())).shape[0]
     step = max(1, 200_000 // max(times.size, 1))
     parts = [np.asarray(mean({k: jnp.asarray(np.broadcast_to(v[a:a + step], (min(step, s - a), v.shape[1])))
