@@ -53,6 +53,7 @@ import contextlib
 import hashlib
 import json
 import os
+import re
 import secrets
 from collections.abc import Callable, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -281,9 +282,21 @@ def exported_jit(fn: Callable, parts: dict[str, Any], example_args: Sequence[Any
         if not loaded:
             exported = jax.export.export(jax.jit(fn))(*example_args)
             _save(path, exported)
-        jitted = jax.jit(exported.call, compiler_options=options)
+        jitted = jax.jit(_named(exported.call, parts.get("what")), compiler_options=options)
     _KEPT[key] = AheadCompiled(jitted, example_args) if ahead else jitted
     return _KEPT[key], loaded
+
+
+def _named(call: Callable, what: Any) -> Callable:
+    """``call`` under a name saying what it computes, so that JAX's compilation log
+    (``JAX_LOG_COMPILES=1``) and profiles name ``jit(draw_tables_n_prior_500)``, not ``jit(call)``."""
+    name = re.sub(r"\W+", "_", str(what or "call")).strip("_")[:60] or "call"
+
+    def named(*args: Any) -> Any:
+        return call(*args)
+
+    named.__name__ = named.__qualname__ = name
+    return named
 
 
 def program_jit(program: Any, what: str, fn: Callable, optimised: bool = False) -> Callable:
