@@ -39,8 +39,9 @@ default level 2 (:data:`LOOPED`), so the draws are those of the default level. O
 robot_joint study the once-run programs were about two thirds of a cold run's compilation; at
 level 0 they compile in about half the time and run 3-4x slower, on milliseconds (a fit's tables:
 0.017 -> 0.06 s; ``benchmarks/bench_xla_level.py``). Level 0 everywhere made the sampler slower
-than the compilation it saved. Above ``ONE_SHOT_ROWS`` rows the run dominates, and every program
-is compiled at the default level.
+than the compilation it saved. A run at level 0 grows with the rows (pitch_bearing's Rothe Erde
+tables, 300 rows: 0.17 -> 0.75 s, against 2.5 s of compilation saved), so above ``ONE_SHOT_ROWS``
+rows every program is compiled at the default level.
 
 With the cache switched off (``BAYESFRIC_NO_CACHE``) this is plain ``jax.jit``. A file that
 cannot be read back (truncated, another JAX) is traced again and replaced; writes are atomic;
@@ -77,7 +78,7 @@ ONE_SHOT: dict[str, Any] = {"xla_backend_optimization_level": 0}
 #: XLA options of a program run in a loop: XLA's CPU default, stated so that no flag lowers it.
 LOOPED: dict[str, Any] = {"xla_backend_optimization_level": 2}
 #: Largest data set whose once-run programs are compiled with :data:`ONE_SHOT`.
-ONE_SHOT_ROWS = 5000
+ONE_SHOT_ROWS = 2000
 
 #: Upper bound of the exported programs kept on disk (oldest read first to go).
 EXPORTED_MAX_BYTES = 512 * 1024**2
