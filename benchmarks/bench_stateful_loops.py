@@ -74,7 +74,8 @@ def child(law_name: str, design: str, seed: int, init: str = "median") -> dict:
             "ess_tail_min": verdict.ess_tail_min, "divergences": verdict.divergences,
             "steps_per_draw": steps, "problems": list(verdict.problems),
             "loglik_rhat_max": verdict.loglik_rhat_max, "loglik_ess_bulk_min": verdict.loglik_ess_bulk_min,
-            "predictions_converged": verdict.predictions_converged}
+            "predictions_converged": verdict.predictions_converged, "multimodal": bool(verdict.multimodal),
+            "unidentified": list(verdict.unidentified), "mode_note": verdict.mode_note}
 
 
 def _law(name: str, ds):

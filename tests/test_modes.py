@@ -279,3 +279,76 @@ def test_law_result_and_tree_node_keep_the_modes():
     assert list(node["mode"].values) == ["1", "2"] and list(node["chains"].values) == ["0,1", "2,3"]
     failed = law_result(get_law("coulomb"), "fits/x.nc", check(dt))
     assert not bool(failed["multimodal"]) and "mode_weight" not in failed and mode_node([failed]) == {}
+
+
+def _ridge(drift: bool, seed: int = 6) -> xr.DataTree:
+    """y ~ Normal((a + b) x, 1): only a + b is identified. Every chain draws a + b from its
+    posterior; chain 3's ``a`` wanders (half its draws 3 units up, ``b`` compensating), so a and b
+    do not mix. With ``drift`` the wandering also moves a + b: then the fit to the rows disagrees."""
+    x, y = _data()
+    s = 1.0 / np.sqrt(np.sum(x ** 2))
+    rng = np.random.default_rng(seed)
+    total = 0.2 + s * rng.normal(size=(CHAINS, DRAWS))
+    a = rng.normal(size=(CHAINS, DRAWS)) * 0.05
+    a[3, DRAWS // 2:] += 3.0
+    if drift:
+        total[3, DRAWS // 2:] += 4 * s
+    b = total - a
+    ll = norm.logpdf(y[None, None], total[..., None] * x[None, None], 1.0)
+    dt = xr.DataTree.from_dict({
+        "posterior": xr.Dataset({"a": (("chain", "draw"), a), "b": (("chain", "draw"), b),
+                                 "total": (("chain", "draw"), total)}),
+        "sample_stats": xr.Dataset({"diverging": (("chain", "draw"), np.zeros((CHAINS, DRAWS), bool))}),
+        "log_likelihood": xr.Dataset({"y": (("chain", "draw", "obs"), ll)}),
+    })
+    for group in ("posterior", "sample_stats", "log_likelihood"):
+        dt[group] = dt[group].to_dataset().assign_coords(chain=np.arange(CHAINS), draw=np.arange(DRAWS))
+    return dt
+
+
+def test_chains_unmixed_along_an_unidentified_ridge_are_used_pooled():
+    """Chains that wander along a direction the data do not determine, agreeing on the fit to every
+    row, are not a failed fit: the verdict passes, names the variables that did not mix, keeps the
+    chains as sampled (pooled), and says the predictions converged but those variables did not."""
+    dt = _ridge(drift=False)
+    verdict = check(dt)
+    assert not verdict.passed and verdict.predictions_converged
+    fit, resolved = resolve(dt, verdict, seed=0)
+    assert fit is dt and resolved.passed and not resolved.multimodal
+    assert resolved.unidentified == ("a", "b")
+    assert str(resolved).startswith("UNIDENTIFIED") and "not identified by the data: a, b" in str(resolved)
+    assert "chain 3" in resolved.mode_note  # why it is not multimodal: chain 3 wanders within itself
+    again = Verdict.from_json(resolved.to_json())
+    assert again == resolved and again.unidentified == ("a", "b")
+
+
+def test_chains_that_disagree_on_the_rows_still_fail():
+    """The same wandering chain, but moving the fit to the rows too: not converged, failed."""
+    dt = _ridge(drift=True)
+    verdict = check(dt)
+    assert not verdict.predictions_converged
+    resolved = resolve(dt, verdict, seed=0)[1]
+    assert not resolved.passed and not resolved.unidentified and "FAILED" in str(resolved)
+
+
+def test_an_unidentified_fit_with_a_divergence_still_fails():
+    dt = _ridge(drift=False)
+    div = np.zeros((CHAINS, DRAWS), bool)
+    div[0, 5] = True
+    dt["sample_stats"] = dt["sample_stats"].to_dataset().assign(diverging=(("chain", "draw"), div))
+    resolved = resolve(dt, check(dt), seed=0)[1]
+    assert not resolved.passed and not resolved.unidentified
+
+
+def test_law_result_marks_an_unidentified_fit_used_not_failed():
+    """The study's law result of such a fit: passed, ``unidentified`` naming the variables, one
+    flag line saying which did not mix and that the predictions converged; the report's gate word."""
+    from bayesfric.laws import get_law
+    from bayesfric.study.lawresult import law_result
+
+    dt = _ridge(drift=False)
+    ds = law_result(get_law("coulomb"), "fits/x.nc", resolve(dt, check(dt), seed=0)[1])
+    assert bool(ds["passed"]) and not bool(ds["multimodal"]) and str(ds["unidentified"].values) == "a, b"
+    flags = str(ds["flags"].values).split("\n")
+    assert flags[0].startswith("not identified by the data: a, b") and "predictions on the tested rows" in flags[0]
+    assert not any("FAILED" in f for f in flags)

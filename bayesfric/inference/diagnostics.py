@@ -17,7 +17,7 @@ from types import ModuleType
 import numpy as np
 import xarray as xr
 
-__all__ = ["GATE", "Gate", "Verdict", "check", "check_folds", "verdict_of", "import_statistics"]
+__all__ = ["GATE", "Gate", "Verdict", "check", "check_folds", "verdict_of", "import_statistics", "unmixed"]
 
 
 def import_statistics() -> ModuleType:
@@ -83,6 +83,9 @@ class Verdict:
     weights: tuple[float, ...] = ()
     mode_ranges: dict[str, list[list[float]]] = field(default_factory=dict)
     mode_note: str = ""
+    #: Posterior variables the chains did not mix along although the fit to every row converged
+    #: (:func:`bayesfric.inference.modes.resolve`): the fit is used, its chains pooled.
+    unidentified: tuple[str, ...] = ()
 
     @property
     def mode_summary(self) -> str:
@@ -92,6 +95,17 @@ class Verdict:
         chains = " | ".join(",".join(str(c) for c in m) for m in self.modes)
         weights = ", ".join(f"{w:.2f}" for w in self.weights)
         return f"multimodal: {len(self.modes)} modes, stacking weights {weights} (chains {chains})"
+
+    @property
+    def unidentified_summary(self) -> str:
+        """``"not identified by the data: v_s, F_c (...)"``; ``""`` when every variable mixed."""
+        if not self.unidentified:
+            return ""
+        return (f"not identified by the data: {', '.join(self.unidentified)} (the chains did not mix along "
+                f"them, R-hat max {self.rhat_max:.3f}, but agree on the fit to every row: pointwise "
+                f"log-likelihood R-hat max {self.loglik_rhat_max:.3f}, bulk ESS min {self.loglik_ess_bulk_min:.0f}); "
+                "used as the chains pooled: predictions on the tested rows converged, these parameters' "
+                "ranges and answers that depend on them beyond the tested envelope did not")
 
     @property
     def predictions_note(self) -> str:
@@ -121,10 +135,12 @@ class Verdict:
         values = dict(values)
         values["modes"] = tuple(tuple(int(c) for c in m) for m in values.get("modes", ()))
         values["weights"] = tuple(float(w) for w in values.get("weights", ()))
+        values["unidentified"] = tuple(str(v) for v in values.get("unidentified", ()))
         return Verdict(**values)
 
     def __str__(self) -> str:
-        head = "MULTIMODAL" if self.multimodal else "PASSED" if self.passed else "FAILED"
+        head = ("MULTIMODAL" if self.multimodal else "UNIDENTIFIED" if self.unidentified
+                else "PASSED" if self.passed else "FAILED")
         parts = [f"R-hat max {self.rhat_max:.3f}", f"ESS bulk min {self.ess_bulk_min:.0f}",
                  f"ESS tail min {self.ess_tail_min:.0f}"]
         if self.divergences is not None:
@@ -140,6 +156,8 @@ class Verdict:
             text += f" ({note})"
         if self.multimodal:
             text += f" ({self.mode_summary})"
+        elif self.unidentified:
+            text += f" ({self.unidentified_summary})"
         elif self.mode_note:
             text += f" (not multimodal: {self.mode_note})"
         return text
@@ -193,6 +211,26 @@ def _with_predictions(verdict: Verdict, loglik: xr.Dataset, gate: Gate) -> Verdi
     ess = float(np.nanmin(_per_fold(arviz_stats.ess(loglik, method="bulk"), np.nanmin, None)))
     converged = bool(rhat <= gate.rhat_max and ess >= gate.ess_bulk_min)
     return replace(verdict, loglik_rhat_max=rhat, loglik_ess_bulk_min=ess, predictions_converged=converged)
+
+
+def unmixed(posterior: xr.Dataset, gate: Gate = GATE) -> tuple[str, ...]:
+    """The posterior variables whose R-hat or bulk ESS fails ``gate`` (``group_offset`` aside).
+
+    >>> rng = np.random.default_rng(0)
+    >>> post = xr.Dataset({"a": (("chain", "draw"), rng.normal(size=(4, 500))),
+    ...                    "b": (("chain", "draw"), rng.normal(size=(4, 500)) + np.arange(4)[:, None])})
+    >>> unmixed(post)
+    ('b',)
+    """
+    arviz_stats = import_statistics()
+    post = posterior.drop_vars([v for v in ("group_offset",) if v in posterior])
+    rhat, ess = arviz_stats.rhat(post), arviz_stats.ess(post, method="bulk")
+
+    def failed(name: str) -> bool:  # a constant variable (all-NaN statistics) is not unmixed
+        r, e = np.asarray(rhat[name], dtype=float).ravel(), np.asarray(ess[name], dtype=float).ravel()
+        return bool(np.any(r[~np.isnan(r)] > gate.rhat_max) or np.any(e[~np.isnan(e)] < gate.ess_bulk_min))
+
+    return tuple(str(name) for name in post.data_vars if post[name].size and failed(str(name)))
 
 
 def _constant(values: xr.DataArray) -> bool:

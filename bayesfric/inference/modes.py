@@ -3,9 +3,8 @@
 On data that leave a law's posterior with several separated modes (hysteresis loops that do not
 span the Stribeck speed give LuGre, elasto-plastic and GMS two arms), NUTS chains started apart
 land in different modes and stay there: split R-hat over all chains fails although every chain
-sampled its own mode well. :func:`resolve` tells that case from a failed fit and combines the
-chains by **stacking** (Yao, Vehtari & Gelman 2022, "Stacking for non-mixing Bayesian
-computations: the curse and blessing of multimodal posteriors", JMLR 23(79)).
+sampled its own mode well. :func:`resolve` tells that case from a failed fit and combines the chains
+by **stacking** (Yao, Vehtari & Gelman 2022, "Stacking for non-mixing Bayesian computations", JMLR 23).
 
 **Detection** (:func:`detect`), on a fit whose gate failed:
 
@@ -20,7 +19,13 @@ computations: the curse and blessing of multimodal posteriors", JMLR 23(79)).
    every two modes are at least :attr:`ModeGate.separation` apart.
 
 Otherwise the fit fails as before, with :attr:`~bayesfric.inference.diagnostics.Verdict.mode_note`
-saying which condition did not hold.
+saying which condition did not hold, **unless the chains agree on the fit to every row** (failed
+on mixing alone, and the pointwise log-likelihood converged: ``predictions_converged``). Then the
+chains wander along directions the data do not determine (a ridge, interchangeable elements, an
+arm a chain visits and leaves); stacking them (Yao et al. 2022) weighs each alike, as each
+predicts every row alike, so the fit is used as its chains pooled, its verdict passed with
+``unidentified`` naming the variables that did not mix: predictions on the tested rows are
+converged, those variables' ranges and answers resting on them beyond the tested envelope not.
 
 **Combination.** Each mode's pointwise PSIS-LOO predictive density log p_k(y_i | y_-i) is
 computed from its chains' pointwise log-likelihood (arviz-stats ``loo``; chains of one mode are
@@ -61,7 +66,7 @@ import numpy as np
 import xarray as xr
 
 from bayesfric.inference import pointwise
-from bayesfric.inference.diagnostics import GATE, Gate, Verdict, import_statistics
+from bayesfric.inference.diagnostics import GATE, Gate, Verdict, import_statistics, unmixed
 
 __all__ = ["ModeGate", "MODE_GATE", "ChainHealth", "chain_health", "group_chains", "detect", "loo_by_mode",
            "stacking_weights", "chain_prior", "combine", "resolve", "mode_ranges", "by_mode", "single_mode_note",
@@ -201,11 +206,10 @@ def detect(fit: xr.DataTree, verdict: Verdict, gate: Gate = GATE, mode_gate: Mod
     ``()`` and why not (see the module notes for the conditions)."""
     if verdict.passed:
         return (), ""
-    other = [p for p in verdict.problems if not any(p.startswith(m) for m in MIXING)]
+    if not _only_mixing(fit, verdict):
+        other = [p for p in verdict.problems if not any(p.startswith(m) for m in MIXING)]
+        return (), f"{'; '.join(other) or 'needs two or more NUTS chains'} (not only the chains' mixing)"
     post = fit["posterior"].to_dataset()
-    if other or verdict.acceptance_mean is not None or post.sizes["chain"] < 2:
-        why = "; ".join(other) if other else "needs two or more NUTS chains"
-        return (), f"{why} (not only the chains' mixing)"
     stats = fit["sample_stats"].to_dataset() if "sample_stats" in fit.children else xr.Dataset()
     health = chain_health(post, stats, gate, mode_gate)
     sick = [f"chain {c} (R-hat {h.rhat:.3f}, bulk ESS {h.ess_bulk:.0f}, tail ESS {h.ess_tail:.0f}, "
@@ -219,6 +223,12 @@ def detect(fit: xr.DataTree, verdict: Verdict, gate: Gate = GATE, mode_gate: Mod
     if apart < mode_gate.separation:
         return (), f"the chains' groups lie {apart:.2f} sd apart (< {mode_gate.separation}): drifting, not modes"
     return groups, ""
+
+
+def _only_mixing(fit: xr.DataTree, verdict: Verdict) -> bool:
+    """The gate failed on mixing alone (R-hat, ESS): no divergence or low E-BFMI, ≥ 2 NUTS chains."""
+    return (all(any(p.startswith(m) for m in MIXING) for p in verdict.problems)
+            and verdict.acceptance_mean is None and fit["posterior"].sizes["chain"] >= 2)
 
 
 def loo_by_mode(fit: xr.DataTree, modes: Sequence[Sequence[int]]) -> np.ndarray:
@@ -344,6 +354,9 @@ def resolve(fit: xr.DataTree, verdict: Verdict, seed: int, gate: Gate = GATE,
     verdict, else ``fit`` and ``verdict`` as given (with the reason in ``mode_note`` when the
     chains disagreed). ``seed``: the fit's seed (the resampling's is derived from it)."""
     modes, why = detect(fit, verdict, gate, mode_gate)
+    if not modes and _only_mixing(fit, verdict) and verdict.predictions_converged:
+        unidentified = unmixed(fit["posterior"].to_dataset(), gate)
+        return fit, replace(verdict, passed=True, unidentified=unidentified, mode_note=why)
     if not modes:
         return fit, replace(verdict, mode_note=why)
     weights = stacking_weights(loo_by_mode(fit, modes), chain_prior(modes))

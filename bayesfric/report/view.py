@@ -73,10 +73,14 @@ class TreeView:
 
     def gate(self, name: str) -> str:
         """The law's gate in one word: ``passed``, ``multimodal`` (chains in separate modes, used as
-        their stacked combination: :mod:`bayesfric.inference.modes`) or ``FAILED``."""
+        their stacked combination: :mod:`bayesfric.inference.modes`), ``unidentified`` (chains that
+        did not mix along parameters the data do not determine, agreeing on every row: pooled) or
+        ``FAILED``."""
         law = self.law(name)
         if "multimodal" in law and bool(law["multimodal"]):
             return "multimodal"
+        if "unidentified" in law and str(law["unidentified"].values):
+            return "unidentified"
         return "passed" if bool(law["passed"]) else "FAILED"
 
     def flag(self, name: str, variable: str) -> Any:

@@ -71,7 +71,8 @@ def _gate(verdict: Verdict, law: Law, skipped: Sequence[str]) -> dict:
     return {"passed": bool(verdict.passed), "problems": "; ".join(verdict.problems), "verdict": str(verdict),
             "rhat_max": float(verdict.rhat_max), "ess_bulk_min": float(verdict.ess_bulk_min),
             "n_params": sum(max(1, math.prod(p.shape)) for p in law.params.values()), "skipped": ", ".join(skipped),
-            "multimodal": bool(verdict.multimodal), "modes": verdict.mode_summary} | _modes(verdict)
+            "multimodal": bool(verdict.multimodal), "modes": verdict.mode_summary,
+            "unidentified": ", ".join(verdict.unidentified)} | _modes(verdict)
 
 
 def _modes(verdict: Verdict) -> dict:
@@ -178,6 +179,7 @@ def _flags(values: dict, verdict: Verdict, loo: LooResult | None, cv: Mapping[st
            agreement: EstimatorAgreement | None, failed_fits: str) -> list[str]:
     """One line per problem found in the law's results, in the order the stages ran."""
     out = [_mode_line(verdict)] if verdict.multimodal else []
+    out += [verdict.unidentified_summary] if verdict.unidentified else []
     if not verdict.passed:
         note = verdict.predictions_note
         out.append("diagnostics FAILED: " + "; ".join(verdict.problems) + (f" ({note})" if note else ""))

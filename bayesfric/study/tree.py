@@ -201,7 +201,7 @@ def weight_errors(tree: xr.DataTree) -> list[tuple[str, str]]:
 
 #: ``/diagnostics`` variables: copied from each law's result (:mod:`bayesfric.study.lawresult`).
 DIAGNOSTICS = ("passed", "problems", "evidence_agree", "cv_reliable", "skipped", "seconds", "verdict", "flags",
-               "multimodal", "modes",
+               "multimodal", "modes", "unidentified",
                "p_loo", "n_high_k", "rhat_max", "ess_bulk_min", "n_params", "evidence_compared",
                "evidence_disagreement", "pareto_k_max", "loo_rows_scored", "loo_rows", "loo_subsampling_se",
                "loo_subsampled", "group_coverage_50", "group_coverage_90")
