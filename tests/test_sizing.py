@@ -180,6 +180,23 @@ def test_ar1_noise_sizes_through_the_programs_own_observation_model():
     assert np.std(draws.y[..., 0] - draws.mu[..., 0]) == pytest.approx(0.6 / math.sqrt(1 - 0.64), rel=0.05)
 
 
+def test_a_law_with_unidentified_parameters_is_used_and_said_so():
+    """A fit whose chains did not mix along parameters the data do not determine, while they agree
+    on every row (verdict UNIDENTIFIED: passed), is sized, and the answer names the parameters."""
+    from bayesfric.inference.diagnostics import Verdict
+
+    fit = hand_fit("coulomb_viscous", {"T_C": const(5), "c_v": const(2), "sigma": const(0.5)}, TESTED)
+    fit.attrs["diagnostics"] = Verdict(True, 1.16, 17.0, 7.0, 0, 0.7, None, ["R-hat 1.160 > 1.01"], 1.004, 2572.0,
+                                       True, unidentified=("c_v",)).to_json()
+    a = _answer(make_question({"velocity": "1 rad/s"}, 0.9), [sizing.LawSource("coulomb_viscous", fit)], schemes=())
+    assert [w.name for w in a.used] == ["coulomb_viscous"]
+    assert any(w.startswith("coulomb_viscous: c_v not identified by the data") for w in a.warnings)
+    fit.attrs["diagnostics"] = Verdict(True, 1.001, 2000.0, 2000.0, 0, 0.9, None).to_json()
+    again = _answer(make_question({"velocity": "1 rad/s"}, 0.9), [sizing.LawSource("coulomb_viscous", fit)],
+                    schemes=())
+    assert not any("not identified" in w for w in again.warnings)
+
+
 def test_student_t_with_infinite_variance_is_reported():
     nu = np.where(np.random.default_rng(4).random((C, D)) < 0.1, 1.2, 30.0)
     fit = hand_fit("coulomb", {"T_C": const(10), "sigma": const(1.0), "nu": nu}, TESTED, noise=Noise("student_t"))

@@ -81,6 +81,13 @@ def _warnings(distance: Mapping[str, np.ndarray], sources: Sequence[LawSource], 
         warnings.append(f"the fit of {sources[0].name} FAILED the diagnostics gate ({problems}): "
                         "its answer is not reliable")
     warnings += [note for source in sources if (note := answered_for(source.name, source.fit.attrs))]
+    used_names = {a.name for a in used}
+    for source in sources:
+        if source.name in used_names and "diagnostics" in source.fit.attrs:
+            if names := verdict_of(source.fit).unidentified:
+                warnings.append(f"{source.name}: {', '.join(names)} not identified by the data (its chains did "
+                                "not mix along them; its predictions on the tested rows converged): beyond the "
+                                "tested envelope its answer rests on them")
     for a in used:
         if a.infinite_noise > 0:
             warnings.append(f"{a.name}: {a.infinite_noise:.1%} of draws have Student-t nu ≤ 2 (infinite noise "
