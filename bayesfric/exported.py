@@ -38,7 +38,7 @@ another level changes their last bits, and a trajectory follows them) is compile
 default level 2 (:data:`LOOPED`), so the draws are those of the default level. On the
 robot_joint study the once-run programs were about two thirds of a cold run's compilation; at
 level 0 they compile in about half the time and run 3-4x slower, on milliseconds (a fit's tables:
-0.017 -> 0.06 s; ``benchmarks/bench_xla_level.py``). Level 0 everywhere made the sampler slower
+0.011 -> 0.047 s on coulomb_viscous; ``benchmarks/bench_xla_level.py``). Level 0 everywhere made the sampler slower
 than the compilation it saved. A run at level 0 grows with the rows (pitch_bearing's Rothe Erde
 tables, 300 rows: 0.17 -> 0.75 s, against 2.5 s of compilation saved), so above ``ONE_SHOT_ROWS``
 rows every program is compiled at the default level.
