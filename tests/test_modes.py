@@ -352,3 +352,61 @@ def test_law_result_marks_an_unidentified_fit_used_not_failed():
     flags = str(ds["flags"].values).split("\n")
     assert flags[0].startswith("not identified by the data: a, b") and "predictions on the tested rows" in flags[0]
     assert not any("FAILED" in f for f in flags)
+
+
+def _fold_fits(wander: str, shift: float, seed: int = 9):
+    """Two folds of a Stribeck law whose Stribeck bump is nil (dT_s = 0), so v_s and delta change
+    no row: fold 0's chain 3 wanders in ``v_s`` (the data do not determine it); fold 1's chain 3
+    wanders in ``wander`` by ``shift`` (T_C: the fit to the rows moves)."""
+    from types import SimpleNamespace
+
+    from bayesfric.datasets.synthetic import make_dataset
+    from bayesfric.inference.batching import FoldFits
+    from bayesfric.inference.diagnostics import GATE, check_folds
+    from bayesfric.laws import get_law
+    from bayesfric.model import build_program
+
+    rng = np.random.default_rng(seed)
+    v = np.linspace(0.1, 2.0, 30)
+    ds = make_dataset({"velocity": v}, 3.0 + 0.1 * rng.normal(size=v.size))
+    program = build_program(get_law("stribeck"), ds)
+    shape = (2, CHAINS, DRAWS)
+    samples = {"T_C": 3.0 + 0.02 * rng.normal(size=shape), "dT_s": np.zeros(shape),
+               "v_s": np.exp(rng.normal(size=shape) * 0.1), "delta": 1.0 + 0.1 * rng.random(shape),
+               "sigma": 0.1 * np.exp(0.05 * rng.normal(size=shape))}
+    samples["v_s"][0, 3, DRAWS // 2:] += 5.0
+    samples[wander][1, 3, DRAWS // 2:] += shift
+    samples["T_s"] = samples["T_C"] + samples["dT_s"]
+    post = xr.Dataset({k: (("fold", "chain", "draw"), x) for k, x in samples.items()})
+    stats = xr.Dataset({"diverging": (("fold", "chain", "draw"), np.zeros(shape, bool))})
+    fits = FoldFits(samples, np.zeros((2, v.size)), check_folds(post, stats), 0.0, {}, np.full(2, 0.8),
+                    np.zeros(2, bool))
+    return SimpleNamespace(program=program, gate=GATE), fits
+
+
+def test_a_fold_unmixed_along_an_unidentified_direction_is_used_as_a_full_fit_would_be():
+    """A cross-validation fold follows the full fit's rule: chains that did not mix along a
+    variable no row depends on (v_s with no Stribeck bump) are used, the variable named; chains
+    that disagree on the rows (T_C moves) still fail."""
+    from bayesfric.compare.refit import fold_verdicts
+
+    engine, fits = _fold_fits("T_C", 0.2)
+    assert not fits.verdicts[0].passed and not fits.verdicts[1].passed
+    used, failed = fold_verdicts(engine, fits)
+    assert used.passed and used.unidentified == ("v_s",) and used.predictions_converged
+    assert used.loglik_rhat_max <= 1.01
+    assert not failed.passed and not failed.unidentified and failed.predictions_converged is False
+
+
+def test_a_fold_with_a_divergence_is_not_rescued():
+    from bayesfric.compare.refit import fold_verdicts
+    from bayesfric.inference.diagnostics import resolve_fold
+
+    engine, fits = _fold_fits("v_s", 5.0)
+    with_divergence = Verdict(False, fits.verdicts[0].rhat_max, fits.verdicts[0].ess_bulk_min,
+                              fits.verdicts[0].ess_tail_min, 1, None, None,
+                              [*fits.verdicts[0].problems, "1 divergent transitions"])
+    called = []
+    assert resolve_fold(with_divergence, xr.Dataset({"a": (("chain", "draw"), np.zeros((4, 10)))}),
+                        lambda: called.append(1)) is with_divergence and not called
+    assert all(v.passed and v.unidentified == ("v_s",) for v in fold_verdicts(engine, fits))

@@ -11,13 +11,18 @@ cache (:mod:`bayesfric.exported`), instead of before.
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
 from types import ModuleType
 
 import numpy as np
 import xarray as xr
 
-__all__ = ["GATE", "Gate", "Verdict", "check", "check_folds", "verdict_of", "import_statistics", "unmixed"]
+__all__ = ["GATE", "Gate", "Verdict", "check", "check_folds", "verdict_of", "import_statistics", "unmixed", "MIXING",
+           "mixing_only", "with_predictions", "resolve_fold"]
+
+#: The gate's problems about mixing between chains only (R-hat, ESS).
+MIXING = ("R-hat", "bulk ESS", "tail ESS")
 
 
 def import_statistics() -> ModuleType:
@@ -191,10 +196,10 @@ def check(dt: xr.DataTree, var_names: list[str] | None = None, gate: Gate = GATE
     mixed = verdict.rhat_max <= gate.rhat_max and verdict.ess_bulk_min >= gate.ess_bulk_min
     if mixed or "log_likelihood" not in dt.children:
         return verdict
-    return _with_predictions(verdict, dt["log_likelihood"].to_dataset(), gate)
+    return with_predictions(verdict, dt["log_likelihood"].to_dataset(), gate)
 
 
-def _with_predictions(verdict: Verdict, loglik: xr.Dataset, gate: Gate) -> Verdict:
+def with_predictions(verdict: Verdict, loglik: xr.Dataset, gate: Gate) -> Verdict:
     """``verdict`` with the largest R-hat and smallest bulk ESS of the pointwise log-likelihood
     (:data:`LOGLIK_ROWS` rows and the total over all rows): the convergence of the fit to the
     data, which a law whose parameters are not identified (a ridge, interchangeable elements)
@@ -211,6 +216,40 @@ def _with_predictions(verdict: Verdict, loglik: xr.Dataset, gate: Gate) -> Verdi
     ess = float(np.nanmin(_per_fold(arviz_stats.ess(loglik, method="bulk"), np.nanmin, None)))
     converged = bool(rhat <= gate.rhat_max and ess >= gate.ess_bulk_min)
     return replace(verdict, loglik_rhat_max=rhat, loglik_ess_bulk_min=ess, predictions_converged=converged)
+
+
+def mixing_only(verdict: Verdict, chains: int) -> bool:
+    """The gate failed on the chains' mixing alone (R-hat, ESS): no divergence, no low E-BFMI, at
+    least two chains of NUTS (an emcee ensemble has an acceptance rate instead)."""
+    return (not verdict.passed and all(any(p.startswith(m) for m in MIXING) for p in verdict.problems)
+            and verdict.acceptance_mean is None and chains >= 2)
+
+
+def resolve_fold(verdict: Verdict, posterior: xr.Dataset, loglik: Callable[[], xr.Dataset],
+                 gate: Gate = GATE) -> Verdict:
+    """A cross-validation fold's verdict under the rule a full fit follows
+    (:func:`bayesfric.inference.modes.resolve`, *unidentified, not failed*).
+
+    A fold that failed on its chains' mixing alone (:func:`mixing_only`) and whose pointwise
+    log-likelihood converged (``loglik()``: ``(chain, draw, obs)`` over every row, trained on
+    and held out, so both the fit to its training rows and the predictions it is scored on) is
+    used: passed, with the variables that did not mix named in ``unidentified``. Otherwise the
+    verdict as given (with the log-likelihood's figures where it was computed). ``loglik`` is
+    called only for such a fold: it evaluates the law over the fold's draws.
+
+    Examples
+    --------
+    >>> v = Verdict(True, 1.0, 900.0, 900.0, 0, 0.9, None)
+    >>> resolve_fold(v, xr.Dataset(), lambda: xr.Dataset()) is v
+    True
+    """
+    if not mixing_only(verdict, posterior.sizes.get("chain", 0)):
+        return verdict
+    checked = with_predictions(verdict, loglik(), gate)
+    if not checked.predictions_converged:
+        return checked
+    return replace(checked, passed=True, unidentified=unmixed(posterior, gate),
+                   mode_note="a fold's chains did not mix along these variables but agree on every row")
 
 
 def unmixed(posterior: xr.Dataset, gate: Gate = GATE) -> tuple[str, ...]:

@@ -66,7 +66,7 @@ import numpy as np
 import xarray as xr
 
 from bayesfric.inference import pointwise
-from bayesfric.inference.diagnostics import GATE, Gate, Verdict, import_statistics, unmixed
+from bayesfric.inference.diagnostics import GATE, MIXING, Gate, Verdict, import_statistics, mixing_only, unmixed
 
 __all__ = ["ModeGate", "MODE_GATE", "ChainHealth", "chain_health", "group_chains", "detect", "loo_by_mode",
            "stacking_weights", "chain_prior", "combine", "resolve", "mode_ranges", "by_mode", "single_mode_note",
@@ -75,8 +75,6 @@ __all__ = ["ModeGate", "MODE_GATE", "ChainHealth", "chain_health", "group_chains
 #: Groups holding every posterior draw, and those holding the kept draws of a thinned fit.
 ALL_DRAWS = ("posterior", "sample_stats", "log_prior")
 KEPT_DRAWS = ("log_likelihood", "posterior_predictive")
-#: The problems :func:`detect` accepts: about mixing between chains only.
-MIXING = ("R-hat", "bulk ESS", "tail ESS")
 
 
 @dataclass(frozen=True)
@@ -226,9 +224,8 @@ def detect(fit: xr.DataTree, verdict: Verdict, gate: Gate = GATE, mode_gate: Mod
 
 
 def _only_mixing(fit: xr.DataTree, verdict: Verdict) -> bool:
-    """The gate failed on mixing alone (R-hat, ESS): no divergence or low E-BFMI, ≥ 2 NUTS chains."""
-    return (all(any(p.startswith(m) for m in MIXING) for p in verdict.problems)
-            and verdict.acceptance_mean is None and fit["posterior"].sizes["chain"] >= 2)
+    """The gate failed on mixing alone (:func:`~bayesfric.inference.diagnostics.mixing_only`)."""
+    return mixing_only(verdict, fit["posterior"].sizes["chain"])
 
 
 def loo_by_mode(fit: xr.DataTree, modes: Sequence[Sequence[int]]) -> np.ndarray:

@@ -192,6 +192,8 @@ def _flags(values: dict, verdict: Verdict, loo: LooResult | None, cv: Mapping[st
             why += f"; PSIS only, {loo.n_high_k} high-k point(s) not refitted ([compare] failed_fits = \"skip\")"
         out.append(f"LOO unreliable ({why})")
     out += [f"{label}: {r.failure}" for label, r in cv.items() if not r.reliable]  # scores.fold_failure
+    out += [f"{label}: a fold's chains did not mix along {', '.join(r.unidentified)} but agree on every row "
+            "(used, as a full fit would be)" for label, r in cv.items() if r.reliable and r.unidentified]
     if agreement is not None and not agreement.agree:
         importance = agreement.b
         why = (f"importance sampling {importance.diagnostics['multimodal']}" if "multimodal" in importance.diagnostics

@@ -387,7 +387,8 @@ def _cv(ds: xr.Dataset) -> compare.CVResult:
     a = ds.attrs
     return compare.CVResult(law=str(a["law"]), scheme=str(a["scheme"]), elpd=float(a["elpd"]), se=float(a["se"]),
                             elpd_i=ds["elpd_i"].values.astype(float), heldout=ds["heldout"].values.astype(bool),
-                            verdicts=[Verdict(**v) for v in json.loads(a["verdicts"])], seconds=float(a["seconds"]),
+                            verdicts=[Verdict.from_dict(v) for v in json.loads(a["verdicts"])],
+                            seconds=float(a["seconds"]),
                             settings=json.loads(a["settings"]), predictive=kept,
                             coverage=json.loads(a["coverage"]) if "coverage" in a else None,
                             elpd_fold=(None if json.loads(a.get("elpd_fold", "null")) is None
