@@ -7,7 +7,9 @@ tribometer CSV in µN, mm, mm/s and ms with a sidecar and read by the loader (th
 * ``tribo`` — the shipped ``tribo_loops`` scale: 3 stroke amplitudes (10, 20, 30 µm) × 2 cycles ×
   60 samples = 360 rows;
 * ``800`` — the issue's measured log: 4 loops (10, 20, 30, 40 µm), one cycle each, 200 samples a
-  loop = 800 rows.
+  loop = 800 rows;
+* ``5000`` — a long trajectory (issue 50's 5 000-row budget): 5 loops (10–50 µm), one cycle each,
+  1000 samples a loop = 5000 rows.
 
 Each law (``dahl``, ``lugre``, ``maxwell_slip`` (N = 4), ``gms`` (N = 4), ``elastoplastic``) is
 fitted with its default priors and the default sampler settings (4 chains × (1000 + 1000), chains
@@ -40,7 +42,8 @@ ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "reports" / "benchmarks" / "bench_stateful_loops.json"
 LAWS = ["dahl", "lugre", "maxwell_slip", "gms", "elastoplastic"]
 DESIGNS = {"tribo": {"per_cycle": 60, "cycles": 2, "runs": (10e-6, 20e-6, 30e-6)},
-           "800": {"per_cycle": 200, "cycles": 1, "runs": (10e-6, 20e-6, 30e-6, 40e-6)}}
+           "800": {"per_cycle": 200, "cycles": 1, "runs": (10e-6, 20e-6, 30e-6, 40e-6)},
+           "5000": {"per_cycle": 1000, "cycles": 1, "runs": (10e-6, 20e-6, 30e-6, 40e-6, 50e-6)}}
 
 
 def child(law_name: str, design: str, seed: int, init: str = "median") -> dict:
