@@ -17,7 +17,7 @@ configure()  # x64 (and the persistent compilation cache) before any test builds
 FAST_FILES = frozenset(f"tests/{name}.py" for name in (
     "laws/test_declaration", "laws/test_classical", "laws/test_variants", "laws/test_ball_loads",
     "compare/test_folds", "compare/test_pit", "compare/test_weights", "compare/test_future", "compare/test_loo",
-    "compare/test_checks",
+    "compare/test_checks", "compare/test_foldmodes",
     "report/test_verdicts", "report/test_scores", "report/test_fit_report", "report/test_typeset",
     "report/test_distrust", "report/test_render",
     "datasets/test_robot_joint", "datasets/test_unwinder", "datasets/test_dahl_duplex", "datasets/test_drum_rollout",

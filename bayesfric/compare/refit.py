@@ -24,15 +24,14 @@ from dataclasses import dataclass, field
 import jax
 import jax.numpy as jnp
 import numpy as np
-import xarray as xr
 
+from bayesfric.compare.foldmodes import resolve_folds
 from bayesfric.compare.folds import Folds
 from bayesfric.compare.heldout import HeldOut, heldout_predictive
 from bayesfric.errors import UserError
 from bayesfric.exported import program_options
-from bayesfric.inference.diagnostics import Verdict, resolve_fold
+from bayesfric.inference.diagnostics import Verdict
 from bayesfric.inference.engine import FoldFits, NutsEngine
-from bayesfric.inference.pointwise import log_likelihood
 from bayesfric.model import program_from_fit  # re-exported: it lives below compare, in model
 
 #: The compiled NUTS engine of a law, by the name the comparison code has always used.
@@ -40,7 +39,7 @@ RefitEngine = NutsEngine
 
 __all__ = [
     "RefitEngine", "FoldFits", "CVResult", "cross_validate", "pointwise_lpd", "program_from_fit", "joint_lpd",
-    "group_coverage", "fold_verdicts", "fold_posterior",
+    "group_coverage",
 ]
 
 
@@ -106,7 +105,7 @@ class CVResult:
     @property
     def unidentified(self) -> tuple[str, ...]:
         """Variables some fold's chains did not mix along although they agree on every row (the
-        fold is used: :func:`fold_verdicts`); ``()`` when every fold mixed."""
+        fold is used: :mod:`bayesfric.compare.foldmodes`); ``()`` when every fold mixed."""
         return tuple(sorted({name for v in self.verdicts for name in v.unidentified}))
 
     @property
@@ -175,34 +174,6 @@ def group_coverage(program, kept: HeldOut, response: np.ndarray) -> dict[str, fl
     return {"50": float(np.mean(np.abs(pit - 0.5) <= 0.25)), "90": float(np.mean(np.abs(pit - 0.5) <= 0.45))}
 
 
-def fold_posterior(engine: RefitEngine, samples: dict[str, np.ndarray], k: int) -> xr.Dataset:
-    """Fold ``k``'s draws ``(chain, draw, ...)`` as a posterior Dataset, dimensions named as the fit's."""
-    site_dims = engine.program.site_dims()
-
-    def dims(name: str, value: np.ndarray) -> tuple[str, ...]:
-        return ("chain", "draw") + tuple(site_dims.get(name, [f"{name}_dim_{i}" for i in range(value.ndim - 2)]))
-
-    values = {name: np.asarray(v[k]) for name, v in samples.items()}
-    post = xr.Dataset({name: (dims(name, v), v) for name, v in values.items()})
-    return post.assign_coords(chain=np.arange(post.sizes["chain"]), draw=np.arange(post.sizes["draw"]))
-
-
-def fold_verdicts(engine: RefitEngine, fits: FoldFits) -> list[Verdict]:
-    """Every fold's verdict, a fold whose chains failed on mixing alone but agree on every row
-    used as its chains pooled, with the variables that did not mix named
-    (:func:`bayesfric.inference.diagnostics.resolve_fold`: the rule of a full fit)."""
-    out = []
-    for k, verdict in enumerate(fits.verdicts):
-        post = fold_posterior(engine, fits.samples, k)
-
-        def loglik(post: xr.Dataset = post) -> xr.Dataset:
-            fit = xr.DataTree.from_dict({"posterior": post})
-            return log_likelihood(fit, program=engine.program).to_dataset()
-
-        out.append(resolve_fold(verdict, post, loglik, engine.gate))
-    return out
-
-
 def cross_validate(engine: RefitEngine, folds: Folds, *, seed: int = 0, predictive: bool = False,
                    joint: bool = False) -> CVResult:
     """Refit on every fold's training mask and score its held-out points.
@@ -231,8 +202,8 @@ def cross_validate(engine: RefitEngine, folds: Folds, *, seed: int = 0, predicti
     counts = folds.heldout.sum(axis=0)
     if counts.max() > 1:
         raise UserError(f"scheme {folds.scheme!r} holds some points out more than once", "folds")
-    fits = engine.run(folds.train, seed=seed)
-    verdicts = fold_verdicts(engine, fits)
+    # a fold whose chains did not mix is judged as a full fit would be (unidentified, multimodal)
+    fits = resolve_folds(engine, engine.run(folds.train, seed=seed), folds.train, seed)
     elpd_i = np.full(engine.program.n_obs, np.nan)
     for k in range(folds.n_folds):
         elpd_i[folds.heldout[k]] = fits.lpd[k, folds.heldout[k]]
@@ -249,7 +220,7 @@ def cross_validate(engine: RefitEngine, folds: Folds, *, seed: int = 0, predicti
         se=float(np.sqrt(scored.size * scored.var())),
         elpd_i=elpd_i,
         heldout=heldout,
-        verdicts=verdicts,
+        verdicts=fits.verdicts,
         seconds=fits.seconds,
         settings=engine.settings | {"fold_target_accept": [float(t) for t in fits.target_accept],
                                     "scored": "each held-out group's rows jointly" if joint else "pointwise"},

@@ -262,10 +262,11 @@ def unmixed(posterior: xr.Dataset, gate: Gate = GATE) -> tuple[str, ...]:
     ('b',)
     """
     arviz_stats = import_statistics()
-    post = posterior.drop_vars([v for v in ("group_offset",) if v in posterior])
+    # a constant variable (fixed values hold it) has no R-hat and is not unmixed: left out, as the gate does
+    post = posterior.drop_vars([v for v in posterior.data_vars if v == "group_offset" or _constant(posterior[v])])
     rhat, ess = arviz_stats.rhat(post), arviz_stats.ess(post, method="bulk")
 
-    def failed(name: str) -> bool:  # a constant variable (all-NaN statistics) is not unmixed
+    def failed(name: str) -> bool:  # a variable constant in some of its elements (NaN statistics there)
         r, e = np.asarray(rhat[name], dtype=float).ravel(), np.asarray(ess[name], dtype=float).ravel()
         return bool(np.any(r[~np.isnan(r)] > gate.rhat_max) or np.any(e[~np.isnan(e)] < gate.ess_bulk_min))
 
