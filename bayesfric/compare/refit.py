@@ -109,6 +109,13 @@ class CVResult:
         return tuple(sorted({name for v in self.verdicts for name in v.unidentified}))
 
     @property
+    def modes_note(self) -> str:
+        """Which folds were multimodal and combined by stacking (``"fold 1 of 3: multimodal: 2
+        modes, stacking weights 0.23, 0.77 (chains 0,2,3 | 1)"``); ``""`` when none was."""
+        return "; ".join(f"fold {i + 1} of {len(self.verdicts)}: {v.mode_summary}"
+                         for i, v in enumerate(self.verdicts) if v.multimodal)
+
+    @property
     def n_heldout(self) -> int:
         return int(self.heldout.sum())
 
@@ -130,6 +137,8 @@ class CVResult:
         flag = "" if self.reliable else f"  [FLAGGED: {self.failure}]"
         if self.reliable and self.unidentified:
             flag = f"  [UNIDENTIFIED in a fold: {', '.join(self.unidentified)}; predictions converged]"
+        if self.reliable and self.modes_note:
+            flag += f"  [{self.modes_note}]"
         return (f"{self.law} / {self.scheme}: elpd {self.elpd:.2f} ± {self.se:.2f} "
                 f"on {self.n_heldout} held-out points{flag}")
 

@@ -194,6 +194,8 @@ def _flags(values: dict, verdict: Verdict, loo: LooResult | None, cv: Mapping[st
     out += [f"{label}: {r.failure}" for label, r in cv.items() if not r.reliable]  # scores.fold_failure
     out += [f"{label}: a fold's chains did not mix along {', '.join(r.unidentified)} but agree on every row "
             "(used, as a full fit would be)" for label, r in cv.items() if r.reliable and r.unidentified]
+    out += [f"{label}: {r.modes_note}; scored by the combined draws" for label, r in cv.items()
+            if r.reliable and r.modes_note]
     if agreement is not None and not agreement.agree:
         importance = agreement.b
         why = (f"importance sampling {importance.diagnostics['multimodal']}" if "multimodal" in importance.diagnostics

@@ -110,3 +110,19 @@ def test_a_fold_with_two_healthy_modes_is_combined_and_scored_by_the_mixture():
     np.testing.assert_allclose(out.lpd[0], exact, atol=0.03)
     share = np.isin(out.samples["T_C"][0], t_c[0, 2:]).mean()
     assert share == pytest.approx(w[1], abs=1e-3)
+
+
+def test_the_cv_result_and_the_law_flags_say_a_fold_was_combined():
+    from bayesfric.compare.refit import CVResult
+
+    rng = np.random.default_rng(3)
+    y = 3.0 + 0.5 * SPEEDS + 0.1 * rng.normal(size=SPEEDS.size)
+    t_c = 3.0 + 0.02 * rng.normal(size=(1, CHAINS, DRAWS))
+    t_c[0, 2:] += 0.15
+    samples = {"T_C": t_c, "c_v": 0.5 + 0.01 * rng.normal(size=t_c.shape),
+               "sigma": 0.1 * np.exp(0.05 * rng.normal(size=t_c.shape))}
+    engine, fits = _fits("coulomb_viscous", samples, y)
+    out = resolve_folds(engine, fits, (SPEEDS <= 1.0)[None], seed=0)
+    cv = CVResult("coulomb_viscous", "blocked", 0.0, 0.0, out.lpd[0], SPEEDS > 1.0, out.verdicts, 0.0)
+    assert cv.reliable and cv.modes_note.startswith("fold 1 of 1: multimodal: 2 modes, stacking weights")
+    assert "(chains 0,1 | 2,3)" in str(cv)
