@@ -48,7 +48,8 @@ break-away deflection z_ba = β F_c/σ0 with 0 < β < 1 stays below z_max at eve
 Integration over each sample (v held at v̄, displacement v̄ h): the elastic part is exact, the
 remaining distance is crossed in ``SUBSTEPS`` exponential-Euler steps of du/dx = 1 − (α/z_max) u
 with α frozen per sub-step, capped at z_max (exact where α = 0 or 1; *approximate* in the blend,
-error checked against a 4000-step reference in tests/laws/test_slip.py). Dupont's micro-damping
+error checked against a 4000-step reference in tests/laws/test_slip.py); a sample whose remaining
+distance starts at or above z_max (α = 1 throughout) is crossed in one exact step instead. Dupont's micro-damping
 σ1 ż is omitted (its effect is confined to fast transients, cf. LuGre's notes). As LuGre's
 (issue 29), the Stribeck curve is sampled as F_c and ``F_ratio`` = F_c/F_s: where the data pin
 only part of s(v) the ridge of F_c, F_ratio and v_s keeps one width (on the Dahl-simulated
