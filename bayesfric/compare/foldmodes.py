@@ -82,6 +82,8 @@ def resolve_folds(engine, fits: FoldFits, train: np.ndarray, seed: int) -> FoldF
     run's seed."""
     verdicts, samples, lpd = list(fits.verdicts), None, None
     for k, verdict in enumerate(fits.verdicts):
+        if verdict.passed:  # the common case: nothing to build
+            continue
         post = fold_posterior(engine, fits.samples, k)
         kept: dict[str, xr.Dataset] = {}
 
