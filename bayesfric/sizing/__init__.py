@@ -12,113 +12,55 @@ and ``bayesfric size`` render it (:mod:`bayesfric.report.sizing`).
 * :mod:`bayesfric.sizing.basis` — which weights and misses answer a question, from its direction;
 * :mod:`bayesfric.sizing.store` — the ``/sizing_basis`` node of ``results.nc``: what a study run
   keeps so sizing never refits.
+
+The names are imported on first use (module ``__getattr__``), as :mod:`bayesfric.datasets`'s
+are: :mod:`bayesfric.sizing.points` (questions, units) imports no JAX, so the command line
+checks ``size --at ...`` before JAX loads, which importing this package must not undo.
 """
 
-from __future__ import annotations
+from importlib import import_module
 
-from collections.abc import Sequence
-
-import numpy as np
-import xarray as xr
-
-from bayesfric.datasets.provenance import provenance_label
-from bayesfric.quantities import QUANTITIES, conversion
-from bayesfric.sizing.answer import answer, answer_question
-from bayesfric.sizing.basis import LOO, NEW_GROUP, NO_EXTRAPOLATION, Basis, choose_basis
-from bayesfric.sizing.calibration import Miss, Scheme, measure_miss
-from bayesfric.sizing.compute import (
-    EXTRAPOLATION_WARN,
-    FAN_POINTS,
-    LEVELS,
-    Answer,
-    LawSource,
-    Mixture,
-    SizingResult,
-    extrapolation_distance,
-    predict,
-    tested_ranges,
-    variance_split,
-    weighted_quantiles,
-)
-from bayesfric.sizing.points import (
-    CLI_KEYS,
-    RANGE_POINTS,
-    SizingError,
-    SizingQuestion,
-    Value,
-    check_question,
-    make_question,
-    parse_at,
-    parse_capacity,
-    parse_value,
-)
-from bayesfric.sizing.result import SizingAnswer
-from bayesfric.sizing.steady import STEADY_NOTE, sizing_law, tested_values
-from bayesfric.sizing.store import basis_node, basis_schemes, exclusion, read_basis, sources
+#: Where each public name lives.
+_WHERE = {
+    "answer_question": "answer",  # sizing.answer is the module (a submodule's name wins once it is imported)
+    **dict.fromkeys(("LOO", "NEW_GROUP", "NO_EXTRAPOLATION", "Basis", "choose_basis"), "basis"),
+    **dict.fromkeys(("Miss", "Scheme", "measure_miss"), "calibration"),
+    **dict.fromkeys(("EXTRAPOLATION_WARN", "FAN_POINTS", "LEVELS", "Answer", "LawSource", "Mixture", "SizingResult",
+                     "extrapolation_distance", "predict", "tested_ranges", "variance_split", "weighted_quantiles"),
+                    "compute"),
+    **dict.fromkeys(("CLI_KEYS", "RANGE_POINTS", "SizingError", "SizingQuestion", "Value", "check_question",
+                     "make_question", "parse_at", "parse_capacity", "parse_value"), "points"),
+    "SizingAnswer": "result",
+    **dict.fromkeys(("STEADY_NOTE", "sizing_law", "tested_values"), "steady"),
+    **dict.fromkeys(("basis_node", "basis_schemes", "exclusion", "read_basis", "sources"), "store"),
+    **dict.fromkeys(("size_study", "sized_response", "provenance_of_fit", "size_fit"), "entry"),
+}
 
 __all__ = [
     "LOO", "NEW_GROUP", "NO_EXTRAPOLATION", "Basis", "choose_basis", "Miss", "Scheme", "measure_miss", "basis_schemes",
     "CLI_KEYS", "EXTRAPOLATION_WARN", "FAN_POINTS", "LEVELS", "RANGE_POINTS", "Answer", "LawSource",
     "Mixture", "SizingAnswer",
-    "SizingError", "SizingQuestion", "SizingResult", "Value", "answer", "answer_question", "check_question",
+    "SizingError", "SizingQuestion", "SizingResult", "Value", "answer_question", "check_question",
     "exclusion", "extrapolation_distance", "make_question", "parse_at", "parse_capacity", "parse_value", "predict",
     "read_basis", "basis_node", "sources", "tested_ranges", "variance_split", "weighted_quantiles", "size_study",
     "size_fit", "provenance_of_fit", "STEADY_NOTE", "sizing_law", "sized_response",
 ]
 
 
-def _response_display(response: str, unit: str | None) -> tuple[str, float]:
-    unit = unit or QUANTITIES[response].unit
-    scale, _ = conversion(unit, response)
-    return unit, scale
+def __getattr__(name: str):
+    """A public name (:data:`_WHERE`) or a submodule (``sizing.store``), imported on first use."""
+    if name in _WHERE:
+        value = getattr(import_module(f"bayesfric.sizing.{_WHERE[name]}"), name)
+        globals()[name] = value
+        return value
+    if not name.startswith("_"):
+        try:
+            return import_module(f"bayesfric.sizing.{name}")
+        except ModuleNotFoundError as exc:
+            if exc.name != f"bayesfric.sizing.{name}":
+                raise
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-def size_study(questions: Sequence[SizingQuestion], ds: xr.Dataset, law_sources: Sequence[LawSource],
-               schemes: Sequence[Scheme], *, study_name: str, seed: int = 0, fan: bool = True) -> SizingAnswer:
-    """Answer a study's questions from its laws' fits, weights and misses (``law_sources``, from
-    :func:`sources`) and its blocked ``schemes`` (:func:`basis_schemes`). Stateful laws answer from
-    their steady state (:mod:`bayesfric.sizing.steady`); coast-down laws' is a torque, where the
-    data's response is speed: the answer is then of torque, and the measured speed its tested range."""
-    measured = ds.attrs["response"]
-    response = sized_response([s.fit for s in law_sources], measured)
-    unit, scale = _response_display(response, ds[response].attrs.get("original_unit") if response in ds else None)
-    inputs = [k for k, v in ds.coords.items() if v.attrs.get("role") == "input"]
-    data = tested_values({k: np.asarray(ds[k].values, dtype=float) for k in inputs}, measured,
-                         ds[measured].values, [k for q in questions for k in q.at])
-    return answer(questions, law_sources, data, response=response, response_unit=unit, response_scale=scale,
-                  provenance=provenance_label(ds), source=f"study {study_name}", schemes=list(schemes),
-                  measured=np.asarray(ds[measured].values, dtype=float) if response == measured else None,
-                  seed=seed, fan=fan)
-
-
-def sized_response(fits: Sequence[xr.DataTree], default: str) -> str:
-    """The quantity sizing answers for these fits: their laws' (a coast-down's steady state answers
-    in torque), ``default`` (the data's response) where they disagree or there are none."""
-    from bayesfric.laws.variants import law_of_fit
-
-    found = {sizing_law(law_of_fit(fit.attrs)).response for fit in fits}
-    return found.pop() if len(found) == 1 else default
-
-
-def provenance_of_fit(fit: xr.DataTree) -> str:
-    """The provenance label of the data a fit was made from (its attrs)."""
-    attrs = {"provenance": fit.attrs.get("data_provenance", "?"), "source": fit.attrs.get("data_source", "")}
-    return provenance_label(xr.Dataset(attrs=attrs))
-
-
-def size_fit(fit: xr.DataTree, question: SizingQuestion, *, name: str, seed: int = 0) -> SizingAnswer:
-    """Answer one question for one fit (weight 1; the tested range is the fit's own data)."""
-    from bayesfric.density import OBS_SITE
-    from bayesfric.laws.variants import law_of_fit
-
-    fitted = law_of_fit(fit.attrs)
-    law = sizing_law(fitted)  # a trajectory law: its steady state (sizing.steady)
-    data = fit["constant_data"].to_dataset()
-    unit = question.capacity.unit if question.capacity is not None else None
-    unit, scale = _response_display(law.response, unit)
-    observed = fit["observed_data"][OBS_SITE].values if "observed_data" in fit.children else None
-    tested = tested_values({k: np.asarray(data[k].values, dtype=float) for k in law.operating_inputs if k in data},
-                           fitted.response, observed, list(law.operating_inputs))
-    return answer([question], [LawSource(fitted.name, fit)], tested,
-                  response=law.response, response_unit=unit, response_scale=scale,
-                  provenance=provenance_of_fit(fit), source=f"fit {name}", seed=seed, fan=False)
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
