@@ -45,8 +45,8 @@ def two_laws():
                sizing.LawSource("coulomb", b, {sizing.LOO: 0.7})]
     question = sizing.check_question(make_question({"velocity": "3 rad/s"}, 0.95, capacity="11 N*m"), ["velocity"],
                                      ["velocity"], "torque")
-    answer = sizing.answer.answer([question], sources, TESTED, response="torque", response_unit="N*m", response_scale=1.0,
-                           provenance="simulated", source="test", seed=1, fan=False)
+    answer = sizing.answer.answer([question], sources, TESTED, response="torque", response_unit="N*m",
+                                  response_scale=1.0, provenance="simulated", source="test", seed=1, fan=False)
     return answer, (a, b)
 
 
