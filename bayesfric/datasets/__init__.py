@@ -12,8 +12,8 @@ from importlib import import_module
 _WHERE = {
     "OBS_DIM": "loader", "DataError": "loader", "load_dataset": "loader",
     "builtin_names": "registry", "describe": "registry", "load_builtin": "registry", "resolve": "registry",
-    "data_scale": "views", "law_inputs": "views", "response_values": "views", "select": "views",
-    "trajectory_starts": "views",
+    "data_scale": "views", "law_inputs": "views", "response_values": "views", "select": "rows",
+    "trajectory_starts": "rows",
 }
 
 __all__ = [

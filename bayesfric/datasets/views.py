@@ -2,37 +2,28 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from typing import Any
-
 import numpy as np
 import xarray as xr
 
-from bayesfric.datasets.loader import OBS_DIM, DataError
+from bayesfric.datasets.loader import DataError
+from bayesfric.datasets.rows import select, thin, trajectory_starts
 from bayesfric.laws.base import TRAJECTORY_START, Law
 from bayesfric.priors import DataScale
 from bayesfric.quantities import DERIVED_POSITIONS, QUANTITIES
 
-__all__ = ["law_inputs", "response_values", "response_se", "data_scale", "select", "thin", "trajectory_starts",
-           "travel"]
-
-
-def trajectory_starts(ds: xr.Dataset) -> np.ndarray:
-    """Boolean array, True where an ordered trajectory starts (first row, and wherever the
-    dataset's ``trajectory`` group changes value). Without a trajectory group, one trajectory."""
-    n = ds.sizes[OBS_DIM]
-    starts = np.zeros(n, dtype=bool)
-    if n:
-        starts[0] = True
-    key = ds.attrs.get("trajectory")
-    if key:
-        values = np.asarray(ds[key].values)
-        starts[1:] |= values[1:] != values[:-1]
-    return starts
+__all__ = ["law_inputs", "restart_problem", "response_values", "response_se", "data_scale", "select", "thin",
+           "trajectory_starts", "travel"]
 
 
 def law_inputs(ds: xr.Dataset, law: Law) -> dict[str, np.ndarray]:
-    """The arrays a law reads, by input name, in canonical SI units."""
+    """The arrays a law reads, by input name, in canonical SI units.
+
+    Raises
+    ------
+    DataError
+        An input the law reads is missing, or a stateful law would run across a restart of data
+        without a trajectory column (:func:`restart_problem`).
+    """
     out = {}
     for name in law.inputs:
         if name == TRAJECTORY_START:
@@ -46,7 +37,50 @@ def law_inputs(ds: xr.Dataset, law: Law) -> dict[str, np.ndarray]:
                 f"dataset {ds.attrs.get('name', '?')!r} has no input {name!r}{meaning} needed by law "
                 f"{law.name!r} (inputs present: {', '.join(have) or 'none'})"
             )
+    if problem := restart_problem(ds, law):
+        raise DataError(problem)
     return out
+
+
+#: A step of a position input counts as a jump (a restart) when it is this many times the median
+#: step and at least :data:`JUMP_SHARE` of the position's range.
+JUMP_STEPS = 5.0
+JUMP_SHARE = 0.25
+
+
+def restart_problem(ds: xr.Dataset, law: Law) -> str | None:
+    """Why a trajectory (stateful) law cannot run along ``ds`` as one trajectory (None: it can).
+
+    A stateful law (LuGre, Dahl, GMS, a coast-down ...) carries its state from row to row along a
+    trajectory. Data without a trajectory column are one trajectory: where their time goes back
+    (or stands still), or a position the law reads jumps (a step :data:`JUMP_STEPS` times the
+    median step and at least :data:`JUMP_SHARE` of its range), a new run starts there, and the
+    law would carry the last run's state into it (friction up to 10^38 N·m was seen). Such data
+    must name the column that tells the runs apart (``[dataset] trajectory``); the loader then
+    checks that time increases within each.
+    """
+    if not law.trajectory or ds.attrs.get("trajectory"):
+        return None
+    where = ds.attrs.get("csv_file") or f"dataset {ds.attrs.get('name', '?')!r}"
+    fix = (f"law {law.name!r} is stateful and would carry its state across the restart: name the column that "
+           "numbers the runs in the sidecar ([dataset] trajectory = \"<column>\"), one trajectory per run")
+    if "time" in ds.coords:
+        t = np.asarray(ds["time"].values, dtype=float)
+        if (back := np.flatnonzero(np.diff(t) <= 0)).size:
+            i = int(back[0]) + 1
+            return f"{where}: row {i + 1} of the data: time goes from {t[i - 1]:g} s back to {t[i]:g} s; {fix}"
+    for name in (q for q in DERIVED_POSITIONS if q in law.inputs and q in ds.coords):
+        x = np.asarray(ds[name].values, dtype=float)
+        step = np.abs(np.diff(x))
+        moved = step[step > 0]
+        if not moved.size:
+            continue
+        jumps = np.flatnonzero((step > JUMP_STEPS * np.median(moved)) & (step >= JUMP_SHARE * np.ptp(x)))
+        if jumps.size:
+            i = int(jumps[0]) + 1
+            unit = QUANTITIES[name].unit
+            return f"{where}: row {i + 1} of the data: {name} jumps from {x[i - 1]:g} to {x[i]:g} {unit}; {fix}"
+    return None
 
 
 def response_values(ds: xr.Dataset, law: Law | None = None) -> np.ndarray:
@@ -104,44 +138,3 @@ def travel(speed: np.ndarray, time: np.ndarray, starts: np.ndarray) -> np.ndarra
     total = np.cumsum(np.where(np.isfinite(steps), steps, 0.0))
     first = np.maximum.accumulate(np.where(starts, np.arange(v.size), 0))
     return total - total[first]
-
-
-def thin(ds: xr.Dataset, every: int = 1) -> xr.Dataset:
-    """Every ``every``-th row, counted within each trajectory from its first row (which is kept, so
-    a stateful law still starts each trajectory where it starts); ``ds`` itself for 1.
-
-    A large log's neighbouring rows carry little information each (autocorrelated noise); thinning
-    keeps its span and shape at a fraction of the cost. Derived inputs (an acceleration) were
-    computed on the full log when it was loaded.
-
-    Examples
-    --------
-    >>> from bayesfric.datasets.synthetic import make_dataset
-    >>> ds = make_dataset({"velocity": np.arange(10.0)}, np.ones(10))
-    >>> thin(ds, 3)["velocity"].values.tolist()
-    [0.0, 3.0, 6.0, 9.0]
-    """
-    if every == 1:
-        return ds
-    starts = trajectory_starts(ds) if ds.attrs.get("trajectory") else np.eye(1, ds.sizes[OBS_DIM], dtype=bool)[0]
-    position = np.arange(ds.sizes[OBS_DIM]) - np.maximum.accumulate(np.where(starts, np.arange(starts.size), 0))
-    out = ds.isel({OBS_DIM: np.flatnonzero(position % every == 0)})
-    out.attrs = dict(ds.attrs, selection=f"{ds.attrs.get('selection', 'all rows')}; one row in {every}")
-    return out
-
-
-def select(ds: xr.Dataset, where: Mapping[str, Any] | None = None) -> xr.Dataset:
-    """Rows whose coordinates equal the given values (a list means 'any of')."""
-    if not where:
-        return ds
-    keep = np.ones(ds.sizes[OBS_DIM], dtype=bool)
-    for key, value in where.items():
-        if key not in ds.coords:
-            raise DataError(f"dataset {ds.attrs.get('name', '?')!r} has no coordinate {key!r} to select on")
-        values = value if isinstance(value, list | tuple) else [value]
-        keep &= np.isin(ds[key].values, values)
-    if not keep.any():
-        raise DataError(f"selection {dict(where)} leaves no rows of dataset {ds.attrs.get('name', '?')!r}")
-    out = ds.isel({OBS_DIM: np.flatnonzero(keep)})
-    out.attrs = dict(ds.attrs, selection=str(dict(where)))
-    return out

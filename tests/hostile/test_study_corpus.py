@@ -197,7 +197,8 @@ CASES = [
     S("blocked-labels-twice", {"compare.blocked": [{"axis": "velocity", "threshold": 0.5, "label": "a"},
                                                     {"axis": "velocity", "threshold": 1.0, "label": "a"}]},
       "compare.blocked[1].label"),
-    S("select-no-rows", {"data.select": {"series": 99}}, "[data] select", "no rows"),
+    S("select-absent-level", {"data.select": {"series": 99}}, "[data] select", "series = 99", "no row",
+      "its series values: 1, 2, 3"),
     S("select-unknown-coordinate", {"data.select": {"nope": 1}}, "[data] select", "'nope'"),
     S("dataset-missing", {"data.dataset": "nope.csv"}, "[data] dataset"),
     # -- the file itself ----------------------------------------------------------------------------
@@ -262,7 +263,7 @@ CASES = [
     C("fit-out-unwritable-system", FIT + ("--out", "/proc/self/fit.nc"), "--out /proc/self/fit.nc", "not writable",
       skip=NO_PROC),
     C("fit-select-unknown-coordinate", FIT + ("--select", "nope=1"), "--select nope=1", "'nope'"),
-    C("fit-select-no-rows", FIT + ("--select", "series=99"), "--select series=99", "no rows"),
+    C("fit-select-absent-level", FIT + ("--select", "series=99"), "--select series=99", "series = 99", "no row"),
     C("fit-group-unknown", FIT + ("--group", "nope"), "--group nope"),
     # -- finding 8: argparse's own errors ---------------------------------------------------------------
     C("argparse-unknown-option", FIT + ("--bogus",), "unrecognized arguments: --bogus"),
