@@ -30,7 +30,7 @@ import signal
 import sys
 from typing import NoReturn
 
-from bayesfric import commands
+from bayesfric import commands, precheck
 from bayesfric._version import __version__
 from bayesfric.datasets.reduce_options import add_arguments as reduce_arguments
 from bayesfric.errors import UserError
@@ -106,7 +106,7 @@ def _add_fit(sub) -> None:
     q.add_argument("--fix", action="append", metavar="NAME=VALUE",
                    help="hold a parameter (or constant) at VALUE in SI units instead of sampling it, e.g. i=1.5")
     q.add_argument("--quiet", action="store_true", help="no progress bar")
-    q.set_defaults(func=commands.cmd_fit)
+    q.set_defaults(func=commands.cmd_fit, precheck=precheck.fit)
 
 
 def _add_data(sub) -> None:
@@ -132,7 +132,7 @@ def _add_study(sub) -> None:
     q.add_argument("--out", default="reports", help="reports root folder")
     q.add_argument("--quick", action="store_true", help="fewer draws and folds (smoke test, not for decisions)")
     _run_options(q)
-    q.set_defaults(func=commands.cmd_study)
+    q.set_defaults(func=commands.cmd_study, precheck=precheck.study)
 
 
 def _add_report(sub) -> None:
@@ -158,7 +158,7 @@ def _add_size(sub) -> None:
     q.add_argument("--horizon", help='time to exceed --capacity, forecast up to this service time, e.g. "20000 h" '
                                      "(a fit of a law with a trend; one point)")
     q.add_argument("--reports", default="reports", help="reports root folder of the study (default reports)")
-    q.set_defaults(func=commands.cmd_size)
+    q.set_defaults(func=commands.cmd_size, precheck=precheck.size)
 
 
 def _predict_options(q: argparse.ArgumentParser) -> None:
@@ -178,7 +178,7 @@ def _add_predict(sub) -> None:
     q.add_argument("--quantiles", type=float, nargs="+", default=None, metavar="Q",
                    help="quantile levels in (0, 1) of the mean curve and of the predictive with noise "
                         "(default 0.05 0.5 0.95)")
-    q.set_defaults(func=commands.cmd_predict)
+    q.set_defaults(func=commands.cmd_predict, precheck=precheck.predict)
 
 
 def _add_score(sub) -> None:
@@ -187,7 +187,7 @@ def _add_score(sub) -> None:
                                       "elpd, RMS error, coverage of the 50 %% and 90 %% bands")
     _predict_options(q)
     q.add_argument("--out", help="also write the scores as a tidy CSV file (law, metric, value)")
-    q.set_defaults(func=commands.cmd_score)
+    q.set_defaults(func=commands.cmd_score, precheck=precheck.score)
 
 
 def _add_main(sub) -> None:
@@ -199,7 +199,7 @@ def _add_main(sub) -> None:
     q.add_argument("--jobs", type=int, default=None, metavar="N",
                    help="studies run at once, one process each (default: one per CPU core; 1: one after the other)")
     _run_options(q)
-    q.set_defaults(func=commands.cmd_main)
+    q.set_defaults(func=commands.cmd_main, precheck=precheck.main)
 
 
 #: Exit status of a command stopped by a signal: 128 + the signal's number, as a shell reports it.
@@ -216,6 +216,8 @@ def main(argv: list[str] | None = None) -> int:
     """
     try:
         args = build_parser().parse_args(argv)
+        if (check := getattr(args, "precheck", None)) is not None:
+            check(args)  # the command's arguments, before JAX loads (bayesfric.precheck)
         if not getattr(args, "light", False):
             from bayesfric.runtime import configure
 

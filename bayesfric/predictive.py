@@ -43,7 +43,7 @@ from bayesfric.limits import CHUNK_NUMBERS
 from bayesfric.mixture import Mixture, curve_mean, curve_quantiles, join, log_density, pit, predictive_quantiles
 
 __all__ = ["MAX_DRAWS", "AVERAGE", "LawPrediction", "check_log", "program_on", "group_labels", "check_group",
-           "law_prediction", "prediction_dataset", "score_frame", "METRICS"]
+           "law_prediction", "prediction_dataset", "score_frame", "METRICS", "envelope_note"]
 
 #: Posterior draws of each law used per row (evenly thinned above it).
 MAX_DRAWS = 1000
@@ -181,6 +181,35 @@ def check_group(fits: Mapping[str, xr.DataTree], group: str | None, key: str, wh
         if not any(str(group) in labels for labels in levels.values()):
             known = "; ".join(f"{c}: {', '.join(labels)}" for c, labels in levels.items())
             raise UserError(f"{group!r} is not a group of the fit of {name} ({known})", key)
+
+
+def envelope_note(fits: Mapping[str, xr.DataTree], ds: xr.Dataset) -> str:
+    """How far the new log's rows lie outside the data the fits were made from, per input, as
+    sizing measures a point's distance (:func:`bayesfric.sizing.distance.point_distance`: tested
+    ranges beyond the data, each sign against its own side); ``""`` when every row lies inside.
+
+    Examples
+    --------
+    A log at 0.5–38 rad/s against fits made at 0–4 rad/s gives, for velocity, "38 of 40 rows,
+    up to 8.5 tested ranges beyond (the log 0.5 … 38 rad/s, the fits 0 … 4 rad/s)".
+    """
+    from bayesfric.quantities import QUANTITIES
+    from bayesfric.sizing.distance import point_distance
+
+    parts = []
+    for name in (k for k, v in ds.coords.items() if v.attrs.get("role") == "input"):
+        fitted = [np.asarray(f["constant_data"][name].values, dtype=float).ravel() for f in fits.values()
+                  if "constant_data" in f.children and name in f["constant_data"]]
+        if not fitted or not (tested := np.concatenate(fitted)).size:
+            continue
+        x = np.asarray(ds[name].values, dtype=float)
+        far = point_distance(x, tested)
+        if (far > 0).any():
+            unit = QUANTITIES[name].unit if name in QUANTITIES else "SI"
+            parts.append(f"{name}: {int((far > 0).sum())} of {x.size} rows, up to {far.max():.3g} tested ranges "
+                         f"beyond (the log {x.min():.4g} … {x.max():.4g} {unit}, the fits {tested.min():.4g} … "
+                         f"{tested.max():.4g} {unit})")
+    return "; ".join(parts)
 
 
 def _answer_for(fit: xr.DataTree, group: str | None) -> str:

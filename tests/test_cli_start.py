@@ -1,7 +1,8 @@
 """The light commands answer without JAX (issue 48 item 5): ``--version``, ``--help``, ``laws``,
 ``data list|check|reduce`` import neither JAX nor numpyro nor dask (the import list of each,
 measured in a fresh process), and ``bayesfric laws`` reads a stored catalogue that is current and
-prints what the registry prints. Their time is measured by ``benchmarks/bench_cli_start.py``, not here.
+prints what the registry prints. The computing commands' argument errors come before JAX loads
+too (:mod:`bayesfric.precheck`). Their time is measured by ``benchmarks/bench_cli_start.py``, not here.
 """
 
 from __future__ import annotations
@@ -84,6 +85,48 @@ def test_light_commands_import_no_jax_or_numpyro(tmp_path, args):
     assert "dask" not in modules  # xarray and pint import it when installed: runtime.without_dask
     if args[0] in ("--version", "--help", "laws") or args[-1] == "--help":  # nor numpy, xarray, pint
         assert not modules & {"numpy", "xarray", "pandas", "pint", "scipy"}, sorted(modules)
+
+
+ROBOT = "{robot}"
+#: One-line argument errors of the computing commands: each answered before JAX loads
+#: (bayesfric.precheck), exit status 2.
+ARGUMENT_ERRORS = [
+    ["fit", "robot_joint", "stribeck", "--draws", "0"],
+    ["fit", "robot_joint", "stribeck", "--walkers", "8"],
+    ["fit", ROBOT, "stribeck", "--out", ROBOT],
+    ["fit", "robot_joint", "stribeck", "--select", "series=99"],
+    ["fit", "robot_joint", "stribeck", "--group", "velocity"],
+    ["fit", "robot_joint", "stribeck", "--prior", "T_C=[bad"],
+    ["fit", "robot_joint", "stribeck", "--fix", "i=one"],
+    ["fit", "nowhere.csv", "stribeck"],
+    ["size", "fit.nc", "--at", "velocity=6"],
+    ["size", "fit.nc", "--at", "velocity=6 rad/s", "--confidence", "1.5"],
+    ["size", "fit.nc", "--at", "velocity=1 rad/s", "--capacity", "5 N*m", "--horizon", "20000 rpm"],
+    ["size", "gone.nc", "--at", "velocity=6 rad/s"],
+    ["size", "gone.toml"],
+    ["study", "gone.toml"],
+    ["study", "gone.toml", "--workers", "-1"],
+    ["study", "gone.toml", "--out", ROBOT],
+    ["predict", "fit.nc", "robot_joint", "--out", "p.csv", "--quantiles", "0.5", "0.5"],
+    ["predict", "fit.nc", "robot_joint", "--out", "p.csv", "--seed", "-1"],
+    ["predict", "fit.nc", ROBOT, "--out", ROBOT],
+    ["score", "fit.nc", "robot_joint", "--out", "fit.nc"],
+    ["score", "nowhere", "robot_joint"],
+    ["main", "--jobs", "0"],
+]
+
+
+@pytest.mark.parametrize("args", ARGUMENT_ERRORS, ids=lambda a: " ".join(a))
+def test_argument_errors_come_before_jax_loads(tmp_path, args):
+    """``fit``, ``size``, ``study``, ``predict``, ``score`` and ``main`` check their arguments
+    (options, files, ``--out`` against their inputs, points and units) before JAX loads: one
+    line, exit status 2, and neither JAX nor numpyro imported (``bayesfric.precheck``)."""
+    (tmp_path / "fit.nc").write_bytes(b"")  # a target that exists (its content is read after JAX loads)
+    robot = str(REPO / "data" / "robot_joint" / "robot_joint.csv")
+    done, modules = _imports([a.format(robot=robot) for a in args], tmp_path)
+    assert done.returncode == 2, (done.returncode, done.stderr[-2000:])
+    assert len(done.stderr.strip().splitlines()) == 1 and done.stderr.startswith("bayesfric: error: "), done.stderr
+    assert not modules & set(HEAVY), (sorted(modules & set(HEAVY)), done.stderr)
 
 
 def test_version_prints_the_package_version():

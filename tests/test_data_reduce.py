@@ -164,7 +164,7 @@ def test_reduced_likelihood_by_hand(dataset_factory):
     (["--atol", "3 N*m"], "--atol '3 N\\*m'"),
     (["--rtol", "nan"], "--rtol nan"),
     (["--min-samples", "100000"], "no steady segment of velocity"),
-    (["--out", "{src}"], "would overwrite the source"),
+    (["--out", "{src}"], "would overwrite .*raw.csv, the source log"),
     (["--out", "{dir}/x.txt"], "is a .csv file"),
 ])
 def test_bad_input_one_line_exit_2_nothing_written(tmp_path, capsys, args, message):

@@ -22,6 +22,7 @@ import numpy as np
 import pandas as pd
 import xarray as xr
 
+from bayesfric.argcheck import quantile_levels, seed_value
 from bayesfric.errors import UserError
 
 __all__ = ["predict", "score", "predictions_table", "score_text", "QUANTILES"]
@@ -115,15 +116,6 @@ def _log(data: Any, key: str) -> tuple[xr.Dataset, str]:
     return ds, str(ds.attrs.get("csv_file") or (data if isinstance(data, str | Path) else ds.attrs.get("name", key)))
 
 
-def _levels(quantiles: Any, key: str) -> list[float]:
-    values = list(quantiles) if isinstance(quantiles, Sequence | np.ndarray) and not isinstance(quantiles, str) \
-        else [quantiles]
-    for q in values:
-        if isinstance(q, bool) or not isinstance(q, int | float | np.floating) or not 0 < q < 1:
-            raise UserError(f"each quantile must be a number in (0, 1), got {q!r}", key)
-    return [float(q) for q in values]
-
-
 def _weights(src: _Sources, ds: xr.Dataset) -> tuple[dict[str, float] | None, str, str]:
     """(law -> weight > 0 of the average, or None for one fit; the weighting; its note)."""
     from bayesfric.sizing import choose_basis
@@ -146,13 +138,18 @@ def _weights(src: _Sources, ds: xr.Dataset) -> tuple[dict[str, float] | None, st
 def _prepare(source, data, group, seed, keys: dict[str, str]):
     """Every check, then each law's predictive mixture on the new log."""
     from bayesfric.laws.plugins import LawModuleError
-    from bayesfric.predictive import check_group, law_prediction
+    from bayesfric.limits import predict_problem
+    from bayesfric.predictive import MAX_DRAWS, check_group, envelope_note, law_prediction
 
+    seed = seed_value(seed, keys["seed"])
     src = _sources(source, keys["source"])
     ds, where = _log(data, keys["data"])
     if group is not None and not isinstance(group, str | int):
         raise UserError(f"expected a group label, got {type(group).__name__}", keys["group"])
     check_group({s.name: s.fit for s in src.laws}, None if group is None else str(group), keys["group"], src.label)
+    draws = [min(MAX_DRAWS, s.fit["posterior"].sizes["chain"] * s.fit["posterior"].sizes["draw"]) for s in src.laws]
+    if problem := predict_problem(len(draws), max(draws, default=0), ds.sizes["obs"]):
+        raise UserError(f"{where}: {problem}", keys["data"])
     try:
         preds = [law_prediction(s.name, s.fit, ds, group=None if group is None else str(group), seed=seed,
                                 where=where) for s in src.laws]
@@ -172,20 +169,21 @@ def _prepare(source, data, group, seed, keys: dict[str, str]):
              f"no law it may use has a positive weight ({weighting})",
              "noise_note": "; ".join(sorted({p.noise_note for p in preds if p.noise_note})),
              "draws": "; ".join(f"{p.name}: {p.draws}" for p in preds),
+             "envelope": envelope_note({s.name: s.fit for s in src.laws}, ds),
              "response": str(ds.attrs.get("response", ""))}
     return src, ds, where, preds, weights, attrs
 
 
 #: How errors name the arguments: Python's (API_KEYS) and the command line's (CLI_KEYS).
-API_KEYS = {"source": "source", "data": "data", "group": "group", "quantiles": "quantiles"}
-CLI_KEYS = {"source": "TARGET", "data": "LOG", "group": "--group", "quantiles": "--quantiles"}
+API_KEYS = {"source": "source", "data": "data", "group": "group", "quantiles": "quantiles", "seed": "seed"}
+CLI_KEYS = {"source": "TARGET", "data": "LOG", "group": "--group", "quantiles": "--quantiles", "seed": "--seed"}
 
 
 def predicted(source: Any, data: Any, quantiles: Any, group: Any, seed: int, keys: dict[str, str]) -> xr.Dataset:
     """:func:`predict` with errors naming ``keys`` (:data:`API_KEYS` or :data:`CLI_KEYS`)."""
     from bayesfric.predictive import AVERAGE, prediction_dataset
 
-    levels = _levels(quantiles, keys["quantiles"])
+    levels = quantile_levels(quantiles, keys["quantiles"])
     src, ds, _, preds, weights, attrs = _prepare(source, data, group, seed, keys)
     out = prediction_dataset(preds, ds, levels, weights=weights, attrs=attrs)
     excluded = {s.name: s.excluded or "" for s in src.laws}
@@ -236,13 +234,16 @@ def predict(source: Any, data: Any, *, quantiles: Sequence[float] = QUANTILES, g
         ``mean`` (law, obs), ``curve`` and ``predictive`` (law, quantile, obs), all SI, the law
         ``"model average"`` included for a study; coordinates ``weight`` and ``excluded`` per law;
         ``attrs``: ``answer_for``, ``weighting`` and its note, ``excluded``, ``bands``,
-        ``noise_note``, ``draws``.
+        ``noise_note``, ``draws``, ``envelope`` (how far rows lie outside the data the fits saw,
+        per input, in tested ranges as sizing measures it; ``""`` inside).
 
     Raises
     ------
     UserError
         One line naming the argument: an unreadable source, a log lacking an input a law reads
-        (naming the file and the input), a quantile outside (0, 1), a group no fit has.
+        (naming the file and the input), a stateful law on a log that restarts without a
+        trajectory column, a log too large for the memory available, no quantile level, one
+        outside (0, 1) or given twice, a seed outside 0 … 2**32 − 1, a group no fit has.
 
     Examples
     --------

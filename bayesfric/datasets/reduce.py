@@ -70,7 +70,7 @@ from bayesfric.datasets.loader import OBS_DIM, load_dataset
 from bayesfric.datasets.reduce_options import ReduceOptions, add_arguments
 from bayesfric.datasets.reduced_file import Reduction, Segment, write_reduction
 from bayesfric.errors import UserError
-from bayesfric.fsutil import check_output_file
+from bayesfric.outpaths import checked_out
 from bayesfric.quantities import QUANTITIES, UnitError, conversion
 
 __all__ = ["ReduceOptions", "Segment", "Reduction", "MAX_RAW_ROWS", "SE_METHOD", "find_segments", "mean_se",
@@ -174,12 +174,16 @@ def reduce_log(csv_path: str | Path, meta_path: str | Path | None = None,
     starts = _block_starts(ds)
     atol = _atol(x, options.atol, on)
     settle = _settler(ds, options.settle)
-    segments, y = [], np.asarray(ds[ds.attrs["response"]].values, dtype=float)
+    segments, y, resting = [], np.asarray(ds[ds.attrs["response"]].values, dtype=float), 0
     for a, b in find_segments(x, starts, options.rtol, atol):
         a = min(b, a + settle(a, b))
         standstill = on in _VELOCITIES and abs(float(x[a:b].mean() if b > a else 0.0)) <= atol
+        resting += b - a >= options.min_samples and standstill and not options.keep_standstill
         if b - a >= options.min_samples and (options.keep_standstill or not standstill):
             segments.append(Segment(a, b, *mean_se(y[a:b])))
+    if not segments and resting:
+        raise DataError(f"{csv_path}: every steady segment of {on} ({resting}) is at standstill (|{on}| ≤ {atol:.3g} "
+                        f"{QUANTITIES[on].unit}), which the reduction leaves out; --keep-standstill keeps them")
     if not segments:
         raise DataError(f"{csv_path}: no steady segment of {on} found with at least {options.min_samples} rows "
                         f"after settling (tolerance max({options.rtol:g} * |level|, {atol:.3g} "
@@ -281,10 +285,8 @@ def run_command(args: argparse.Namespace) -> None:
     meta = Path(args.meta) if args.meta else src.with_suffix(".toml")
     if out.suffix != ".csv":
         raise UserError(f"--out {out}: the reduced table is a .csv file (its sidecar: the same name, .toml)")
-    for target in (out, out.with_suffix(".toml")):
-        if target.resolve() in (src.resolve(), meta.resolve()):
-            raise UserError(f"--out {out}: would overwrite the source {target}")
-        check_output_file(target)
+    for target in (out, out.with_suffix(".toml")):  # neither the table nor its sidecar onto the raw log's
+        checked_out(target, "--out", [(src, "the source log"), (meta, "the source log's sidecar")])
     options = ReduceOptions(args.on, args.rtol, args.atol, args.settle, args.min_samples, args.keep_standstill)
     red = reduce_log(src, meta, options)
     warning = plateau_warning(red)
