@@ -165,12 +165,13 @@ def time_to_exceed(source: xr.DataTree | str | Path, at: Mapping[str, Any] | str
         One operating point: ``{"velocity": "1400 rpm"}`` or ``"velocity=1400 rpm"``.
     capacity : str or (number, unit)
         The drive's torque or force.
-    horizon : str or number
-        The latest service time to forecast to: ``"20000 h"``, or a number in the service
-        coordinate's unit.
+    horizon : str, number or (number, unit)
+        The latest service time to forecast to: ``"20000 h"`` or ``(20000, "h")``, converted to
+        the service coordinate's unit (a unit of another dimension, ``"20000 rpm"``, is refused),
+        or a number in that unit.
     unit : str
-        The service coordinate's unit (the data column's ``unit``), to convert ``horizon`` into;
-        default the unit the horizon is written in.
+        The service coordinate's unit, to convert ``horizon`` into; default the one the fit
+        records (the data column's ``unit``). The answer is in this unit.
     seed : int
         Seed of a random walk's paths and of the new campaigns' scatter.
 
@@ -207,7 +208,8 @@ def time_to_exceed(source: xr.DataTree | str | Path, at: Mapping[str, Any] | str
     asked = question(at, capacity=capacity)
     if asked.axis is not None:
         raise SizingError("at", f"a time to exceed is asked at one point, not a range of {asked.axis}")
-    written = str(horizon).split(maxsplit=1)[1].strip() if isinstance(horizon, str) and " " in horizon.strip() else ""
+    if isinstance(horizon, tuple | list):  # (20000, "h"), as the other quantities are given
+        horizon = value_text(horizon, "horizon", "time")
     cap = value_text(capacity, "capacity", "torque") if not isinstance(capacity, str) else capacity
-    return answer(source, {k: v.lo for k, v in asked.at.items()}, cap, horizon, unit=unit or written,
+    return answer(source, {k: v.lo for k, v in asked.at.items()}, cap, horizon, unit=unit,
                   seed=seed).drop_vars(["curve", "curve_new"])

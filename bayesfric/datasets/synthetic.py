@@ -143,8 +143,10 @@ def simulate_campaigns(
     sigma: float,
     seed: int = 0,
     column: str = "hours",
+    unit: str = "h",
 ) -> tuple[xr.Dataset, dict[str, np.ndarray]]:
-    """Simulate test campaigns of a steady law at the same ``inputs``, one per service coordinate.
+    """Simulate test campaigns of a steady law at the same ``inputs``, one per service coordinate
+    (``column``, in ``unit``: the column's declared unit, as a sidecar's ``unit`` gives it).
 
     ``params[p]`` is a number or a function of the service coordinate (the true trend); a
     parameter named in ``spread`` takes, per campaign, that value times ``exp(spread[p] · z)``,
@@ -173,4 +175,5 @@ def simulate_campaigns(
     labels = np.array([f"{t:g}" for t in hours])[level]
     ds = simulate(law, tiled, {p: v[level] for p, v in truth.items()}, sigma=sigma, seed=seed,
                   groups={column: labels}, name=f"simulated_campaigns_{law.name}")
+    ds[column].attrs["units"] = unit
     return ds, truth

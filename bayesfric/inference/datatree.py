@@ -204,8 +204,9 @@ def _finish(dt: xr.DataTree, program: Program, ds: xr.Dataset, info, log_prior: 
     # group coordinates of the data (series, run ...) travel with the observations
     for name, coord in ds.coords.items():
         if coord.attrs.get("role") == "group":
+            units = {"units": coord.attrs["units"]} if "units" in coord.attrs else {}  # a service time's (h)
             dt["observed_data"] = dt["observed_data"].to_dataset().assign_coords(
-                {name: (OBS_DIM, np.asarray(coord.values).astype(str))}
+                {name: (OBS_DIM, np.asarray(coord.values).astype(str), units)}
             )
     dt["observed_data"].attrs.update(
         {"quantity": ds.attrs.get("response", ""), "units": ds[ds.attrs["response"]].attrs.get("units", "")}

@@ -48,7 +48,7 @@ from bayesfric.sizing.forecast import allowance, widen_curves
 from bayesfric.sizing.points import SizingError, parse_capacity, parse_horizon, parse_value
 from bayesfric.sizing.steady import steady_note
 
-__all__ = ["GRID", "QUANTILES", "time_to_exceed", "combine", "crossing_times", "parse_horizon"]
+__all__ = ["GRID", "QUANTILES", "service_unit", "time_to_exceed", "combine", "crossing_times", "parse_horizon"]
 
 #: Service times on which a crossing is searched.
 GRID = 241
@@ -157,6 +157,14 @@ def _campaigns(fit: xr.DataTree, at: Mapping[str, Any], column: str) -> tuple[np
     return coordinates(labels), np.asarray(values)
 
 
+def service_unit(fit: xr.DataTree, column: str) -> str:
+    """The unit the fit's data declared for its service coordinate ``column`` (``"h"``), as the fit
+    records it with the observations; ``""`` where it records none (a fit made before it did)."""
+    if "observed_data" not in fit.children or column not in fit["observed_data"].coords:
+        return ""
+    return str(fit["observed_data"][column].attrs.get("units", ""))
+
+
 def time_to_exceed(fit: xr.DataTree, at: Mapping[str, Any], capacity: Any, horizon: Any, *, seed: int = 0,
                    unit: str = "", grid: int = GRID, miss: Miss | None = None, why_none: str = "") -> xr.Dataset:
     """When friction at the operating point ``at`` first exceeds ``capacity``, per posterior draw.
@@ -175,7 +183,9 @@ def time_to_exceed(fit: xr.DataTree, at: Mapping[str, Any], capacity: Any, horiz
     seed : int
         Seed of a walk's paths and of the new campaigns' scatter.
     unit : str
-        The service coordinate's unit (the data column's), to convert ``horizon`` into.
+        The service coordinate's unit (the data column's), to convert ``horizon`` into; default
+        the one the fit records (:func:`service_unit`). Where neither is known, a horizon with a
+        unit is refused (it cannot be converted) and a plain number is taken in the column's unit.
     grid : int
         Service times searched between the last campaign and the horizon.
     miss : Miss, optional
@@ -215,6 +225,7 @@ def time_to_exceed(fit: xr.DataTree, at: Mapping[str, Any], capacity: Any, horiz
         raise SizingError("", f"law {fitted.name!r} follows no trend over a service coordinate")
     column = next(iter(law.trending.values()))
     cap = float(capacity) if isinstance(capacity, int | float) else parse_capacity(capacity, law.response).lo
+    unit = unit or service_unit(fit, column)
     end = parse_horizon(horizon, unit)
     last = float(coordinates([str(v) for v in fit["posterior"][column].values]).max())
     if end <= last:

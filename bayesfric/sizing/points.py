@@ -221,7 +221,7 @@ class SizingQuestion:
 
 
 #: How errors name the keys of a question: study-file keys (``sizing[i].at.velocity``) or CLI options.
-CLI_KEYS = {"at": "--at", "confidence": "--confidence", "capacity": "--capacity",
+CLI_KEYS = {"at": "--at", "confidence": "--confidence", "capacity": "--capacity", "horizon": "--horizon",
             "energy_rotation": "--energy-rotation"}
 
 
@@ -301,15 +301,47 @@ def check_question(question: SizingQuestion, inputs: Iterable[str], required: It
                           question.energy_rotation, capacity, question.horizon)
 
 
-def parse_horizon(horizon: object, unit: str = "") -> float:
-    """The horizon as a number in the service coordinate's ``unit``: a number as it is, or a text
-    ``"20000 h"`` converted to ``unit`` (when the data declare one).
+#: Dimensions a service coordinate may have (pint's): a service time, a distance run, a count of cycles.
+SERVICE_DIMENSIONS = {"[time]": "a service time", "[length]": "a distance", "": "a count (cycles, revolutions)"}
+
+
+def _service_dimension(written: str, horizon: object) -> str:
+    """The dimension of the unit ``written`` in a horizon, one of :data:`SERVICE_DIMENSIONS`."""
+    from bayesfric.quantities import ureg
+
+    try:
+        dims = str(ureg.Quantity(1.0, written).dimensionality)
+    except Exception:  # pint's errors: undefined unit, bad syntax
+        raise SizingError("horizon", f"{horizon!r}: unknown unit {written!r}") from None
+    dims = "" if dims == "dimensionless" else dims
+    if dims not in SERVICE_DIMENSIONS:
+        raise SizingError("horizon", f"{horizon!r}: {written!r} is of dimension {dims}, not a service time, distance "
+                          "or count of cycles (e.g. \"20000 h\")")
+    return dims
+
+
+def parse_horizon(horizon: object, unit: str | None = None) -> float:
+    """The horizon as a number in the service coordinate's ``unit``.
+
+    A number is taken in that unit; a text ``"20000 h"`` is converted to it. ``unit`` None: the
+    service coordinate is not known yet (the question alone is checked: a written unit must be of
+    a service time, a distance or a count); ``""``: it declares no unit, so a written unit cannot
+    be converted and is refused.
 
     Raises
     ------
     SizingError
-        Not a positive number, or a unit that cannot be converted to ``unit``.
+        Not a positive number; a unit of another dimension (``"20000 rpm"``); a unit that cannot
+        be converted to ``unit`` or where the service coordinate declares none.
+
+    Examples
+    --------
+    >>> parse_horizon("72000000 s", "h")
+    20000.0
+    >>> parse_horizon(500, "h")
+    500.0
     """
+    written = ""
     if isinstance(horizon, int | float) and not isinstance(horizon, bool):
         value = float(horizon)
     else:
@@ -318,14 +350,20 @@ def parse_horizon(horizon: object, unit: str = "") -> float:
             value, written = float(match.group(1)), match.group(2)
         except (AttributeError, ValueError):
             raise SizingError("horizon", f"cannot read {horizon!r}: give a service time, e.g. \"20000 h\"") from None
-        if written and unit and written != unit:
-            from bayesfric.quantities import ureg
-
-            try:
-                value = float(ureg.Quantity(value, written).to(unit).magnitude)
-            except Exception:  # pint's errors: undefined unit, other dimension
-                raise SizingError("horizon", f"{horizon!r} cannot be expressed in {unit!r}, the unit of the "
-                                  "service coordinate") from None
     if not np.isfinite(value) or value <= 0:
         raise SizingError("horizon", f"must be a positive service time, got {horizon!r}")
-    return value
+    if not written or written == unit:
+        return value
+    _service_dimension(written, horizon)
+    if unit is None:
+        return value
+    if not unit:
+        raise SizingError("horizon", f"{horizon!r}: the service coordinate declares no unit to convert {written!r} "
+                          "into; give the horizon as a plain number in its unit, or declare the column's unit")
+    from bayesfric.quantities import ureg
+
+    try:
+        return float(ureg.Quantity(value, written).to(unit).magnitude)
+    except Exception:  # pint's errors: another dimension than the coordinate's
+        raise SizingError("horizon", f"{horizon!r} cannot be expressed in {unit!r}, the unit of the service "
+                          "coordinate") from None
