@@ -93,9 +93,9 @@ def _sizing_entry(where: str, i: int, entry: Any) -> dict[str, Any]:
     try:
         if isinstance(entry.get("at"), Mapping):
             out["at"] = {str(k): value_text(v, f"at.{k}", str(k)) for k, v in entry["at"].items()}
-        for key, quantity in (("capacity", "torque"), ("energy_rotation", "angle")):
-            if entry.get(key) is not None:
-                out[key] = value_text(entry[key], key, quantity)
+        for key, quantity in (("capacity", "torque"), ("energy_rotation", "angle"), ("horizon", "time")):
+            if entry.get(key) is not None and (key != "horizon" or isinstance(entry[key], tuple | list)):
+                out[key] = value_text(entry[key], key, quantity)  # a horizon may be a number in the column's unit
     except SizingError as exc:
         raise config.StudyError(f"{where}: sizing[{i}].{exc}") from None
     return out
@@ -140,6 +140,9 @@ class Study(config.Study):
         ``[data] select``: rows to keep.
     every : int
         ``[data] every``: keep one row in ``every`` (of each trajectory, its first row kept).
+    max_levels : int, optional
+        ``[data] max_levels``: confirm a group column with more levels than
+        :data:`bayesfric.datasets.rows.MAX_LEVELS` (each a leave-one-group-out refit).
     noise : str, mapping or Noise, optional
         ``[noise]``: ``"proportional"``, ``{"kind": "normal", "group": "series"}``.
     sampler, compare : mapping, optional
@@ -172,7 +175,7 @@ class Study(config.Study):
 
     def __init__(self, name: str, data: str | Path, *, laws: Sequence[str | Law | Mapping[str, Any]],
                  title: str | None = None, question: str | None = None, select: Mapping[str, Any] | None = None,
-                 every: int = 1,
+                 every: int = 1, max_levels: int | None = None,
                  noise: Any = None, sampler: Mapping[str, Any] | None = None,
                  compare: Mapping[str, Any] | None = None, sizing: Sequence[Mapping[str, Any]] = (),
                  claims: Sequence[Mapping[str, Any]] = (), modules: Sequence[str | Path] = ()) -> None:
@@ -190,7 +193,8 @@ class Study(config.Study):
                 "modules": _plain(list(modules)) + [f for f in files if f not in _plain(list(modules))] or None}
         raw = {"study": {k: v for k, v in meta.items() if v is not None},
                "data": {"dataset": str(data)} | ({"select": _plain(select)} if select else {})
-                       | ({"every": every} if every != 1 else {}),
+                       | ({"every": every} if every != 1 else {})
+                       | ({"max_levels": max_levels} if max_levels is not None else {}),
                "laws": entries,
                "sizing": [_sizing_entry(where, i, x) for i, x in enumerate(sizing)],
                "claims": _plain(list(claims))}

@@ -220,6 +220,8 @@ def _write_study(prepared, out_root: Path, quick: bool, fresh: bool, client, tim
                                                   seed=seed, misses=misses)
         claims = evaluate_claims(study.claims, tree)
         tree.attrs.update(run_attrs(time.perf_counter() - start, unit_seconds(rows)))
+        tree.attrs["rerun_options"] = "".join(  # the report's "Rerun:" line repeats how it was run
+            [f" --out {out_root}" if out_root != Path("reports") else "", " --quick" if quick else ""])
         tree = write_reports(tree, work, ds, fits, claims, sized)
         (work / INPUTS_FILE).write_text(inputs_key + "\n")  # an unchanged rerun reuses the whole report
         try:

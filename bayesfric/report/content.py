@@ -350,5 +350,5 @@ def _footer(attrs: dict) -> str:
                 text += f" ({attrs['units_unknown']} of them stored without their seconds)"
         text += ")"
     path = attrs["study_file"]
-    return text + ". Rerun: " + (f"bayesfric study {path}" if attrs["study_file_exists"]
+    return text + ". Rerun: " + (f"bayesfric study {path}{attrs.get('rerun_options', '')}" if attrs["study_file_exists"]
                                  else f"bayesfric.run({path}) from Python")

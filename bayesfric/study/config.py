@@ -64,7 +64,7 @@ sampler settings, comparison methods and extrapolation folds::
 
     [[compare.blocked]]
     axis = "velocity"                  # any input coordinate of the data
-    threshold = 0.5                    # SI units; or quantile = 0.7
+    threshold = "0.5 rad/s"            # with its unit ("300 rpm"), or a number in SI units; or quantile = 0.7
     direction = "upper"                # train below, score above; "lower" for high -> low
     future = false                     # true: leave-future-out, split each trajectory at the cut
                                        # (e.g. axis = "time"): train on its past, score its future
@@ -132,7 +132,8 @@ from bayesfric.laws.plugins import LawModuleError, load_module
 from bayesfric.laws.variants import VariantError, vary
 from bayesfric.model import Noise
 from bayesfric.priors import Prior, PriorError
-from bayesfric.sizing.points import SizingError, SizingQuestion, make_question
+from bayesfric.quantities import QUANTITIES
+from bayesfric.sizing.points import SizingError, SizingQuestion, make_question, parse_value
 from bayesfric.study.claimspec import Claim, ClaimError, make_claim
 from bayesfric.study.samplers import (
     EVIDENCE_MIN_DRAWS,
@@ -245,6 +246,23 @@ def _law_spec(path: Path, i: int, entry: dict[str, Any], noise: Noise, modules: 
                    fixed=dict(entry["fixed"]), add=_added(entry), asymmetric=_listed(entry["asymmetric"]),
                    vary_by=_groups(entry), trend=_groups(entry, "trend"), trend_form=entry.get("trend_form"),
                    metric=entry["metric"], modules=modules)
+
+
+def _threshold(path: Path, i: int, entry: dict[str, Any]) -> float | None:
+    """A ``[[compare.blocked]]`` cut in SI units: a number as it is, a text (``"300 rpm"``) or a
+    ``(number, unit)`` pair converted from the unit of its axis's quantity, as every
+    operating-point key is."""
+    value, axis = entry["threshold"], entry["axis"]
+    if value is None or isinstance(value, int | float):
+        return value
+    text = f"{value[0]} {value[1]}" if isinstance(value, list) else value
+    if axis not in QUANTITIES:
+        raise StudyError(f"{path}: compare.blocked[{i}].threshold: {text!r} has a unit, but axis {axis!r} is not an "
+                         "operating quantity to convert it for (give the cut in SI units)")
+    try:
+        return parse_value(text, axis, allow_range=False).lo
+    except SizingError as exc:
+        raise StudyError(f"{path}: compare.blocked[{i}].threshold: {exc.problem}") from None
 
 
 def _sizing_question(path: Path, i: int, entry: dict[str, Any]) -> SizingQuestion:
@@ -360,8 +378,8 @@ def study_from_raw(path: Path, raw: dict[str, Any]) -> Study:
     _check_sampler(path, spec["sampler"])
     if compare["evidence"]:
         _check_evidence_draws(path, spec["sampler"])
-    blocked = [BlockedSpec(b["axis"], b["direction"], b["threshold"], b["quantile"], b["label"], b["future"])
-               for b in compare["blocked"]]
+    blocked = [BlockedSpec(b["axis"], b["direction"], _threshold(path, i, b), b["quantile"], b["label"], b["future"])
+               for i, b in enumerate(compare["blocked"])]
     sizing = [_sizing_question(path, i, entry) for i, entry in enumerate(spec["sizing"])]
     built = {w.name: w.build() for w in laws} if spec["claims"] else {}
     claims = [_claim(path, i, entry, built) for i, entry in enumerate(spec["claims"])]
@@ -374,5 +392,6 @@ def study_from_raw(path: Path, raw: dict[str, Any]) -> Study:
         smc_particles=compare["smc_particles"],
         smc_runs=compare["smc_runs"], blocked=blocked, include_failed=compare["include_failed"],
         failed_fits=compare["failed_fits"], sizing=sizing, claims=claims, raw=raw, every=data["every"],
+        max_levels=data["max_levels"],
         companions=compare["companions"],
     )

@@ -14,9 +14,9 @@ import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
-from bayesfric import compare, fsutil, identifiability, limits, sizing
+from bayesfric import compare, fsutil, identifiability, limits, outpaths, sizing
 from bayesfric.datasets import DataError, load_dataset, resolve, select
-from bayesfric.datasets.views import thin
+from bayesfric.datasets.rows import group_problem, levels_of, thin
 from bayesfric.inference.config import SamplerConfig
 from bayesfric.laws.variants import for_data
 from bayesfric.model import build_program
@@ -69,14 +69,7 @@ def validate_against_data(study: Study, ds) -> None:
     if study.noise.kind == "ar1" and not ds.attrs.get("trajectory"):
         raise StudyError(f"{where}: [noise] kind: 'ar1' needs ordered trajectories, but the data "
                          "names no trajectory group")
-    for i, spec in enumerate(study.laws):  # before [compare] grouped, which defaults to such a column
-        for key, columns in (("vary_by", spec.vary_by), ("trend", spec.trend)):
-            if missing := [c for c in columns if c not in coords]:
-                raise StudyError(f"{where}: laws[{i}].{key}: {missing[0]!r} is not a column of the data "
-                                 f"({', '.join(sorted(coords))})")
-    if study.grouped and study.grouped not in coords:
-        raise StudyError(f"{where}: [compare] grouped: {study.grouped!r} is not a coordinate of the data "
-                         f"({', '.join(sorted(coords))})")
+    _check_groups(study, ds)
     for i, b in enumerate(study.blocked):
         if b.axis not in inputs:
             raise StudyError(f"{where}: compare.blocked[{i}].axis: {b.axis!r} is not an input of the data "
@@ -105,8 +98,54 @@ def validate_against_data(study: Study, ds) -> None:
             raise StudyError(f"{where}: {key}: {exc.problem} (law {spec.name!r})") from None
         except DataError as exc:
             raise StudyError(f"{where}: laws[{i}] ({spec.name}): {exc}") from None
+        _check_rows(study, spec, program)
         _check_sizes(study, spec, program)
     sizing_questions(study, ds)
+
+
+def _group_keys(study: Study) -> list[tuple[str, str]]:
+    """(key, column) of every group column the study names: the laws' ``vary_by`` and ``trend``
+    (before ``[compare] grouped``, which defaults to such a column), the noise's group, the folds'."""
+    keys = [(f"laws[{i}].{key}", c) for i, spec in enumerate(study.laws)
+            for key, columns in (("vary_by", spec.vary_by), ("trend", spec.trend)) for c in columns]
+    keys += [(key, c) for key, c in (("[noise] group", study.noise.group), ("[compare] grouped", study.grouped),
+                                     ("[compare] forecast", study.forecast)) if c]
+    return keys
+
+
+def _check_groups(study: Study, ds) -> None:
+    """Every group column the study names looks like one (:func:`bayesfric.datasets.rows.group_problem`)
+    and has at most ``[data] max_levels`` levels: more are refused with their cost, unless confirmed."""
+    named: dict[str, str] = {}  # column -> the first key naming it
+    for key, column in _group_keys(study):
+        if problem := group_problem(ds, column):
+            raise StudyError(f"{study.path}: {key}: {problem}")
+        named.setdefault(column, key)
+    for column, key in named.items():
+        levels = len(levels_of(ds, column))
+        if levels <= study.max_levels:
+            continue
+        laws = len(study.laws)
+        varying = sum(len(ps) for spec in study.laws for c, ps in spec.vary_by.items() if c == column)
+        cost = [f"leave-one-{column}-out refits every law once per level, {levels} × {laws} = {levels * laws} "
+                "refits, each about as long as a full fit"] if study.grouped == column else []
+        cost += [f"vary_by samples {levels} × {varying} level values"] if varying else []
+        raise StudyError(f"{study.path}: {key}: group column {column!r} has {levels} levels, more than [data] "
+                         f"max_levels = {study.max_levels} ({'; '.join(cost) or 'a value per level and parameter'}); "
+                         f"set [data] max_levels = {levels} to run it anyway, or group coarser")
+
+
+def _check_rows(study: Study, spec, program) -> None:
+    """The data left after ``[data] select`` and ``every`` hold at least as many rows as the law
+    has free parameters (its own and the noise model's)."""
+    free = limits.program_size(program)[0] - len(program.law.derived)
+    rows = program.n_obs
+    if rows >= free:
+        return
+    key = "[data] every" if study.every > 1 else "[data] select" if study.select else "[data] dataset"
+    how = f"one row in {study.every} of each trajectory leaves" if study.every > 1 else "the data hold"
+    raise StudyError(f"{study.path}: {key}: {how} {rows} row{'s' * (rows != 1)}, fewer than the {free} parameters "
+                     f"of law {spec.name!r}: nothing could be learned from them; thin less or select more rows")
 
 
 def _check_sizes(study: Study, spec, program) -> None:
@@ -165,6 +204,12 @@ def sizing_questions(study: Study, ds, questions: list[sizing.SizingQuestion] | 
         if question.horizon is not None and not any(spec.trend for spec in study.laws):
             raise StudyError(f"{where}: sizing[{i}].horizon: no law follows a trend over a service coordinate "
                              "(trend = { hours = [...] }), so none can forecast when the capacity is exceeded")
+        if question.horizon is not None:  # converted into the service column's unit, as the runner will
+            column = next(c for spec in study.laws for c in spec.trend)
+            try:
+                sizing.points.parse_horizon(question.horizon, ds[column].attrs.get("units", ""))
+            except sizing.SizingError as exc:
+                raise StudyError(f"{where}: sizing[{i}].horizon: {exc.problem} (column {column!r})") from None
     return checked
 
 
@@ -299,6 +344,19 @@ def with_identifiability(study: Study, ds) -> Study:
     return out
 
 
+def _check_inputs_outside(study: Study, final: Path) -> None:
+    """No file the study reads (its file, its data and sidecar, its law files) lies inside the
+    report folder the run replaces as a whole (:func:`bayesfric.outpaths.overwrite_problem`)."""
+    reads = [(study.path, "the study file", "[study] name")]
+    reads += [(p, what, "[data] dataset") for p, what in outpaths.data_files(study.dataset)]
+    modules = dict.fromkeys(m for spec in study.laws for m in spec.modules)
+    reads += [(Path(m), "a law file", "[study] modules") for m in modules]
+    for path, what, key in reads:
+        if outpaths.overwrite_problem(path, folders=[(final, "the report folder")]):
+            raise StudyError(f"{study.path}: {key}: {what} {path} lies inside the report folder {final}, which this "
+                             "run replaces; move it out of the reports folder (or run with another --out)")
+
+
 def _prepare(path: str | Path | Study, out_root: str | Path, quick: bool):
     """Every check of a run, before anything is written: study, report folder, data, folds."""
     study = path if isinstance(path, Study) else load_study(path)
@@ -311,6 +369,7 @@ def _prepare(path: str | Path | Study, out_root: str | Path, quick: bool):
         store_folder(out_root, study.name)
     except fsutil.PathError as exc:
         raise StudyError(f"{study.path}: run store: {exc}") from None
+    _check_inputs_outside(study, final)
     ds = load_study_data(study)
     validate_against_data(study, ds)
     study = with_identifiability(study, ds)  # and the companion entries it adds

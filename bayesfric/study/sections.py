@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from typing import Any, get_args, get_type_hints
 
+from bayesfric.datasets.rows import MAX_LEVELS
 from bayesfric.inference.config import METRICS, RULES, default_of
 from bayesfric.laws import get_law
 from bayesfric.model import Noise
@@ -62,6 +63,9 @@ DATA = Schema((
     Field("select", "table", {}, items="value", doc="rows whose coordinates equal these values"),
     Field("every", "int", 1, min=1, doc="keep every n-th row (of each trajectory, its first row kept): thins a "
                                         "large log"),
+    Field("max_levels", "int", MAX_LEVELS, min=1,
+          doc="most levels a group column (vary_by, trend, grouped or forecast folds, [noise] group) may have; "
+              "raise it to confirm that many leave-one-group-out refits"),
 ))
 NOISE = Schema((
     Field("kind", "str", "normal", choices=get_args(get_type_hints(Noise)["kind"]),
@@ -74,6 +78,16 @@ SAMPLER = Schema(tuple(_sampler_field(key) for key in RULES), only_label="sample
 def _names(value: Any) -> str | None:
     items = value if isinstance(value, list) else [value]
     return None if all(isinstance(v, str) and v.strip() for v in items) else "must be a name or a list of names"
+
+
+def _threshold_problem(value: Any) -> str | None:
+    """A blocked cut: a number (SI), a text with its unit, or (from Python) ``(number, unit)``."""
+    number = isinstance(value, int | float) and not isinstance(value, bool)
+    pair = isinstance(value, list) and len(value) == 2 and isinstance(value[1], str) \
+        and isinstance(value[0], int | float) and not isinstance(value[0], bool)
+    if number or pair or (isinstance(value, str) and value.strip()):
+        return None
+    return 'must be a number in SI units or a text with its unit ("0.5 rad/s")'
 
 
 LAW = Schema((
@@ -103,7 +117,8 @@ LAW = Schema((
 BLOCKED = Schema((
     Field("axis", "str", REQUIRED, doc="input coordinate to block along"),
     Field("direction", "str", "upper", choices=("upper", "lower"), doc="upper: train below, score above"),
-    Field("threshold", "number", None, doc="cut in SI units"),
+    Field("threshold", "value", None, rule=lambda v: _threshold_problem(v),
+          doc='cut: a number in SI units, or with its unit ("0.5 rad/s", "300 rpm")'),
     Field("quantile", "number", None, gt=0, lt=1, doc="cut as a quantile of the axis"),
     Field("label", "text", "", doc="label in reports"),
     Field("future", "bool", False, doc="leave-future-out: split each trajectory at the cut, train on its past"),

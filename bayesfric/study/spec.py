@@ -128,6 +128,7 @@ class Study:
     claims: list[Claim] = field(default_factory=list)
     raw: dict[str, Any] = field(default_factory=dict)
     every: int = 1  # [data] every: keep every n-th row (datasets.views.thin)
+    max_levels: int = 100  # [data] max_levels: most levels of a group column run without being confirmed
     companions: bool = True  # [compare] companions: add a reduced variant where the data do not identify a law
     identifiability: list = field(default_factory=list)  # identifiability.Check per law, filled by study.plan
 
