@@ -182,8 +182,8 @@ def reduce_log(csv_path: str | Path, meta_path: str | Path | None = None,
         if b - a >= options.min_samples and (options.keep_standstill or not standstill):
             segments.append(Segment(a, b, *mean_se(y[a:b])))
     if not segments and resting:
-        raise DataError(f"{csv_path}: every steady segment of {on} ({resting}) is at standstill (|{on}| ≤ {atol:.3g} "
-                        f"{QUANTITIES[on].unit}), which the reduction leaves out; --keep-standstill keeps them")
+        raise DataError(f"{csv_path}: every steady segment of {on} ({resting}) is at standstill ({on} zero within "
+                        "the tolerance), which the reduction leaves out by default; --keep-standstill keeps them")
     if not segments:
         raise DataError(f"{csv_path}: no steady segment of {on} found with at least {options.min_samples} rows "
                         f"after settling (tolerance max({options.rtol:g} * |level|, {atol:.3g} "
