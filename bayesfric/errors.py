@@ -11,11 +11,16 @@ the constructor their callers use.
 What is not the user's mistake -- a broken invariant of bayesfric itself -- is an
 :class:`InternalError`: the CLI does not turn it into a one-line input error, because it is a bug
 to report.
+
+A fit that ran but whose draws must not be read as they stand (it failed the diagnostics gate,
+or it is used only with parameters the data do not identify, or as separate modes combined) is
+not an error: :func:`bayesfric.fit` returns it and warns with a :class:`FitWarning`, which a
+caller may turn into an error (``warnings.simplefilter("error", bayesfric.errors.FitWarning)``).
 """
 
 from __future__ import annotations
 
-__all__ = ["UserError", "DataError", "InternalError"]
+__all__ = ["UserError", "DataError", "InternalError", "FitWarning"]
 
 
 class UserError(ValueError):
@@ -74,4 +79,20 @@ class InternalError(RuntimeError):
     --------
     >>> isinstance(InternalError("unknown unit stage 'fold'"), UserError)
     False
+    """
+
+
+class FitWarning(UserWarning):
+    """A fit returned by :func:`bayesfric.fit` that did not pass the diagnostics gate as it stands:
+    failed (its draws are not a posterior to act on), or used under the multimodal or unidentified
+    rule (:mod:`bayesfric.inference.modes`). The message is the verdict.
+
+    Examples
+    --------
+    >>> import warnings
+    >>> with warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     warnings.warn("fit of stribeck FAILED the diagnostics gate", FitWarning)
+    >>> caught[0].category.__name__
+    'FitWarning'
     """

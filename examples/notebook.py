@@ -25,7 +25,7 @@ fits = {law: bayesfric.fit(law, data, noise="proportional", **settings) for law 
 # Compare: PSIS-LOO (high-k points refitted exactly) and stacking weights.
 table = bayesfric.compare_laws(fits, data)
 print(table[["elpd_loo", "se", "elpd_diff", "weight", "reliable"]].round(3).to_string())
-best = table.index[0]
+best = table[table.reliable].index[0]
 
 # Size: the best law at 6 rad/s (beyond the tested 4 rad/s), 99 % of |T|, against a 40 N*m drive.
 result = bayesfric.size(fits[best], at={"velocity": (6, "rad/s")}, capacity=(40, "N*m"), confidence=0.99)

@@ -13,6 +13,7 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pandas as pd
 import xarray as xr
 
@@ -274,7 +275,30 @@ def fit(law: str | Law, data: str | Path | xr.Dataset, *, priors: Mapping[str, P
     noise = _noise(noise, ds)
     given = _priors(priors, list(chosen.params) + list(noise.sites()), chosen.name)
     checked_program(chosen, ds, given, noise, config)
-    return sample(chosen, ds, priors=given, noise=noise, config=config)
+    out = sample(chosen, ds, priors=given, noise=noise, config=config)
+    _warn_verdict(out, chosen.name)
+    return out
+
+
+def _warn_verdict(fit: xr.DataTree, name: str) -> None:
+    """A :class:`~bayesfric.errors.FitWarning` with the verdict where the fit failed the gate or is
+    used only as multimodal or unidentified (the study report says the same)."""
+    import warnings
+
+    from bayesfric.errors import FitWarning
+    from bayesfric.inference import verdict_of
+
+    if "diagnostics" not in fit.attrs:
+        return
+    verdict = verdict_of(fit)
+    if not verdict.passed:
+        what = "FAILED the diagnostics gate: its draws are not a posterior to act on (more draws, priors, or " \
+               "a reparametrised law)"
+    elif verdict.multimodal or verdict.unidentified:
+        what = "is used only under the multimodal or unidentified rule: read its parameters with care"
+    else:
+        return
+    warnings.warn(f"fit of {name} {what}; {verdict}", FitWarning, stacklevel=3)
 
 
 def compare_laws(fits: Mapping[str, xr.DataTree] | list[xr.DataTree], data: str | Path | xr.Dataset | None = None,
@@ -298,12 +322,14 @@ def compare_laws(fits: Mapping[str, xr.DataTree] | list[xr.DataTree], data: str 
     Returns
     -------
     pandas.DataFrame
-        One row per law, best first: ``elpd_loo``, ``se``, ``elpd_diff`` (to the best),
+        One row per law, the reliable ones first (a fit that passed the gate, with a reliable
+        PSIS-LOO), each part best first: ``elpd_loo``, ``se``, ``elpd_diff`` (to the first row),
         ``subsampling_se`` (the extra error of a subsampled PSIS-LOO above
         :data:`~bayesfric.limits.LOO_SUBSAMPLE_ROWS` rows, arviz-stats' ``loo_subsample``; NaN
         when every row is scored), ``p_loo``,
         ``high_k``, ``weight`` (stacking; NaN for a law left out), ``reliable`` and ``reason``
         (why a law is unreliable or has no weight: a fit that failed the diagnostics gate, ...).
+        The best law to act on is ``table[table.reliable].index[0]``.
 
     Examples
     --------
@@ -311,7 +337,8 @@ def compare_laws(fits: Mapping[str, xr.DataTree] | list[xr.DataTree], data: str 
     >>> fits = {name: bayesfric.fit(name, "robot_joint", draws=100, tune=100, chains=2)
     ...         for name in ("coulomb_viscous", "stribeck")}
     >>> table = bayesfric.compare_laws(fits, "robot_joint")
-    >>> list(table.index) == sorted(fits, key=lambda k: -table.loc[k, "elpd_loo"])
+    >>> reliable = table[table.reliable]
+    >>> list(reliable.index) == sorted(reliable.index, key=lambda k: -table.loc[k, "elpd_loo"])
     True
     """
     from bayesfric.compare import model_weights, psis_loo
@@ -332,12 +359,15 @@ def compare_laws(fits: Mapping[str, xr.DataTree] | list[xr.DataTree], data: str 
         kept, left_out = {}, {}
     rows = []
     for label, r in loo.items():
-        reason = left_out.get(label) or ("fit failed the diagnostics gate" if not verdict_of(named[label]).passed
+        failed = not verdict_of(named[label]).passed
+        reason = left_out.get(label) or ("fit failed the diagnostics gate" if failed
                                          else "" if r.reliable else r.handling)
         sub_se = r.subsampling_se if r.subsample is not None else float("nan")
         rows.append({"law": label, "elpd_loo": r.elpd, "se": r.se, "subsampling_se": sub_se, "p_loo": r.p_loo,
                      "high_k": r.n_high_k,
-                     "weight": kept.get(label, float("nan")), "reliable": r.reliable, "reason": reason})
-    table = pd.DataFrame(rows).set_index("law").sort_values("elpd_loo", ascending=False)
+                     "weight": kept.get(label, float("nan")), "reliable": r.reliable and not failed,
+                     "reason": reason})
+    table = pd.DataFrame(rows).set_index("law")
+    table = table.iloc[np.lexsort((-table["elpd_loo"].to_numpy(), ~table["reliable"].to_numpy(dtype=bool)))]
     table.insert(2, "elpd_diff", table["elpd_loo"] - table["elpd_loo"].iloc[0])
     return table
