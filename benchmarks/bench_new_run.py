@@ -1,29 +1,32 @@
-"""Answers for the next run: does a 90 % band for a *new* run cover that run's true mean curve?
+"""Answers for the next run from the two, three or five runs users have: is the group-term fit
+used, and does its 90 % band for a *new* run cover that run's true mean curve?
 
 Usage::
 
-    .venv/bin/python benchmarks/bench_new_run.py [--replicates 120] [--runs 6] [--spread 0.15]
+    .venv/bin/python benchmarks/bench_new_run.py [--replicates 100] [--train-runs 2 3 5]
+        [--truths coulomb_viscous armstrong_helouvry] [--spread 0.1-0.3]
 
-SIMULATED data. Each replicate draws ``--runs`` runs of ``coulomb_viscous`` at the same 20 speeds
-(0.1-2 rad/s), whose Coulomb level and viscous coefficient vary between runs by a factor
-``exp(spread · z)`` (``T_C = 2 N·m``, ``c_v = 1 N·m·s/rad`` typical, noise sd 0.05 N·m:
-:func:`bayesfric.datasets.synthetic.simulate_runs`), holds one run out (replicate ``r`` holds out
-run ``r mod runs``), and fits on the others, with NUTS (4 chains × 500 draws after 500 warm-up):
+SIMULATED data. Each replicate draws ``train + 1`` runs of the truth at the same 20 speeds
+(0.1-2 rad/s), its Coulomb level and viscous coefficient varying between runs by a factor
+``exp(s · z)``, ``s`` drawn per replicate uniformly from ``--spread`` (10-30 % by default; noise
+sd 0.05 N·m, about 2.5 % of the torque: :func:`bayesfric.datasets.synthetic.simulate_runs`).
+The last run is held back; the others are fitted (NUTS, the default 4 chains x 1000 draws,
+through the full-fit path: the gate, the multimodal and unidentified rules):
 
-* ``pooled``: ``coulomb_viscous`` as today, every run the same curve;
-* ``by run``: ``coulomb_viscous.vary_by("run", "T_C", "c_v")`` -- the held-out run's level is
-  masked out of the likelihood, so its values are drawn from the group distribution: the answer
-  for a new run (:mod:`bayesfric.hierarchy`).
+* ``by run``: the truth's law with ``vary_by("run", "T_C", "c_v")`` (the default spread prior,
+  :func:`bayesfric.hierarchy.hyperprior`), answered for a NEW run (:func:`bayesfric.hierarchy.mean_draws`);
+* ``pooled``: the same law without group terms (every run the same curve);
+* ``pooled+spread``: the pooled law widened by the between-run spread its residual-structure
+  check measured (:func:`bayesfric.sizing.newrun.widen_draws`), the answer a study gives for a
+  new run when no group-aware law can be used.
 
-Per law it reports how often the central 90 % band of the mean curve at 0.1, 1, 2 and 3 rad/s
-(3 rad/s: half a tested range beyond the data) covers the held-out run's true mean curve, how
-often the band covers the whole curve at once, the mean interval score (Gneiting & Raftery 2007,
-alpha = 0.1: width plus 20× the miss; lower is sharper and better calibrated) and how often the
-held-out run's log predictive density ranks the hierarchical law first (leave-one-run-out), both
-pointwise (each row alone, ``Σ_i log mean_s p(y_i | θ_s)``, what a study's grouped folds score) and
-jointly (the run's rows together, ``log mean_s Π_i p(y_i | θ_s)``, the density of a new run).
-One compiled sampler per law serves every replicate (``NutsEngine.with_response``); the priors
-are data-scaled on the first replicate's response.
+Per variant: how often the fit is *used* (passed the gate, or multimodal / unidentified with
+converged predictions), how often the central 90 % band of the mean curve at 0.1, 1, 2 rad/s
+(inside) and 3, 3.9 rad/s (up to one tested range beyond) covers the held-back run's true mean
+curve, and the mean interval score (Gneiting & Raftery 2007, alpha = 0.1: width plus 20x the
+miss). A fit that is not used still has its band counted (``used`` says how often a study would
+drop it). One compiled sampler per law serves every replicate (``NutsEngine.with_response``);
+priors are data-scaled on the first replicate's response.
 """
 
 from __future__ import annotations
@@ -33,16 +36,22 @@ import time
 
 import numpy as np
 
+from bayesfric.compare.structure_stats import Column, structure_tests
 from bayesfric.datasets.synthetic import simulate_runs
+from bayesfric.hierarchy import mean_draws
+from bayesfric.inference.diagnostics import verdict_of
 from bayesfric.inference.engine import NutsEngine
 from bayesfric.laws import get_law
 from bayesfric.model import build_program
+from bayesfric.sizing.newrun import widen_draws
 
 SPEEDS = np.linspace(0.1, 2.0, 20)
-AT = np.array([0.1, 1.0, 2.0, 3.0])
-TRUTH = {"T_C": 2.0, "c_v": 1.0}
+AT = np.array([0.1, 1.0, 2.0, 3.0, 3.9])
+TRUTHS = {"coulomb_viscous": {"T_C": 2.0, "c_v": 1.0},
+          "armstrong_helouvry": {"T_C": 2.0, "dT_s": 1.0, "v_s": 0.2, "delta": 1.0, "c_v": 1.0}}
 SIGMA = 0.05
 ALPHA = 0.1
+VARIANTS = ("by run", "pooled", "pooled+spread")
 
 
 def interval_score(lo, hi, x, alpha=ALPHA):
@@ -50,85 +59,84 @@ def interval_score(lo, hi, x, alpha=ALPHA):
     return (hi - lo) + (2 / alpha) * np.maximum(lo - x, 0) + (2 / alpha) * np.maximum(x - hi, 0)
 
 
-def joint_lpd(t_c, c_v, sigma, v, y) -> float:
-    """``log mean_s prod_i p(y_i | theta_s)``: the held-out run's rows scored together, as one new run."""
-    mu = t_c.reshape(-1)[:, None] + c_v.reshape(-1)[:, None] * v[None, :]
-    sd = sigma.reshape(-1)[:, None]
-    ll = (-0.5 * ((y[None, :] - mu) / sd) ** 2 - np.log(sd) - 0.5 * np.log(2 * np.pi)).sum(axis=1)
-    return float(np.logaddexp.reduce(ll) - np.log(ll.size))
+def replicate_data(law, truth, train: int, lo: float, hi: float, r: int):
+    """(training runs, held-back run's true curve at AT) of replicate ``r``."""
+    s = float(np.random.default_rng([r, 99]).uniform(lo, hi))
+    ds, values = simulate_runs(law, {"velocity": SPEEDS}, truth, {"T_C": s, "c_v": s}, runs=train + 1,
+                               sigma=SIGMA, seed=r)
+    held = np.asarray(ds["run"].values) == f"r{train}"
+    import jax.numpy as jnp
+
+    curve = np.asarray(law.mean({"velocity": jnp.asarray(AT)}, {k: jnp.asarray(v[-1]) for k, v in values.items()}, {}))
+    return ds.isel(obs=np.flatnonzero(~held)), curve
 
 
-def band(t_c: np.ndarray, c_v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    curve = t_c.reshape(-1)[:, None] + c_v.reshape(-1)[:, None] * AT[None, :]
-    return np.quantile(curve, ALPHA / 2, axis=0), np.quantile(curve, 1 - ALPHA / 2, axis=0)
+def pooled_spread(fit, program, ds):
+    """The pooled fit's residual-structure check on the run column (the study's checks unit)."""
+    mu = mean_draws(program, fit["posterior"], scatter=False).mean(axis=0)
+    resid = np.asarray(ds["torque"].values) - mu
+    sd = np.full(resid.size, float(fit["posterior"]["sigma"].mean()))
+    (check,) = structure_tests(resid, sd, {"velocity": np.asarray(ds["velocity"].values)},
+                               [Column("run", "group", np.asarray(ds["run"].values))])
+    return check
+
+
+def one_case(truth_name: str, train: int, args) -> dict:
+    law, truth = get_law(truth_name), TRUTHS[truth_name]
+    lo, hi = (float(x) for x in args.spread.split("-"))
+    first, _ = replicate_data(law, truth, train, lo, hi, 0)
+    programs = {"by run": build_program(law.vary_by("run", "T_C", "c_v"), first), "pooled": build_program(law, first)}
+    engines = {k: NutsEngine.build(p, seed=0) for k, p in programs.items()}
+    rows = {k: {"cover": [], "score": [], "used": 0, "s": 0.0} for k in VARIANTS}
+    for r in range(args.replicates):
+        ds, curve = replicate_data(law, truth, train, lo, hi, r)
+        bands = {}
+        for name, engine in engines.items():
+            start = time.perf_counter()
+            fit = engine.with_response(np.asarray(ds["torque"].values)).fit(ds, seed=r)
+            rows[name]["s"] += time.perf_counter() - start
+            used = verdict_of(fit).passed
+            mu = mean_draws(programs[name].at({"velocity": AT}), fit["posterior"], seed=r)
+            bands[name] = mu
+            rows[name]["used"] += int(used)
+            if name == "pooled":
+                check = pooled_spread(fit, programs[name], ds)
+                bands["pooled+spread"] = widen_draws(mu, check.between_sd, check.levels, seed=r)
+                rows["pooled+spread"]["used"] += int(used)
+        for name, mu in bands.items():
+            lo_b, hi_b = np.quantile(mu, ALPHA / 2, axis=0), np.quantile(mu, 1 - ALPHA / 2, axis=0)
+            rows[name]["cover"].append((lo_b <= curve) & (curve <= hi_b))
+            rows[name]["score"].append(interval_score(lo_b, hi_b, curve))
+    return rows
+
+
+def report(truth: str, train: int, rows: dict, args) -> None:
+    n = args.replicates
+    print(f"\n{truth}, {train} training runs (+1 held back), spread {args.spread} (log scale, per replicate), "
+          f"noise sd {SIGMA} N*m, {n} replicates")
+    print(f"{'variant':14s} {'used':>5s}  " + "  ".join(f"cover@{v:g}" for v in AT) + "   interval score@"
+          + "/".join(f"{v:g}" for v in AT) + "   s/fit")
+    for name in VARIANTS:
+        row = rows[name]
+        cover, score = np.mean(row["cover"], axis=0), np.mean(row["score"], axis=0)
+        s = row["s"] / n if row["s"] else float("nan")
+        print(f"{name:14s} {row['used'] / n:5.2f}  " + "  ".join(f"{c:8.3f}" for c in cover) + "   "
+              + "/".join(f"{x:.2f}" for x in score) + f"   {s:5.2f}")
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--replicates", type=int, default=120)
-    ap.add_argument("--runs", type=int, default=6)
-    ap.add_argument("--spread", type=float, default=0.15)
+    ap.add_argument("--replicates", type=int, default=100)
+    ap.add_argument("--train-runs", type=int, nargs="+", default=[2, 3, 5])
+    ap.add_argument("--truths", nargs="+", default=list(TRUTHS), choices=list(TRUTHS))
+    ap.add_argument("--spread", default="0.1-0.3", help="range of the run-to-run log-scale spread, LO-HI")
     args = ap.parse_args()
-    law = get_law("coulomb_viscous")
-    spread = {"T_C": args.spread, "c_v": args.spread}
-
-    def data(r):
-        return simulate_runs(law, {"velocity": SPEEDS}, TRUTH, spread, runs=args.runs, sigma=SIGMA, seed=r)
-
-    first, _ = data(0)
-    settings = dict(draws=500, tune=500, chains=4, seed=0)
-    engines = {"pooled": NutsEngine.build(build_program(law, first), **settings),
-               "by run": NutsEngine.build(build_program(law.vary_by("run", "T_C", "c_v"), first), **settings)}
-    run_of = np.asarray(first["run"].values)
-    labels = sorted(set(run_of))
-    rows = {k: {"cover": [], "all": [], "score": [], "elpd": [], "joint": [], "failed": 0, "s": 0.0} for k in engines}
-    for r in range(args.replicates):
-        ds, truth = data(r)
-        g = r % args.runs
-        held = run_of == labels[g]
-        true_curve = truth["T_C"][g] + truth["c_v"][g] * AT
-        for name, engine in engines.items():
-            start = time.perf_counter()
-            fits = engine.with_response(np.asarray(ds["torque"].values)).run(~held[None, :], seed=r)
-            rows[name]["s"] += time.perf_counter() - start
-            post = {k: v[0] for k, v in fits.samples.items()}
-            if name == "by run":
-                lo, hi = band(post["T_C_run"][..., g], post["c_v_run"][..., g])
-            else:
-                lo, hi = band(post["T_C"], post["c_v"])
-            inside = (lo <= true_curve) & (true_curve <= hi)
-            rows[name]["cover"].append(inside)
-            rows[name]["all"].append(inside.all())
-            rows[name]["score"].append(interval_score(lo, hi, true_curve))
-            rows[name]["elpd"].append(float(fits.lpd[0, held].sum()))
-            t_c, c_v = ((post["T_C_run"][..., g], post["c_v_run"][..., g]) if name == "by run"
-                        else (post["T_C"], post["c_v"]))
-            y_held = np.asarray(ds["torque"].values)[held]
-            rows[name]["joint"].append(joint_lpd(t_c, c_v, post["sigma"], SPEEDS, y_held))
-            rows[name]["failed"] += int(not fits.verdicts[0].passed)
-    report(rows, args)
-
-
-def report(rows: dict, args) -> None:
-    n = args.replicates
-    print(f"SIMULATED: {args.runs} runs x {SPEEDS.size} speeds, spread {args.spread} (log scale) in T_C and c_v, "
-          f"noise sd {SIGMA} N*m, {n} replicates, one run held out each")
-    print("law      " + "  ".join(f"cover@{v:g}" for v in AT) + "  whole curve  interval score@" +
-          "/".join(f"{v:g}" for v in AT) + "  gate failed  s/fit")
-    for name, row in rows.items():
-        cover = np.mean(row["cover"], axis=0)
-        score = np.mean(row["score"], axis=0)
-        print(f"{name:8s} " + "  ".join(f"{c:8.3f}" for c in cover) + f"  {np.mean(row['all']):11.3f}  "
-              + "/".join(f"{s:.3f}" for s in score) + f"  {row['failed']:11d}  {row['s'] / n:5.2f}")
-    better = np.mean(np.asarray(rows["by run"]["elpd"]) > np.asarray(rows["pooled"]["elpd"]))
-    diff = np.asarray(rows["by run"]["elpd"]) - np.asarray(rows["pooled"]["elpd"])
-    print(f"leave-one-run-out: the hierarchical law scores higher in {better:.3f} of replicates "
-          f"(median elpd difference {np.median(diff):.1f} nats over the held-out run's {SPEEDS.size} rows)")
-    joint = np.asarray(rows["by run"]["joint"]) - np.asarray(rows["pooled"]["joint"])
-    print(f"leave-one-run-out, the run's rows scored jointly (log mean_s prod_i p): the hierarchical law scores "
-          f"higher in {np.mean(joint > 0):.3f} of replicates (median difference {np.median(joint):.1f} nats)")
-    se = np.sqrt(0.9 * 0.1 / n)
-    print(f"binomial sd of a 90 % coverage over {n} replicates: {se:.3f}")
+    print("SIMULATED data (bayesfric.datasets.synthetic.simulate_runs)")
+    for truth in args.truths:
+        for train in args.train_runs:
+            report(truth, train, one_case(truth, train, args), args)
+    print(f"\nbinomial sd of a 90 % coverage over {args.replicates} replicates: "
+          f"{np.sqrt(0.09 / args.replicates):.3f}")
 
 
 if __name__ == "__main__":

@@ -24,12 +24,13 @@ FAST_FILES = frozenset(f"tests/{name}.py" for name in (
     "datasets/test_pitch_bearing",
     "hostile/test_links_corpus", "hostile/test_variant_corpus", "hostile/test_data_corpus",
     "hostile/test_study_corpus", "hostile/test_loader_properties", "hostile/test_derived_scale",
+    "hostile/test_third_round",
     "test_example_studies", "test_priors", "test_sizing_misfit", "test_sizing_basis", "test_numerics",
     "test_sizing_truth", "test_asymmetry", "test_drive_dynamics", "test_structure", "test_density", "test_errors",
     "test_fingerprint", "test_readme", "test_thin", "test_modes", "test_drum_campaigns_data", "test_identifiability",
     "test_sampler_config",
     "test_sizing_distance",
-    "test_sizing_result",
+    "test_sizing_result", "test_new_run",
 ))
 
 

@@ -55,7 +55,8 @@ def _tree_sources(tree: xr.DataTree, folder: Path, label: str, fits: dict | None
                         "rerun the study with this version")
     if fits is None and "fits" in tree.children:
         fits = {name: _fit_node(tree["fits"][name]) for name in tree["fits"].children}
-    basis = xr.DataTree.from_dict({n: tree[n].to_dataset().load() for n in sizing.store.NODES})
+    basis = xr.DataTree.from_dict({n: tree[n].to_dataset().load()
+                                   for n in sizing.store.NODES + sizing.store.OPTIONAL if n in tree.children})
     return _Sources(sizing.sources(basis, folder, fits=fits), sizing.basis_schemes(basis), label, True)
 
 
@@ -116,7 +117,21 @@ def _log(data: Any, key: str) -> tuple[xr.Dataset, str]:
     return ds, str(ds.attrs.get("csv_file") or (data if isinstance(data, str | Path) else ds.attrs.get("name", key)))
 
 
-def _weights(src: _Sources, ds: xr.Dataset) -> tuple[dict[str, float] | None, str, str]:
+def _new_run(src: _Sources, group: Any, seed: int, preds: list) -> tuple[Any, list]:
+    """The new-run rule over a study's laws (:mod:`bayesfric.sizing.newrun`; none for one fit or
+    a named group) and the laws' predictions, a law blind to a flagged group widened by its spread."""
+    from dataclasses import replace
+
+    from bayesfric.sizing.answer import new_run_rule
+    from bayesfric.sizing.newrun import NewRun
+
+    rule = new_run_rule(src.laws) if src.study and group is None else NewRun()
+    out = [replace(p, mixture=replace(p.mixture, mu=rule.widen(p.name, p.mixture.mu, seed))) if rule.widened(p.name)
+           else p for p in preds]
+    return rule, out
+
+
+def _weights(src: _Sources, ds: xr.Dataset, new_run=None) -> tuple[dict[str, float] | None, str, str]:
     """(law -> weight > 0 of the average, or None for one fit; the weighting; its note)."""
     from bayesfric.sizing import choose_basis
 
@@ -130,7 +145,8 @@ def _weights(src: _Sources, ds: xr.Dataset) -> tuple[dict[str, float] | None, st
     grid = {k: np.asarray(ds[k].values, dtype=float) for k in data}
     used = [s.name for s in src.laws if s.excluded is None]
     basis = choose_basis(grid, data, src.schemes, used, {s.name: dict(s.weights) for s in src.laws},
-                         {s.name: dict(s.misses) for s in src.laws}, {s.name: dict(s.penalties) for s in src.laws})
+                         {s.name: dict(s.misses) for s in src.laws}, {s.name: dict(s.penalties) for s in src.laws},
+                         new_run)
     weights = {k: float(v) for k, v in basis.weights.items() if k in used and math.isfinite(v) and v > 0}
     return weights, basis.key, basis.note
 
@@ -159,8 +175,10 @@ def _prepare(source, data, group, seed, keys: dict[str, str]):
         if isinstance(exc, UserError):
             raise
         raise UserError(f"{src.label}: a fit's program cannot be rebuilt: {exc.args[0]}") from None
-    weights, weighting, note = _weights(src, ds)
-    attrs = {"source": src.label, "data": where, "weighting": weighting, "weighting_note": note,
+    new_run, preds = _new_run(src, group, seed, preds)
+    weights, weighting, note = _weights(src, ds, new_run)
+    attrs = {"source": src.label, "data": where, "new_run": new_run.statement,
+             "weighting": weighting, "weighting_note": note,
              "weights": json.dumps(weights or {}), "bands": _BANDS,
              "answer_for": "; ".join(sorted({p.answer_for for p in preds if p.answer_for}))
              or "the fitted laws as they are (no group structure)",

@@ -78,6 +78,9 @@ class CVResult:
         Grouped schemes scored jointly: the share of held-out rows inside the central 50 % and
         90 % bands of their fold's predictive (``{"50": …, "90": …}``) -- how well the answers
         for a *new* group held on the groups left out (:func:`group_coverage`).
+    elpd_new_group : ndarray or None
+        Blocked schemes of a study with a group column: each run's held-out rows scored jointly
+        as a NEW run's (:mod:`bayesfric.compare.newgroup`), one value per run.
     """
 
     law: str
@@ -92,6 +95,8 @@ class CVResult:
     predictive: HeldOut | None = None
     coverage: dict[str, float] | None = None  # joint (grouped) schemes: central 50/90 % bands' share of rows
     elpd_fold: np.ndarray | None = None  # joint schemes: each fold's held-out rows' joint log density
+    elpd_new_group: np.ndarray | None = None  # blocked, a group column: each run's rows jointly, as a new run's
+    too_few: str = ""  # a grouped scheme with too few groups to tell laws apart for a new group: why
 
     @property
     def failed_folds(self) -> list[int]:
@@ -99,8 +104,8 @@ class CVResult:
 
     @property
     def reliable(self) -> bool:
-        """True when every fold's posterior passed the gate."""
-        return not self.failed_folds
+        """True when every fold's posterior passed the gate and the scheme has enough groups."""
+        return not self.failed_folds and not self.too_few
 
     @property
     def unidentified(self) -> tuple[str, ...]:
@@ -125,13 +130,13 @@ class CVResult:
         diagnostics gate (R-hat 1.05 > 1.01)"``); ``""`` when every fold passed."""
         failed = self.failed_folds
         if not failed:
-            return ""
+            return self.too_few
         why = [(f"fold {i + 1}: " if len(failed) > 1 else "") + (self.verdicts[i].problems or ["failed"])[0]
                for i in failed]
         which = ("its only fold" if len(self.verdicts) == 1 else
                  f"{'fold' if len(failed) == 1 else 'folds'} {', '.join(str(i + 1) for i in failed)} of "
                  f"{len(self.verdicts)}")
-        return f"{which} failed the diagnostics gate ({'; '.join(why)})"
+        return f"{which} failed the diagnostics gate ({'; '.join(why)})" + (f"; {self.too_few}" if self.too_few else "")
 
     def __str__(self) -> str:
         flag = "" if self.reliable else f"  [FLAGGED: {self.failure}]"
@@ -184,7 +189,8 @@ def group_coverage(program, kept: HeldOut, response: np.ndarray) -> dict[str, fl
 
 
 def cross_validate(engine: RefitEngine, folds: Folds, *, seed: int = 0, predictive: bool = False,
-                   joint: bool = False) -> CVResult:
+                   joint: bool = False, new_groups: tuple[str, np.ndarray] | None = None,
+                   min_groups: int = 0) -> CVResult:
     """Refit on every fold's training mask and score its held-out points.
 
     Parameters
@@ -201,6 +207,13 @@ def cross_validate(engine: RefitEngine, folds: Folds, *, seed: int = 0, predicti
         Score each fold's held-out rows together (:func:`joint_lpd`): leave-one-group-out, where
         a fold holds out one run, series or unit. ``elpd`` is then the sum over folds of the
         joint densities and ``se = sqrt(K · var)`` over the K folds; ``elpd_i`` stays pointwise.
+    new_groups : (str, ndarray), optional
+        A group column and each row's level: also score each fold's held-out rows per level, jointly,
+        as a new level's (:func:`bayesfric.compare.newgroup.new_group_lpd`; a blocked scheme).
+    min_groups : int
+        A joint scheme that leaves out fewer groups is not reliable (:attr:`CVResult.too_few`):
+        leave-one-group-out with two groups trains each fold on one, which cannot estimate the
+        spread between groups (:data:`bayesfric.compare.newgroup.MIN_GROUPS`).
 
     Returns
     -------
@@ -222,6 +235,14 @@ def cross_validate(engine: RefitEngine, folds: Folds, *, seed: int = 0, predicti
         scored = np.array([joint_lpd(engine.program, {n: v[k] for n, v in fits.samples.items()}, folds.heldout[k])
                            for k in range(folds.n_folds) if folds.heldout[k].any()])
     kept = heldout_predictive(engine.program, fits.samples, folds.heldout) if predictive or joint else None
+    fresh = None
+    if new_groups is not None:
+        from bayesfric.compare.newgroup import new_group_lpd
+
+        column, levels = new_groups
+        fresh = np.concatenate([new_group_lpd(engine.program, {n: v[k] for n, v in fits.samples.items()},
+                                              folds.heldout[k], np.asarray(levels), column, seed=seed)
+                                for k in range(folds.n_folds) if folds.heldout[k].any()])
     return CVResult(
         law=engine.program.law.name,
         scheme=folds.scheme,
@@ -236,5 +257,15 @@ def cross_validate(engine: RefitEngine, folds: Folds, *, seed: int = 0, predicti
         predictive=kept if predictive else None,
         coverage=group_coverage(engine.program, kept, engine.program.response) if joint else None,
         elpd_fold=scored if joint else None,
+        elpd_new_group=fresh,
+        too_few=_too_few(int(folds.heldout.any(axis=1).sum()), min_groups) if joint else "",
     )
+
+
+def _too_few(groups: int, least: int) -> str:
+    """Why a joint scheme of ``groups`` held-out groups cannot tell laws apart (``""``: it can)."""
+    if groups >= least:
+        return ""
+    return (f"{groups} groups left out one at a time, each fold trained on {groups - 1}: too few to estimate the "
+            f"spread between groups, so this scheme cannot tell laws apart for a new group (it needs {least})")
 

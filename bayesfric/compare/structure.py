@@ -303,11 +303,11 @@ def checks_of(ds: xr.Dataset) -> tuple[StructureCheck, ...]:
         return ()
     out = []
     for i, column in enumerate(ds[DIM].values):
-        row = {k: ds[f"structure_{k}"].values[i] for k in _FIELDS}
+        row = {k: ds[f"structure_{k}"].values[i] for k in _FIELDS if f"structure_{k}" in ds}  # older trees lack some
         if not str(row["kind"]):
             continue
         out.append(StructureCheck(str(column), **{f.name: _typed(f.type, row[f.name])
-                                                 for f in fields(StructureCheck) if f.name != "column"}))
+                                                 for f in fields(StructureCheck) if f.name in row}))
     return tuple(out)
 
 

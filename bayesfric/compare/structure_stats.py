@@ -69,6 +69,10 @@ class StructureCheck:
     conditioned_on: str
     rho: float
     df: int
+    #: A group column's between-group sd at the same operating point, in response units: the sd
+    #: over groups of their weighted mean residuals within one direction of motion (the larger
+    #: direction's), less what the noise alone gives them; NaN for a numeric column.
+    between_sd: float = float("nan")
 
     def sentence(self) -> str:
         """The finding in words, with its size, its test and what would model it."""
@@ -216,16 +220,38 @@ def _terms(column: Column, direction: np.ndarray | None) -> np.ndarray:
     return out if direction is None else np.hstack([out, out * direction[:, None]])
 
 
-def _effect(terms: np.ndarray, direction: np.ndarray | None, z0: np.ndarray, s: np.ndarray) -> tuple[float, float]:
-    """(response units, noise sd) of the column's effect on the null model's residuals ``z0``
-    (standardised): the largest range, within one direction of motion, of their weighted
-    least-squares fit on the column's terms (for a group: the range of the groups' weighted mean
-    residuals), and that range over the noise sd the weights average to, ``1/√mean(1/s²)``."""
+def _effect(terms: np.ndarray, direction: np.ndarray | None, z0: np.ndarray, s: np.ndarray,
+            groups: np.ndarray | None = None) -> tuple[float, float, float]:
+    """(response units, noise sd, between-group sd) of the column's effect on the null model's
+    residuals ``z0`` (standardised): the largest range, within one direction of motion, of their
+    weighted least-squares fit on the column's terms (for a group: the range of the groups'
+    weighted mean residuals), that range over the noise sd the weights average to,
+    ``1/√mean(1/s²)``, and for a group column (``groups``: each row's level) the sd of the
+    groups' means within a direction less their mean squared standard error (NaN otherwise)."""
     sign = np.ones(len(s)) if direction is None else direction
     x = np.column_stack([np.ones(len(s)), sign, terms])
     fitted = x @ np.linalg.lstsq(x / s[:, None], z0, rcond=None)[0]  # weighted fit of the residuals z0 · s
     effect = max(float(np.ptp(fitted[sign == d])) for d in np.unique(sign))
-    return effect, effect * float(np.sqrt(np.mean(1.0 / s**2)))
+    return effect, effect * float(np.sqrt(np.mean(1.0 / s**2))), _between_sd(fitted, sign, s, groups)
+
+
+def _between_sd(fitted: np.ndarray, sign: np.ndarray, s: np.ndarray, groups: np.ndarray | None) -> float:
+    """The largest, over directions of motion, sd of the groups' fitted mean residuals with the
+    noise's share removed, ``√max(0, var_g(m) − mean_g(1/Σ 1/s²))`` (NaN without groups or with
+    fewer than two groups in every direction)."""
+    if groups is None:
+        return float("nan")
+    out = float("nan")
+    for d in np.unique(sign):
+        rows = sign == d
+        levels = np.unique(groups[rows])
+        if levels.size < 2:
+            continue
+        means = np.array([fitted[rows & (groups == g)][0] for g in levels])
+        se2 = np.array([1.0 / np.sum(1.0 / s[rows & (groups == g)] ** 2) for g in levels])
+        value = float(np.sqrt(max(0.0, np.var(means, ddof=1) - se2.mean())))
+        out = value if not np.isfinite(out) else max(out, value)
+    return out
 
 
 def _ftest(z: np.ndarray, x0: np.ndarray, terms: np.ndarray,
@@ -299,10 +325,11 @@ def structure_tests(resid: np.ndarray, sd: np.ndarray, inputs: Mapping[str, np.n
         for column in columns:
             terms = _terms(column, direction)
             p, df, rho, z0 = _ftest(z, x0, terms / sd[:, None], starts)
-            rows.append((column, p, df, rho, _effect(terms, direction, z0, sd)))
+            groups = np.asarray(column.values) if column.kind == "group" else None
+            rows.append((column, p, df, rho, _effect(terms, direction, z0, sd, groups)))
     threshold = alpha / max(1, sum(np.isfinite(p) for _, p, *_ in rows))
     on = ", ".join(k for k in inputs if k != TRAJECTORY_START)
     return tuple(StructureCheck(c.name, c.kind, int(np.unique(np.asarray(c.values)).size), eff, eff_sd, p,
                                 threshold, bool(np.isfinite(p) and p < threshold),
-                                (suggestions or {}).get(c.name, ""), unit, on, rho, df)
-                 for c, p, df, rho, (eff, eff_sd) in rows)
+                                (suggestions or {}).get(c.name, ""), unit, on, rho, df, between)
+                 for c, p, df, rho, (eff, eff_sd, between) in rows)

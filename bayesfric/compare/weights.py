@@ -36,8 +36,8 @@ from bayesfric.compare.refit import CVResult
 from bayesfric.datasets.loader import OBS_DIM
 from bayesfric.errors import UserError
 
-__all__ = ["BOOTSTRAP", "Weights", "bootstrap_stacking", "model_weights", "BayesFactors", "bayes_factors",
-           "averaged_predictive"]
+__all__ = ["BOOTSTRAP", "Weights", "bootstrap_stacking", "model_weights", "new_group_weights", "BayesFactors",
+           "bayes_factors", "averaged_predictive"]
 
 #: Bayesian-bootstrap draws of the stacking weights on a cross-validation scheme.
 BOOTSTRAP = 400
@@ -91,7 +91,7 @@ def _why_unreliable(result: LooResult | CVResult) -> str | None:
         if not result.reliable:
             return f"high Pareto k not resolved: {result.handling}"
         return None
-    if result.failed_folds:
+    if not result.reliable:
         return result.failure
     return None
 
@@ -235,6 +235,45 @@ def bootstrap_stacking(lpd: np.ndarray, draws: int = BOOTSTRAP, seed: int = 0, i
         if live.size == 0:
             break
     return w
+
+
+def new_group_weights(results: Mapping[str, CVResult], fits: Mapping[str, xr.DataTree] | None = None,
+                      include_failed: bool = False) -> Weights:
+    """Bayesian-bootstrap stacking weights over each run's joint density as a new run's
+    (:attr:`~bayesfric.compare.refit.CVResult.elpd_new_group` of one blocked scheme, by law:
+    :mod:`bayesfric.compare.newgroup`).
+
+    Raises
+    ------
+    bayesfric.errors.UserError
+        Fewer than :data:`~bayesfric.compare.newgroup.MIN_GROUPS` runs held out (the scheme
+        cannot tell laws apart: said as the weighting's reason), no law scored, or every law
+        unreliable.
+    """
+    from bayesfric.compare.newgroup import MIN_GROUPS
+    from bayesfric.inference.diagnostics import verdict_of
+
+    scored = {k: r for k, r in results.items() if r.elpd_new_group is not None}
+    if not scored:
+        raise UserError("no law was scored for a new group")
+    runs = min(len(r.elpd_new_group) for r in scored.values())
+    scheme = next(iter(scored.values())).scheme
+    if runs < MIN_GROUPS:
+        raise UserError(f"cannot tell the laws apart for a new group: {runs} groups give {runs} joint scores, "
+                        f"fewer than {MIN_GROUPS} (two values hold one degree of freedom about their spread)")
+    excluded = {}
+    for name, r in scored.items():
+        failed = fits is not None and name in fits and not verdict_of(fits[name]).passed
+        reason = _why_unreliable(r) or ("fit failed the diagnostics gate" if failed else None)
+        if reason and not include_failed:
+            excluded[name] = reason
+    names = [k for k in scored if k not in excluded]
+    if not names:
+        raise UserError(f"every law was excluded as unreliable: {excluded}")
+    lpd = np.column_stack([np.asarray(scored[k].elpd_new_group, dtype=float) for k in names])
+    mean = bootstrap_stacking(lpd).mean(axis=0) if len(names) > 1 else np.ones(1)
+    return Weights(dict(zip(names, map(float, mean / mean.sum()), strict=True)), "Bayesian-bootstrap stacking",
+                   f"{scheme}, each group's rows jointly as a new group's", excluded, None)
 
 
 @dataclass(frozen=True)

@@ -305,6 +305,35 @@ def residual_structure(t: TreeView) -> list[Finding]:
     return out
 
 
+def new_run(t: TreeView):
+    """The new-run rule over the study's laws (:mod:`bayesfric.sizing.newrun`), from the tree."""
+    from bayesfric.sizing.newrun import law_groups, rule
+
+    return rule([law_groups(name, t.fit(name), t.passed(name), t.structure(name)) for name in t.laws])
+
+
+def new_run_recommendation(rule, rec: Finding) -> Finding:
+    """The recommendation, preceded by what it is for a new run when a group column was flagged:
+    the laws that model it, the widened pooled laws, or that no answer for a new run can be given."""
+    if not rule.mode:
+        return rec
+    cols = " and ".join(f"'{c}'" for c in rule.columns)
+    if rule.mode == "aware":
+        head = (f"For a NEW {cols} (the default question of sizing, predict and score): use ",
+                (", ".join(rule.aware), True),
+                f" — they model {cols}, which the residual-structure check flagged; the laws blind to it "
+                f"({', '.join(rule.blind) or 'none'}) describe the tested levels' average. For the tested ones: ")
+    elif rule.mode == "cannot":
+        head = (f"CANNOT ANSWER FOR A NEW {cols}: every law that models it ({', '.join(rule.failed)}) failed the "
+                "diagnostics gate, and the others are blind to the differences the residual-structure check "
+                "found; sizing widens them by the measured spread. For the tested levels: ",)
+    else:
+        head = (f"No law models {cols}, which the residual-structure check flagged: answers for a new "
+                f"{cols} are the pooled laws widened by the measured spread. For the tested levels: ",)
+    parts = tuple((h, False) if isinstance(h, str) else h for h in head)
+    return Finding(parts + rec.parts, True)
+
+
 def summary_block(t: TreeView, sizing: SizingAnswer | None = None,
                   extra_warnings: list[Finding] | None = None) -> Summary:
     """The top summary: question, one answer per criterion (after the residual-structure findings
@@ -325,7 +354,10 @@ def summary_block(t: TreeView, sizing: SizingAnswer | None = None,
                               "outside it: choose by the extrapolation criterion for sizing.", warning=True))
     if t.quick is not None:
         warnings.append(plain("QUICK MODE: short chains and few folds — not a basis for decisions.", warning=True))
-    rec = sizing_basis(crits, sizing, recommendation(crits, table))
+    rule = new_run(t)
+    rec = sizing_basis(crits, sizing, new_run_recommendation(rule, recommendation(crits, table)))
+    if rule.mode:
+        answers.insert(0, plain(rule.statement + ".", warning=True))
     return Summary(str(t.attrs["question"]), answers, rec, warnings)
 
 

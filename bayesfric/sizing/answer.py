@@ -33,6 +33,7 @@ from bayesfric.sizing.compute import (
 from bayesfric.sizing.compute import levels as quantile_levels
 from bayesfric.sizing.distance import point_distance
 from bayesfric.sizing.misfit import LocalMisfit, local_misfit
+from bayesfric.sizing.newrun import NewRun, law_groups, rule
 from bayesfric.sizing.points import SizingQuestion
 from bayesfric.sizing.result import SizingAnswer, as_answer
 
@@ -156,6 +157,23 @@ def undetected(sources: Sequence[LawSource], weights: Mapping[str, float], basis
             + "; ".join(parts))
 
 
+def new_run_rule(sources: Sequence[LawSource]) -> NewRun:
+    """The new-run rule (:mod:`bayesfric.sizing.newrun`) over the laws' fits and checks."""
+    return rule([law_groups(s.name, s.fit, s.excluded is None, s.checks) for s in sources])
+
+
+def _predicted(sources: Sequence[LawSource], grid, seed: int, new_run: NewRun) -> dict[str, Draws]:
+    """Each law's draws at ``grid``; a law blind to a flagged group widened by its spread (new run)."""
+    out = {}
+    for s in sources:
+        d = predict(s.fit, grid, seed)
+        if new_run.widened(s.name):
+            mu = new_run.widen(s.name, d.mu.reshape((-1, d.mu.shape[-1])), seed).reshape(d.mu.shape)
+            d = Draws(mu, d.y + (mu - d.mu), d.noise_var, d.steady)
+        out[s.name] = d
+    return out
+
+
 def _averages(used, draws, weights, question, qs, key) -> Mixture | None:
     good = {k: v for k, v in weights.items() if math.isfinite(v) and v > 0 and k in {a.name for a in used}}
     return mixture(used, draws, good, question.confidence, qs, key) if good else None
@@ -177,14 +195,15 @@ def answer_question(question: SizingQuestion, sources: Sequence[LawSource], data
     grid = question.grid()
     tested = {k: (float(np.min(v)), float(np.max(v))) for k, v in data.items() if k in grid}
     distance = {k: point_distance(grid[k], data[k]) for k in grid if k in data}  # per direction
-    draws = {s.name: predict(s.fit, grid, seed) for s in sources}
+    new_run = new_run_rule(sources)
+    draws = _predicted(sources, grid, seed, new_run)
     answers = [law_answer(s, draws[s.name], question, qs) for s in sources]
     used = [a for a in answers if a.excluded is None]
     warnings = _warnings(distance, sources, used)
     single = len(sources) == 1 and not schemes
     basis = None if single else choose_basis(
         grid, data, schemes, [a.name for a in used], {s.name: dict(s.weights) for s in sources},
-        {s.name: dict(s.misses) for s in sources}, {s.name: dict(s.penalties) for s in sources})
+        {s.name: dict(s.misses) for s in sources}, {s.name: dict(s.penalties) for s in sources}, new_run)
     weights = {used[0].name: 1.0} if single and used else (basis.weights if basis else {})
     average = _averages(used, draws, weights, question, qs, basis.key if basis else "single fit")
     calibrated: dict[str, Draws] = {}
@@ -226,7 +245,7 @@ def _fan(out: Answer, sources: Sequence[LawSource], data: Mapping[str, np.ndarra
     x = np.linspace(min(lo, question.at[axis].lo), max(hi, question.at[axis].hi), FAN_POINTS)
     grid = {k: (x if k == axis else np.full(FAN_POINTS, v.lo)) for k, v in question.at.items()}
     qs = quantile_levels(question.confidence)
-    draws = {s.name: predict(s.fit, grid, seed) for s in sources}
+    draws = _predicted(sources, grid, seed, new_run_rule(sources))
     bands = {}
     for s in sources:
         y = np.abs(draws[s.name].y).reshape(-1, FAN_POINTS)

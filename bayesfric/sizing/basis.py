@@ -11,6 +11,14 @@ question from the direction its points lie in (:mod:`bayesfric.sizing.calibratio
   group (run, series, unit) of laws with group terms, the stacking weights of leave-one-group-out
   instead (:data:`NEW_GROUP`: how well each law predicted a whole group it had not seen, the
   question asked), also where LOO weights stand in for a direction no scheme tests.
+* **A new run that the laws are blind to**: where the residual-structure check flagged a group
+  column (:mod:`bayesfric.sizing.newrun`) and laws that model it can be used, only those are
+  weighed (equal weights where none of them has a positive weight under the chosen weighting);
+  the basis's ``new_run`` says so, and an answer says it first. Beyond the data, such a question
+  is about a new run *and* an untested range: the matched blocked folds scored with new-run draws,
+  each run's rows jointly (:mod:`bayesfric.compare.newgroup`), weigh the laws where the study has
+  at least four runs; with two or three they cannot tell laws apart, and the blocked folds'
+  weights stand in (:data:`NEW_RUN_FALLBACK`, said in the note).
 * **No law extrapolates**: on a matched scheme every law loses more than
   :data:`NO_EXTRAPOLATION` nats per held-out point against its LOO score (the extrapolation
   penalty); the answer says so first and quotes only calibrated numbers.
@@ -26,7 +34,7 @@ import numpy as np
 
 from bayesfric.sizing.calibration import Miss, Scheme, matching, per_range
 
-__all__ = ["LOO", "NEW_GROUP", "NO_EXTRAPOLATION", "Basis", "choose_basis"]
+__all__ = ["LOO", "NEW_GROUP", "NO_EXTRAPOLATION", "NEW_RUN_FALLBACK", "Basis", "choose_basis"]
 
 #: Weighting key of PSIS-LOO stacking (blocked schemes are keyed by their label).
 LOO = "LOO"
@@ -44,7 +52,9 @@ class Basis:
     blocked schemes; ``uncovered``: sides beyond the data no scheme tests; ``fallback_rate``: the
     largest measured miss rate, unit-free
     (:func:`~bayesfric.sizing.calibration.per_range`; NaN: none measured); ``no_extrapolation``: why no law
-    extrapolates here ("" when some law does); ``note``: the basis in words.
+    extrapolates here ("" when some law does); ``note``: the basis in words; ``new_run``: the
+    new-run rule's statement (:class:`~bayesfric.sizing.newrun.NewRun`, "" when no group column
+    was flagged), said before any number.
     """
 
     key: str
@@ -54,6 +64,7 @@ class Basis:
     fallback_rate: float
     no_extrapolation: str
     note: str
+    new_run: str = ""
 
     @property
     def calibrated(self) -> bool:
@@ -86,25 +97,56 @@ def _no_extrapolation(names, penalties: Mapping[str, Mapping[str, float]], schem
     return ""
 
 
+#: What stands in where a blocked fold scored for a new run cannot weigh the laws (too few runs).
+NEW_RUN_FALLBACK = ("for a new run beyond the data, the blocked fold scored with new-run draws cannot tell the laws "
+                    "apart (fewer than 4 runs: bayesfric.compare.newgroup); the blocked fold's weights stand in "
+                    "(how each law extrapolates the tested runs; a new run's own spread is in each law's band)")
+
+
+def _new_run_weights(names, weights, matched, new_run) -> tuple[dict, str, str] | None:
+    """(weights, key, note) of the matched blocked folds scored for a new level of a flagged group
+    column (:mod:`bayesfric.compare.newgroup`); None where there are none (too few runs)."""
+    if not matched or new_run is None or not new_run.mode:
+        return None
+    from bayesfric.compare.newgroup import label
+
+    keys = [label(c, s.label) for s in matched for c in new_run.columns]
+    chosen = _mean_weights(names, weights, keys)
+    if chosen is None:
+        return None
+    return (chosen, "stacking " + " + ".join(f"'{k}'" for k in keys),
+            "weights: stacking on the blocked fold(s) that extrapolate in this direction, each run's held-out rows "
+            "scored jointly as a new run's (" + ", ".join(f"'{k}'" for k in keys) + ")")
+
+
 def choose_basis(grid: Mapping[str, np.ndarray], data: Mapping[str, np.ndarray], schemes: Sequence[Scheme],
                  names: Sequence[str], weights: Mapping[str, Mapping[str, float]],
                  misses: Mapping[str, Mapping[str, Miss]],
-                 penalties: Mapping[str, Mapping[str, float]]) -> Basis:
+                 penalties: Mapping[str, Mapping[str, float]], new_run=None) -> Basis:
     """The basis of one question (see the module).
 
     ``names``: the laws sizing may use; ``weights``: law -> {weighting key -> weight}
     (:data:`LOO`, :data:`NEW_GROUP` or a blocked label); ``misses``: law -> {blocked label -> Miss};
-    ``penalties``: law -> {blocked label -> nats per held-out point}.
+    ``penalties``: law -> {blocked label -> nats per held-out point}; ``new_run``: the new-run
+    rule (:class:`~bayesfric.sizing.newrun.NewRun`; None: no group column flagged).
     """
+    restricted = new_run is not None and new_run.mode == "aware"
+    names = new_run.names(names) if restricted else list(names)
     matched, uncovered = matching(grid, data, schemes)
     by_label = {s.label: s for s in schemes if s.axis in data}
     rates = [per_range(m, by_label[k], data) for law in misses.values() for k, m in law.items() if k in by_label]
     fallback = max(rates) if rates else math.nan
     chosen = _mean_weights(names, weights, [s.label for s in matched]) if matched else None
     notes = []
-    if chosen is not None:
+    fresh = _new_run_weights(names, weights, matched, new_run)
+    if fresh is not None:
+        chosen, key, note = fresh
+        notes.append(note)
+    elif chosen is not None:
         key = "stacking " + " + ".join(f"'{s.label}'" for s in matched)
         notes.append(f"weights: stacking on the blocked fold(s) that extrapolate in this direction ({key[9:]})")
+        if matched and new_run is not None and new_run.mode:
+            notes.append(f"{NEW_RUN_FALLBACK} over {', '.join(names)}")
     else:
         grouped = _mean_weights(names, weights, [NEW_GROUP])
         key = "stacking leave-one-group-out" if grouped is not None else f"stacking {LOO}"
@@ -115,6 +157,11 @@ def choose_basis(grid: Mapping[str, np.ndarray], data: Mapping[str, np.ndarray],
             notes.append(f"no blocked fold with usable weights extrapolates in this direction: {what}")
         else:
             notes.append(f"every point lies inside the tested envelope: {what}")
+    if restricted and not chosen and names:
+        key = "equal weights over the laws that model the flagged group"
+        chosen = dict.fromkeys(names, 1.0 / len(names))
+        notes.append(f"none of the laws that model the flagged group ({', '.join(names)}) has a positive weight "
+                     f"there: {key}")
     if uncovered:
         sides = ", ".join(_side(s) for s in uncovered)
         widen = (f"widened by the largest miss any law showed on any blocked fold ({fallback:.2g} relative per "
@@ -122,4 +169,5 @@ def choose_basis(grid: Mapping[str, np.ndarray], data: Mapping[str, np.ndarray],
                  "and no blocked fold measured any law's miss: the model-form error there is UNMEASURED")
         notes.insert(0, f"NO blocked fold tests {sides}: {widen}")
     return Basis(key, dict(chosen), tuple(matched), tuple(uncovered), fallback,
-                 _no_extrapolation(names, penalties, matched), "; ".join(notes))
+                 _no_extrapolation(names, penalties, matched), "; ".join(notes),
+                 new_run.statement if new_run is not None else "")

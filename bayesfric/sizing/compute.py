@@ -97,7 +97,9 @@ class LawSource:
     -> stacking weight (NaN: not computed); ``misses``: blocked label -> the law's measured miss
     there (:mod:`bayesfric.sizing.calibration`); ``penalties``: blocked label -> extrapolation
     penalty (nats per held-out point); ``excluded``: why its predictions may not be used (a
-    failed diagnostics gate; None: used); ``weight_note``: why a weighting gave it 0.
+    failed diagnostics gate; None: used); ``weight_note``: why a weighting gave it 0;
+    ``checks``: its residual-structure checks (:class:`~bayesfric.compare.structure_stats.StructureCheck`,
+    which group columns the data show it is blind to: :mod:`bayesfric.sizing.newrun`).
     """
 
     name: str
@@ -107,6 +109,7 @@ class LawSource:
     weight_note: str = ""
     misses: Mapping[str, Miss] = field(default_factory=dict)
     penalties: Mapping[str, float] = field(default_factory=dict)
+    checks: tuple = ()
 
 
 @dataclass

@@ -43,6 +43,9 @@ __all__ = ["NODES", "RESULTS", "schemes_of", "basis_node", "read_basis", "exclus
 RESULTS = "results.nc"
 #: The result-tree nodes sizing reads.
 NODES = ("weights", "diagnostics", "sizing_basis")
+#: Nodes sizing reads where a tree has them: the laws' checks (residual structure: which group
+#: columns a law is blind to, :mod:`bayesfric.sizing.newrun`).
+OPTIONAL = ("checks",)
 #: The fields of a measured miss (:class:`bayesfric.sizing.calibration.Miss`) besides its count.
 MISS_FIELDS = ("rate", "beta", "se", "reach")
 
@@ -111,10 +114,10 @@ def read_basis(folder: Path) -> xr.DataTree:
         raise SizingError("", f"{path}: missing (the report was written before sizing read it); run the study again")
     try:
         with xr.open_datatree(path, engine="h5netcdf") as tree:
-            nodes = {name: tree[name].to_dataset().load() for name in NODES if name in tree.children}
+            nodes = {name: tree[name].to_dataset().load() for name in NODES + OPTIONAL if name in tree.children}
     except (OSError, ValueError) as exc:
         raise SizingError("", f"{path}: unreadable ({exc}); run the study again") from None
-    if len(nodes) < len(NODES):
+    if not set(NODES) <= set(nodes):
         raise SizingError("", f"{path}: holds no sizing basis (written by an older bayesfric); run the study again")
     return xr.DataTree.from_dict(nodes)
 
@@ -171,6 +174,16 @@ def _fit_of(basis: xr.DataTree, folder: Path, name: str) -> xr.DataTree:
         raise SizingError("", f"{path}: unreadable fit ({exc}); run the study again") from None
 
 
+def _checks(basis: xr.DataTree, name: str) -> tuple:
+    """The law's residual-structure checks, where the tree kept them (``/checks``)."""
+    from bayesfric.compare.structure import DIM, checks_of
+
+    if "checks" not in basis.children or DIM not in basis["checks"].dims:
+        return ()
+    node = basis["checks"].to_dataset()
+    return checks_of(node.sel(law=name)) if name in node["law"].values else ()
+
+
 def sources(basis: xr.DataTree, folder: Path, laws: Sequence[str] | None = None,
             fits: dict[str, xr.DataTree] | None = None, data_hash: str | None = None,
             selection: str | None = None) -> list[LawSource]:
@@ -207,5 +220,5 @@ def sources(basis: xr.DataTree, folder: Path, laws: Sequence[str] | None = None,
         weights, notes, misses, penalties = _law_terms(basis, name)
         verdict = diagnostics.sel(law=name)
         excluded = exclusion(bool(verdict["passed"].values), str(verdict["problems"].values))
-        out.append(LawSource(name, fit, weights, excluded, notes, misses, penalties))
+        out.append(LawSource(name, fit, weights, excluded, notes, misses, penalties, _checks(basis, name)))
     return out

@@ -1,7 +1,7 @@
 """One law's results in a study as one ``xarray.Dataset``, built once from its scorers' results.
 
 A study's units (:mod:`bayesfric.study.units`) return Datasets; the runner rebuilds them into the
-compare layer's objects (:func:`bayesfric.study.units.rebuild`), weighs the laws with them, and
+compare layer's objects (:func:`bayesfric.study.rebuild.rebuild`), weighs the laws with them, and
 flattens each law into the Dataset :func:`law_result` returns. The study's result tree
 (:mod:`bayesfric.study.tree`), its score table (:func:`bayesfric.study.scores.score_table`) and its
 sizing basis (:func:`bayesfric.sizing.store.basis_node`) read these Datasets, nothing else.
@@ -229,7 +229,7 @@ def law_result(law: Law, fit_file: str, verdict: Verdict, *, loo: LooResult | No
     verdict : Verdict
         The full fit's diagnostics gate.
     loo, cv, penalty, evidence, agreement
-        The compare layer's results (:func:`bayesfric.study.units.rebuild`): PSIS-LOO, each
+        The compare layer's results (:func:`bayesfric.study.rebuild.rebuild`): PSIS-LOO, each
         cross-validation scheme by label, each blocked scheme's extrapolation penalty, each
         log-evidence estimate, and whether bridge sampling and importance sampling agree.
     checks : xarray.Dataset, optional

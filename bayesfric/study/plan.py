@@ -42,7 +42,7 @@ class QuickRun:
 
 QUICK = {"nuts": {"draws": 300, "tune": 300, "chains": 2}, "emcee": {"draws": 1000, "tune": 1000, "thin": 10}}
 QUICK_KFOLD = 4
-#: Unit labels of a law (:func:`bayesfric.study.units.rebuild` finds results by label): no CV scheme may take one.
+#: Unit labels of a law (:func:`bayesfric.study.rebuild.rebuild` finds results by label): no CV scheme may take one.
 _RESERVED_LABELS = ("loo", "bridge", "SMC")
 
 

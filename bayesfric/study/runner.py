@@ -22,7 +22,6 @@ import xarray as xr
 from bayesfric import compare, identifiability, sizing
 from bayesfric.laws.variants import law_of_fit
 from bayesfric.sizing.store import schemes_of
-from bayesfric.study import units
 from bayesfric.study.config import Study
 from bayesfric.study.executor import run_units
 from bayesfric.study.lawresult import Weight, law_result
@@ -34,6 +33,7 @@ from bayesfric.study.plan import (  # checked and planned before anything is wri
     sizing_questions,
     validate_against_data,
 )
+from bayesfric.study.rebuild import rebuild
 from bayesfric.study.store import RunStore, store_folder
 from bayesfric.study.tree import study_tree
 
@@ -44,7 +44,7 @@ __all__ = ["run_laws", "result_tree", "validate_against_data", "sizing_questions
 def run_laws(study: Study, work: Path, plans: list, schemes, *, out_root: Path, fresh: bool, client,
               timings: list, quick: bool, live_progress: bool | None = None) -> tuple[dict, dict]:
     """Every law's units through the run store and the executor: each law's fit and its units'
-    results rebuilt as the compare layer's objects (:func:`bayesfric.study.units.rebuild`), by
+    results rebuilt as the compare layer's objects (:func:`bayesfric.study.rebuild.rebuild`), by
     law, in study order.
 
     Under ``--quick`` every stage runs even after a failed fit (``failed_fits = "run"``): quick
@@ -71,7 +71,7 @@ def run_laws(study: Study, work: Path, plans: list, schemes, *, out_root: Path, 
         # inside the work folder: installed atomically with the report; the bytes are the store's
         shutil.copyfile(store.path(fit.key, fit.kind), fit_file)
         fits[name] = results[fit.key]
-        scored[name] = (units.rebuild(fits[name], rest, results, kinds), [u.label for u in skipped[name]])
+        scored[name] = (rebuild(fits[name], rest, results, kinds), [u.label for u in skipped[name]])
     return fits, scored
 
 
@@ -99,6 +99,29 @@ def _weights(study: Study, blocked: list[str], scored: dict, fits: dict) -> tupl
             excluded = weights.excluded.get(name, "")
             by_law[name][label] = Weight(weights.weights.get(name, 0.0 if excluded else float("nan")), excluded)
     return by_law, errors
+
+
+def _new_group_weights(study: Study, blocked: list[str], scored: dict, fits: dict, by_law: dict,
+                       errors: list) -> None:
+    """Add to ``by_law`` (and ``errors``) the weights of every blocked scheme scored for a new level
+    of the study's group column (:mod:`bayesfric.compare.newgroup`; a scheme that cannot tell the
+    laws apart with so few groups says why in ``errors``)."""
+    from bayesfric.compare.newgroup import label
+    from bayesfric.compare.weights import new_group_weights
+
+    if not study.grouped:
+        return
+    for scheme in blocked:
+        key = f"stacking {label(study.grouped, scheme)}"
+        results = {name: r for name, (s, _) in scored.items() if (r := s.cv.get(scheme)) is not None}
+        try:
+            weights = new_group_weights(results, fits, study.include_failed)
+        except ValueError as exc:
+            errors.append((key, str(exc)))
+            continue
+        for name in by_law:
+            excluded = weights.excluded.get(name, "")
+            by_law[name][key] = Weight(weights.weights.get(name, 0.0 if excluded else float("nan")), excluded)
 
 
 def _sensitivity(study: Study, scored: dict, fits: dict) -> compare.RankingSensitivity | None:
@@ -136,6 +159,7 @@ def result_tree(study: Study, ds, schemes: list, fits: dict, scored: dict, rows:
     forecast = [label for label, _, kind in schemes if kind == "forecast"]  # time to exceed weighs by these
     grouped = [label for label, _, kind in schemes if kind == "grouped"]  # sizing for a new group weighs by these
     weights, errors = _weights(study, blocked + forecast + grouped, scored, fits)
+    _new_group_weights(study, blocked, scored, fits, weights, errors)
     laws = _law_results(study, ds, blocked, scored, fits, weights, rows,
                         "run" if quick is not None else study.failed_fits)
     checks = identifiability.checks_dataset(study.identifiability, identifiability.companions_of(study.laws))

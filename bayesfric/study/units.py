@@ -12,9 +12,9 @@ selected data, the sampler's :class:`~bayesfric.inference.config.SamplerConfig` 
 back (:mod:`bayesfric.study.store`) and a Dask worker sends as it is; in one process the units hand
 each other the objects, never their bytes. Each unit gets the study seed explicitly (no random
 stream is shared between units), so the order in which units run — serially or on any number of
-workers — does not change a number. :func:`rebuild` turns a law's Datasets into the compare
-layer's result objects (fresh and stored alike), which the runner weighs and flattens into the
-law's result (:mod:`bayesfric.study.lawresult`).
+workers — does not change a number. :func:`bayesfric.study.rebuild.rebuild` turns a law's
+Datasets into the compare layer's result objects (fresh and stored alike), which the runner weighs
+and flattens into the law's result (:mod:`bayesfric.study.lawresult`).
 
 A law's full fit and its fold refits share one compiled engine: the caller that runs the units
 keeps it in an :class:`Engines` (the serial executor one per run, a Dask worker one per worker
@@ -36,19 +36,17 @@ import json
 import time
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field, replace
-from typing import TYPE_CHECKING, Any, NamedTuple
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import xarray as xr
 
 from bayesfric import compare
-from bayesfric.compare.heldout import HeldOut
-from bayesfric.compare.loo import loo_from_values
+from bayesfric.compare.newgroup import MIN_GROUPS
 from bayesfric.errors import InternalError
 from bayesfric.fingerprint import data_fingerprint, law_fingerprint, unit_key
 from bayesfric.inference import MAPPINGS_BUDGET, SAMPLERS, release_compiled_code
 from bayesfric.inference.config import SamplerConfig
-from bayesfric.inference.diagnostics import Verdict
 from bayesfric.inference.engine import NutsEngine, build
 from bayesfric.inference.modes import single_mode_note
 from bayesfric.model import Noise, build_program
@@ -57,8 +55,8 @@ from bayesfric.study.store import Result
 if TYPE_CHECKING:
     from bayesfric.compare.structure import StructureCheck
 
-__all__ = ["LawJob", "Unit", "Engines", "make_job", "plan_law", "compute", "compute_seconds", "rebuild", "Scored",
-           "COSTLY", "loo_dataset", "cv_dataset", "evidence_dataset", "checks_dataset"]
+__all__ = ["LawJob", "Unit", "Engines", "make_job", "plan_law", "compute", "compute_seconds", "COSTLY",
+           "loo_dataset", "cv_dataset", "evidence_dataset", "checks_dataset"]
 
 #: Stages skipped for a law whose full fit failed the gate under ``failed_fits = "skip"``.
 COSTLY = ("cv", "bridge", "importance", "smc")
@@ -133,15 +131,28 @@ def plan_law(job: LawJob, study, schemes: list[tuple[str, Any, str]]) -> tuple[U
     rest = []
     if study.loo:  # refits of high-k points on a fit that failed the gate only under failed_fits = "run"
         rest.append(unit("loo", "loo", **({"failed_fits": "run"} if study.failed_fits == "run" else {})))
+    new = _new_groups(job, study)
     for label, folds, kind in schemes:
+        extra = {"new_groups": new} if new is not None and kind == "blocked" else {}
         rest.append(unit("cv", label, kind=kind, train=folds.train, heldout=folds.heldout,
-                         scheme=folds.scheme, labels=list(folds.labels)))
+                         scheme=folds.scheme, labels=list(folds.labels), **extra))
     if study.evidence:
         rest += [unit("bridge", "bridge"), unit("importance", "importance")]
         if study.smc:
             rest.append(unit("smc", "SMC", particles=study.smc_particles, runs=study.smc_runs))
     rest.append(unit("checks", "checks"))
     return unit("fit", "fit"), rest
+
+
+def _new_groups(job: LawJob, study) -> tuple[str, list[int]] | None:
+    """The study's group column and each row's level (:func:`bayesfric.hierarchy.groupings_of`'s
+    order): its blocked folds are also scored for a new level (:mod:`bayesfric.compare.newgroup`)."""
+    column = getattr(study, "grouped", None)
+    if not column or column not in job.ds.coords:
+        return None
+    from bayesfric.hierarchy import levels_of
+
+    return column, [int(i) for i in levels_of(np.asarray(job.ds[column].values))[1]]
 
 
 # -- computing ------------------------------------------------------------------------------------
@@ -219,7 +230,8 @@ def evidence_dataset(result: compare.Evidence) -> xr.Dataset:
 
 def loo_dataset(loo: compare.LooResult) -> xr.Dataset:
     """The LOO unit's Dataset: the pointwise elpd (exact refit values in place) and how the high-k
-    points were handled; the Pareto-smoothed part is recomputed from the fit (:func:`rebuild`)."""
+    points were handled; the Pareto-smoothed part is recomputed from the fit
+    (:func:`bayesfric.study.rebuild.rebuild`)."""
     return xr.Dataset({"elpd_i": ("obs", np.asarray(loo.elpd_i, dtype=float)),
                        "refit_failed": ("refit_failed_row", np.asarray(loo.refit_failed, dtype=np.int64))},
                       attrs={"handling": loo.handling, "refitted": int(loo.refitted)})
@@ -235,7 +247,9 @@ def cv_dataset(cv: compare.CVResult) -> xr.Dataset:
                            "scheme": cv.scheme, "verdicts": _text([asdict(v) for v in cv.verdicts]),
                            "coverage": _text(cv.coverage),
                            "elpd_fold": _text(None if cv.elpd_fold is None else [float(v) for v in cv.elpd_fold]),
-                           "settings": _text(cv.settings)})
+                           "elpd_new_group": _text(None if cv.elpd_new_group is None
+                                                   else [float(v) for v in cv.elpd_new_group]),
+                           "settings": _text(cv.settings), "too_few": cv.too_few})
     if kept is not None:
         ds = ds.assign(heldout_index=("kept", kept.index), heldout_fold=("kept", kept.fold),
                        heldout_mu=(("kept_draw", "kept"), kept.mu), heldout_noise_var=("kept", kept.noise_var))
@@ -290,7 +304,9 @@ def _compute_rest(job: LawJob, unit: Unit, fit: xr.DataTree, engines: Engines) -
         folds = compare.Folds(np.asarray(p["train"]), np.asarray(p["heldout"]), p["scheme"], p["labels"])
         return cv_dataset(compare.cross_validate(_engine(job, fit, passed and p["kind"] == "kfold", engines), folds,
                                                  seed=job.seed, predictive=p["kind"] in ("blocked", "forecast"),
-                                                 joint=p["kind"] in ("grouped", "forecast")))
+                                                 joint=p["kind"] in ("grouped", "forecast"),
+                                                 new_groups=tuple(p["new_groups"]) if "new_groups" in p else None,
+                                                 min_groups=MIN_GROUPS if p["kind"] == "grouped" else 0))
     program = _program(job)
     if unit.stage == "bridge":
         return evidence_dataset(compare.bridge_log_evidence(program, fit, seed=job.seed))
@@ -337,59 +353,3 @@ def compute_seconds(unit: Unit, result: Result) -> float:
     if not isinstance(result, xr.Dataset):
         return float("nan")
     return float(result.attrs.get("compute_s", float("nan")))
-
-
-# -- rebuilding the compare layer's results -------------------------------------------------------
-class Scored(NamedTuple):
-    """One law's results as the compare layer's objects, rebuilt from its units' Datasets
-    (:func:`rebuild`). Transient: the runner weighs the laws with them and flattens each into the
-    law's result Dataset (:func:`bayesfric.study.lawresult.law_result`); they are not kept."""
-
-    loo: compare.LooResult | None
-    cv: dict[str, compare.CVResult]
-    penalty: dict[str, compare.Penalty]
-    evidence: dict[str, compare.Evidence]
-    agreement: compare.EstimatorAgreement | None
-    checks: xr.Dataset | None
-
-
-def _evidence(ds: xr.Dataset) -> compare.Evidence:
-    a = ds.attrs
-    return compare.Evidence(float(a["log_z"]), float(a["error"]), str(a["method"]), json.loads(a["diagnostics"]))
-
-
-def rebuild(fit: xr.DataTree, units: list[Unit], results: dict[str, Result], kinds: dict[str, str]) -> Scored:
-    """The :class:`Scored` results of a law from its fit and its units' Datasets (fresh or stored).
-
-    ``kinds`` maps a CV label to its scheme kind (kfold, grouped, blocked): a blocked scheme's
-    extrapolation penalty is computed here from LOO and its pointwise elpd.
-    """
-    by_label = {u.label: results[u.key] for u in units if u.key in results}
-    loo = None
-    if "loo" in by_label:
-        ds = by_label["loo"]
-        loo = loo_from_values(fit, ds["elpd_i"].values, str(ds.attrs["handling"]),
-                              [int(i) for i in ds["refit_failed"].values], bool(ds.attrs["refitted"]))
-    cv = {u.label: _cv(results[u.key]) for u in units if u.stage == "cv" and u.key in results}
-    penalty = {label: compare.extrapolation_penalty(loo, result) for label, result in cv.items()
-               if kinds[label] == "blocked" and loo is not None}
-    evidence = {name: _evidence(by_label[name]) for name in ("bridge", "importance", "SMC") if name in by_label}
-    # Two estimators that share only the density (bench_evidence.py); never averaged.
-    agreement = (compare.compare_estimators(evidence["bridge"], evidence["importance"])
-                 if {"bridge", "importance"} <= set(evidence) else None)
-    return Scored(loo, cv, penalty, evidence, agreement, by_label.get("checks"))
-
-
-def _cv(ds: xr.Dataset) -> compare.CVResult:
-    kept = (HeldOut(ds["heldout_index"].values.astype(int), ds["heldout_fold"].values.astype(int),
-                    ds["heldout_mu"].values.astype(float), ds["heldout_noise_var"].values.astype(float))
-            if "heldout_mu" in ds else None)
-    a = ds.attrs
-    return compare.CVResult(law=str(a["law"]), scheme=str(a["scheme"]), elpd=float(a["elpd"]), se=float(a["se"]),
-                            elpd_i=ds["elpd_i"].values.astype(float), heldout=ds["heldout"].values.astype(bool),
-                            verdicts=[Verdict.from_dict(v) for v in json.loads(a["verdicts"])],
-                            seconds=float(a["seconds"]),
-                            settings=json.loads(a["settings"]), predictive=kept,
-                            coverage=json.loads(a["coverage"]) if "coverage" in a else None,
-                            elpd_fold=(None if json.loads(a.get("elpd_fold", "null")) is None
-                                       else np.asarray(json.loads(a["elpd_fold"]), dtype=float)))
