@@ -55,7 +55,8 @@ def test_trend_refuses_what_cannot_trend(make, problem):
 
 def test_a_trend_column_must_hold_numbers():
     ds, _ = _campaigns()
-    ds = ds.assign_coords(hours=("obs", np.where(ds["hours"].values == "0", "new", ds["hours"].values)))
+    ds = ds.assign_coords(hours=("obs", np.where(ds["hours"].values == "0", "new", ds["hours"].values),
+                                 ds["hours"].attrs))
     with pytest.raises(DataError, match="follows a trend over 'hours'.*'new' is not a number"):
         build_program(get_law("coulomb_viscous").trend("hours", "T_C"), ds)
 
@@ -298,3 +299,41 @@ def test_a_measured_forecast_miss_widens_the_time_to_exceed_and_keeps_the_trends
 
     assert width(wide) > 1.2 * width(plain) and width(wide, "crossing_within_q") == width(plain)
     assert "relative sd" in wide.attrs["allowance"]
+
+
+# -- the shape check: accelerating wear against a linear trend ----------------------------------------
+@pytest.fixture(scope="module")
+def accelerating_fit():
+    """Wear accelerating as 2 (1 + (t/6000)²), a linear trend fitted: the campaigns bend upward
+    (scatter 1 %: the curvature stands 5 standard errors out), the truth crosses at 6000 h."""
+    ds, _ = simulate_campaigns(get_law("coulomb_viscous"), {"velocity": SPEEDS},
+                               {"T_C": lambda t: 2.0 * (1 + (t / 6000.0) ** 2), "c_v": 1.0}, HOURS, {"T_C": 0.01},
+                               sigma=0.05, seed=1)
+    return inference.fit(get_law("coulomb_viscous").trend("hours", "T_C"), ds, draws=500, tune=500, chains=4, seed=0)
+
+
+def test_a_time_to_exceed_says_first_that_the_campaigns_bend_upward(accelerating_fit, trend_fit):
+    from types import SimpleNamespace
+
+    import xarray as xr
+
+    from bayesfric.compare.trendfit import trend_bends
+    from bayesfric.report.service import headlines, sections, text
+    from bayesfric.sizing.exceed import answer_study
+
+    out = time_to_exceed(accelerating_fit, {"velocity": 1.0}, 5.0, 20000.0, unit="h")
+    assert out.attrs["bend"] == "upward" and out.attrs["shape_calibrated"] == 0
+    assert float(out["crossing_q"].sel(quantile=0.05)) > 6000.0  # the miss it warns of: the truth comes sooner
+    assert text(out.drop_vars(["curve", "curve_new"])).startswith("WARNING: The campaign levels bend upward")
+    assert trend_bends(accelerating_fit)["T_C"].direction == "upward"  # on T_C's log scale too
+    plain = time_to_exceed(trend_fit, {"velocity": 1.0}, 5.0, 20000.0)  # linear truth: no statement
+    assert plain.attrs["bend"] == "none" and plain.attrs["statement"] == "" and plain.attrs["shape_calibrated"] == 1
+    q = SimpleNamespace(at={"velocity": SimpleNamespace(lo=1.0)}, capacity=SimpleNamespace(lo=5.0, text="5 N*m"),
+                        horizon="20000 h", label="drive", describe=lambda: "velocity 1 rad/s")
+    weights = xr.Dataset({"weight": (("weighting", "law"), [[1.0]])},
+                         coords={"weighting": ["stacking leave-future-out"], "law": ["acc"]})
+    node = answer_study([q], {"acc": accelerating_fit}, xr.DataTree.from_dict({"weights": weights}), unit="h")
+    assert node["q0"].attrs["shape_calibrated"] == 0 and "In every law carrying" in node["q0"].attrs["statement"]
+    head = headlines(node)[0]
+    assert head.warning and head.text.index("bend upward") < head.text.index("median")
+    assert sections(node)[0].lines[0] == node["q0"].attrs["statement"]

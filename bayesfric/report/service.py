@@ -95,6 +95,11 @@ def sections(node: xr.DataTree | None, figures: dict[int, str] | None = None, of
         i, unit = int(k[1:]), str(q.attrs.get("unit", ""))
         sec = Section(f"Sizing {offset + i + 1}: {q.attrs['label']} — time to exceed", figure=(figures or {}).get(i),
                       caption=CAPTION)
+        if lead := _statement(q):
+            sec.lines.append(lead)
+            if not _calibrated(q):
+                sec.warnings.append("the interval of the time to exceed is not calibrated for the campaigns' upward "
+                                    "bend: the crossing may come earlier (first line)")
         sec.lines.append(f"Asked: when does |friction| at {q.attrs['point']} first exceed {q.attrs['capacity']}, "
                          f"forecast up to {q.attrs['horizon']}?")
         sec.lines.append("Answer for the typical campaign: the fitted trend (a random walk: its simulated paths) at "
@@ -120,12 +125,32 @@ def sections(node: xr.DataTree | None, figures: dict[int, str] | None = None, of
                             "P(within horizon)", "trend"], rows))
         sec.lines += [f"Model-form allowance of {n}: {q[n].attrs['allowance']}." for n in q.children
                       if n != "average" and q[n].attrs.get("allowance")]
+        sec.lines += [f"Campaign levels of {n} against its trend at the point: {q[n].attrs['bend']} "
+                      f"({q[n].attrs.get('bend_test', '')})." for n in q.children
+                      if n != "average" and q[n].attrs.get("bend")]
         steady = {str(q[n].attrs.get("steady", "")) for n in q.children} - {""}
         if steady:
             sec.lines.append("Stateful laws answer from their " + "; ".join(sorted(steady)) + ".")
         out.append(sec)
     return out
 
+
+
+def _statement(q: xr.DataTree) -> str:
+    """What a question's answer leads with: the question's own statement (a model average's, over
+    the laws carrying weight), else the one law's where there is no average."""
+    if "statement" in q.attrs or "average" in q.children:
+        return str(q.attrs.get("statement", ""))
+    first = next(iter(q.children), None)
+    return "" if first is None else str(q[first].attrs.get("statement", ""))
+
+
+def _calibrated(q: xr.DataTree) -> bool:
+    """False where the answer is marked not calibrated for the campaigns' bend."""
+    if "shape_calibrated" in q.attrs or "average" in q.children:
+        return bool(int(q.attrs.get("shape_calibrated", 1)))
+    first = next(iter(q.children), None)
+    return first is None or bool(int(q[first].attrs.get("shape_calibrated", 1)))
 
 
 def headlines(node: xr.DataTree | None) -> list[Finding]:
@@ -142,11 +167,14 @@ def headlines(node: xr.DataTree | None) -> list[Finding]:
         top = max(laws, key=lambda n: float(q[n].attrs.get("weight", 0.0)))
         basis = (f"model average, led by {top} ({q[top].attrs.get('form')} trend, weight "
                  f"{float(q[top].attrs.get('weight', 0.0)):.2f})" if name == "average" else f"{name} alone")
+        lead = _statement(q)
         out.append(_f(f"Time to exceed '{q.attrs['label']}' ({q.attrs['capacity']} at {q.attrs['point']}): ",
+                      *([(lead, True), " "] if lead else []),
                       (f"median {_time(mid, unit)}, 90 % interval {_time(lo, unit)} – {_time(hi, unit)}", True),
                       f" for the typical campaign, with the model-form allowance the leave-future-out folds "
-                      f"measured; P(within {q.attrs['horizon']}) "
-                      f"{float(res.attrs['p_within_horizon']):.2f} ({basis})."))
+                      f"measured{'' if _calibrated(q) else ' (not calibrated for that bend)'}; P(within "
+                      f"{q.attrs['horizon']}) {float(res.attrs['p_within_horizon']):.2f} ({basis}).",
+                      warning=not _calibrated(q)))
     return out
 
 
@@ -160,7 +188,9 @@ def text(result: xr.Dataset) -> str:
     """
     unit = str(result.attrs.get("unit", ""))
     lo, mid, hi = (float(result["crossing_q"].sel(quantile=p)) for p in (0.05, 0.5, 0.95))
-    lines = [f"time to exceed {float(result.attrs['capacity']):g} (SI) at {result.attrs['at']} (SI): "
+    marked = not int(result.attrs.get("shape_calibrated", 1))
+    lines = [f"{'WARNING' if marked else 'note'}: {result.attrs['statement']}"] if result.attrs.get("statement") else []
+    lines += [f"time to exceed {float(result.attrs['capacity']):g} (SI) at {result.attrs['at']} (SI): "
              f"{result.attrs['law']} ({result.attrs['form']} trend)",
              f"answer for: {result.attrs['curve']}",
              f"median {_time(mid, unit)}; 90 % interval {_time(lo, unit)} – {_time(hi, unit)}; "
@@ -168,6 +198,10 @@ def text(result: xr.Dataset) -> str:
              f"{float(result.attrs['p_within_horizon']):.2f}"]
     if result.attrs.get("allowance"):
         lines.append(f"model-form allowance: {result.attrs['allowance']}")
+    if result.attrs.get("bend"):
+        lines.append(f"campaign levels against the trend at the point: {result.attrs['bend']} "
+                     f"({result.attrs.get('bend_test', '')})"
+                     + ("; the interval is NOT calibrated for that shape" if marked else ""))
     if result.attrs.get("steady"):
         lines.append(f"note: {result.attrs['steady']}")
     service = result["service"].values

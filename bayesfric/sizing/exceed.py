@@ -23,6 +23,13 @@ then the calibrated answer and ``crossing_within`` the trend's own (within-model
 folds (a single fit) or with folds that failed the gate, both are the within-model answer and
 the ``allowance`` attribute says so.
 
+The shape check. The interval assumes the trend's form. Where the fitted campaigns' friction at
+the point bends upward away from the trend (accelerating wear against a linear trend: the
+crossing comes sooner than forecast), the answer is marked not calibrated for that shape and
+leads with a statement saying so (:mod:`bayesfric.sizing.bend`); a downward bend errs safe and
+gets one clause. A model average (:func:`combine`) leads with it where every law carrying weight
+bends that way.
+
 Example
 -------
 >>> result = time_to_exceed(fit, {"velocity": "1400 rpm"}, capacity="1.8 N*m", horizon=15000)  # doctest: +SKIP
@@ -43,6 +50,7 @@ import xarray as xr
 
 from bayesfric.errors import UserError
 from bayesfric.exported import program_options
+from bayesfric.sizing.bend import law_attrs, lead, point_bend
 from bayesfric.sizing.calibration import Miss
 from bayesfric.sizing.forecast import allowance, widen_curves
 from bayesfric.sizing.points import SizingError, parse_capacity, parse_horizon, parse_value
@@ -141,8 +149,9 @@ def crossing_times(curves: np.ndarray, times: np.ndarray, capacity: float) -> np
     return out
 
 
-def _campaigns(fit: xr.DataTree, at: Mapping[str, Any], column: str) -> tuple[np.ndarray, np.ndarray]:
-    """The fitted campaigns' coordinates and the quantiles of each one's friction at ``at``."""
+def _campaigns(fit: xr.DataTree, at: Mapping[str, Any], column: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The fitted campaigns' coordinates, the quantiles of each one's friction at ``at`` and the
+    posterior mean of its ``log |friction|`` there."""
     from bayesfric.hierarchy import mean_draws
     from bayesfric.model import program_of_fit
     from bayesfric.sizing.steady import sizing_law
@@ -153,8 +162,14 @@ def _campaigns(fit: xr.DataTree, at: Mapping[str, Any], column: str) -> tuple[np
     program = dataclasses.replace(program, law=law).at(_points(law, at))
     post = fit["posterior"].to_dataset()
     labels = [str(v) for v in post[column].values]
-    values = [np.quantile(mean_draws(program, post, group=g)[:, 0], QUANTILES) for g in labels]
-    return coordinates(labels), np.asarray(values)
+    draws = [mean_draws(program, post, group=g)[:, 0] for g in labels]
+    values = [np.quantile(d, QUANTILES) for d in draws]
+    return coordinates(labels), np.asarray(values), np.asarray([_log_mean(d) for d in draws])
+
+
+def _log_mean(curves: np.ndarray) -> np.ndarray:
+    """Posterior mean of ``log |friction|`` (draws first; floored at the smallest positive float)."""
+    return np.mean(np.log(np.maximum(np.abs(curves), np.finfo(float).tiny)), axis=0)
 
 
 def service_unit(fit: xr.DataTree, column: str) -> str:
@@ -203,7 +218,10 @@ def time_to_exceed(fit: xr.DataTree, at: Mapping[str, Any], capacity: Any, horiz
         relative sd; ``p_exceed`` (service): P(crossed by t); ``fan`` and ``fan_new``
         (quantile, service): the typical campaign's and a new campaign's friction; ``campaign_q``
         (campaign, quantile): each fitted campaign's; ``curve`` and ``curve_new`` (draw, service):
-        the typical and the new campaigns' curves (drop them before storing). Attrs say what the answer is for.
+        the typical and the new campaigns' curves (drop them before storing). Attrs say what the answer is for;
+        ``bend``, ``bend_test``, ``shape_calibrated`` and ``statement`` whether the campaign levels bend
+        away from the trend at the point (:mod:`bayesfric.sizing.bend`): an upward bend marks the
+        interval not calibrated for that shape (``shape_calibrated = 0``), its ``statement`` first.
 
     Raises
     ------
@@ -238,7 +256,9 @@ def time_to_exceed(fit: xr.DataTree, at: Mapping[str, Any], capacity: Any, horiz
     curve = widen_curves(within, rel, rng)
     new = widen_curves(friction_curves(fit, at, times, seed=seed + 1, scatter=True), rel, rng)
     crossing, crossing_within = crossing_times(curve, times, cap), crossing_times(within, times, cap)
-    where, campaign_q = _campaigns(fit, at, column)
+    where, campaign_q, campaign_log = _campaigns(fit, at, column)
+    bend = point_bend(where, campaign_log, None if fitted.trend_form == "walk" else
+                      _log_mean(friction_curves(fit, at, where, seed=seed)))
     return xr.Dataset(
         {"crossing": ("draw", crossing),
          "crossing_q": ("quantile", np.quantile(crossing, QUANTILES, method="inverted_cdf")),
@@ -256,7 +276,7 @@ def time_to_exceed(fit: xr.DataTree, at: Mapping[str, Any], capacity: Any, horiz
                "steady": steady_note(fitted, law), "allowance": _allowance_note(miss, rel, why_none, unit),
                "curve": ("one simulated path of the random walk per draw" if fitted.trend_form == "walk" else
                          "the typical campaign: the trend itself, without campaign-to-campaign scatter"),
-               "p_within_horizon": float(np.isfinite(crossing).mean())})
+               "p_within_horizon": float(np.isfinite(crossing).mean()), **law_attrs(bend, fitted.trend_form)})
 
 
 def _allowance_note(miss: Miss | None, rel: np.ndarray, why_none: str, unit: str) -> str:
@@ -307,7 +327,7 @@ def combine(results: Mapping[str, xr.Dataset], weights: Mapping[str, float], see
             law="model average", weights=repr(dict(zip(names, w.round(4), strict=True))),
             allowance="each law's own (a mixture of the laws' widened curves; the allowance variable is their "
                       "weighted mean)",
-            p_within_horizon=float(np.isfinite(crossing).mean()))
+            p_within_horizon=float(np.isfinite(crossing).mean()), **lead(results, dict(zip(names, w, strict=True))))
 
 
 def forecast_weights(tree: xr.DataTree) -> tuple[dict[str, float], str]:
@@ -343,12 +363,15 @@ def answer_study(questions: Sequence[Any], fits: Mapping[str, xr.DataTree], tree
                                      why_none=(misses or {}).get(n, (None, ""))[1])
                    for n, f in trending.items()}
         used = {n: weights.get(n, 0.0) for n in results}
+        average = combine(results, used, seed=seed) if sum(used.values()) > 0 else None
+        shape = average.attrs if average is not None else lead(results, {n: 1.0 for n in results})
         nodes[f"q{i}"] = xr.Dataset(attrs={
             "label": q.label, "point": q.describe(), "capacity": q.capacity.text, "horizon": q.horizon,
             "unit": unit, "weighting": basis, "weights": repr({n: round(w, 4) for n, w in used.items()}),
-            "no_trend": ", ".join(n for n in fits if n not in trending)})
+            "no_trend": ", ".join(n for n in fits if n not in trending),
+            **{k: shape[k] for k in ("bend", "shape_calibrated", "statement")}})
         for name, result in results.items():
             nodes[f"q{i}/{name}"] = result.drop_vars(["curve", "curve_new"]).assign_attrs(weight=used[name])
-        if sum(used.values()) > 0:
-            nodes[f"q{i}/average"] = combine(results, used, seed=seed).drop_vars(["curve", "curve_new"])
+        if average is not None:
+            nodes[f"q{i}/average"] = average.drop_vars(["curve", "curve_new"])
     return xr.DataTree.from_dict(nodes)
