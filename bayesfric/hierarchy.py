@@ -57,18 +57,21 @@ from bayesfric.laws.base import Law
 from bayesfric.priors import Prior, PriorError
 from bayesfric.trend import centred_or_not, coordinates, forecast_u, sample_levels, span
 
-__all__ = ["Grouping", "NEW_LEVEL", "SPREAD", "SPREAD_WIDTH", "CENTRED_ROWS", "REAL_SPREAD", "hyperprior", "site_names",
+__all__ = ["Grouping", "NEW_LEVEL", "SPREAD", "SPREAD_WIDTH", "TREND_SPREAD", "CENTRED_ROWS", "REAL_SPREAD",
+           "hyperprior", "site_names",
            "group_sites", "observed_levels", "centred_or_not", "law_mean", "elementwise", "spread_of", "level_values",
            "mean_draws", "groupings_of", "levels_of"]
 
 #: Label of the one level of a program moved to new points (:meth:`bayesfric.model.Program.at`).
 NEW_LEVEL = "new"
 #: Prior median of a between-group spread on an unconstrained, dimensionless scale (log or logit):
-#: levels that differ from the typical value by about 15 % (:func:`hyperprior`).
-SPREAD = 0.15
+#: levels that differ from the typical value by about 20 % (:func:`hyperprior`).
+SPREAD = 0.2
 #: Log-scale sd of the spread's LogNormal prior: 90 % of its mass between SPREAD·e^(∓1.645·0.7),
-#: about 5 % and 50 % (:func:`hyperprior`).
+#: about 6 % and 63 % (:func:`hyperprior`).
 SPREAD_WIDTH = 0.7
+#: Prior sd of the campaigns' scatter about a trend, on the unconstrained scale (:func:`hyperprior`).
+TREND_SPREAD = 0.3
 #: Rows of the smallest level from which a column is sampled centred (module docstring).
 CENTRED_ROWS = 10
 #: Prior median of the spread of a real-valued parameter, as a fraction of its own prior's scale.
@@ -100,8 +103,10 @@ def groupings_of(law: Law, ds) -> dict[str, Grouping]:
     Raises
     ------
     bayesfric.errors.DataError
-        A column is not a coordinate of ``ds``.
+        A column is not a coordinate of ``ds``, or not a group column (an input, or levels that
+        do not repeat: :func:`bayesfric.datasets.rows.group_problem`).
     """
+    from bayesfric.datasets.rows import group_problem
     from bayesfric.errors import DataError
 
     out = {}
@@ -109,6 +114,8 @@ def groupings_of(law: Law, ds) -> dict[str, Grouping]:
         if column not in ds.coords:
             raise DataError(f"law {law.name!r} varies by {column!r}, which is not a column of data set "
                             f"{ds.attrs.get('name', '?')!r}", column)
+        if problem := group_problem(ds, column):
+            raise DataError(f"law {law.name!r} varies by {problem}", column)
         labels, index = levels_of(np.asarray(ds[column].values))
         if column in law.trending.values():
             try:
@@ -169,12 +176,19 @@ def _centred(law: Law, p: str, groupings: Mapping[str, Grouping]) -> bool:
     return _level_kind(law, p, groupings) != "z"
 
 
-def hyperprior(prior: Prior, name: str) -> Prior:
+def hyperprior(prior: Prior, name: str, trend: bool = False) -> Prior:
     """Default prior of the between-group spread of a parameter whose prior is ``prior``.
 
+    With ``trend`` (the campaigns' scatter about a trend over service time,
+    :mod:`bayesfric.trend`): ``HalfNormal(`` :data:`TREND_SPREAD` ``)`` on the unconstrained scale
+    (half a real parameter's prior scale): campaigns of one machine scatter by a few per cent
+    about its wear trend, seven or more campaigns inform that scatter, and the forecasts of the
+    next campaign and of the time to exceed are calibrated with this prior (``docs/sizing.md``).
+    Otherwise (runs, series, units):
+
     On a dimensionless unconstrained scale (positive or bounded parameters):
-    ``LogNormal(log 0.15, 0.7)``, a median spread of 15 % between runs, 90 % of the prior between
-    about 5 % and 50 %. A real-valued parameter (an offset, a gravity coefficient) scatters in its
+    ``LogNormal(log 0.2, 0.7)``, a median spread of 20 % between runs, 90 % of the prior between
+    about 6 % and 63 %. A real-valued parameter (an offset, a gravity coefficient) scatters in its
     own unit: the same shape with median a quarter of its prior's scale, data-scaled as that
     prior is.
 
@@ -187,7 +201,7 @@ def hyperprior(prior: Prior, name: str) -> Prior:
     simulated runs failed the gate with ``HalfNormal(0.3)``, 8 of 20 with ``Gamma(2, 8)``, whose
     density vanishes only linearly; 0 of 30 with this prior). Two or three runs cannot tell a
     spread of 1 % from one of 10 %; this prior answers for a new run as if runs differ by
-    5–50 %, which errs on the safe side where they differ less (boundary-avoiding priors for
+    6–60 %, which errs on the safe side where they differ less (boundary-avoiding priors for
     group-level scales: Chung et al. 2013). Its log-normal upper tail leaves room for levels a
     factor 2–3 apart when the data show them (give a prior for ``<p>_sd`` to say more).
 
@@ -200,13 +214,17 @@ def hyperprior(prior: Prior, name: str) -> Prior:
     Examples
     --------
     >>> hyperprior(Prior("HalfNormal", scale=2.0), "T_C")
-    LogNormal(loc=-1.897, scale=0.7)
+    LogNormal(loc=-1.609, scale=0.7)
     """
+    if trend and _support(prior) is not dist.constraints.real:
+        return Prior("HalfNormal", scale=TREND_SPREAD)
     if _support(prior) is not dist.constraints.real:
         return Prior("LogNormal", loc=round(math.log(SPREAD), 3), scale=SPREAD_WIDTH)
     if "scale" not in prior.args:
         raise PriorError(f"parameter {name!r} is real-valued with prior {prior}: give a prior for {name}_sd "
                          "(its between-group spread, in its unit)", f"priors.{name}_sd")
+    if trend:
+        return Prior("HalfNormal", scale=0.5 * float(prior.args["scale"]), scaled_by=dict(prior.scaled_by))
     return Prior("LogNormal", loc=round(math.log(REAL_SPREAD * float(prior.args["scale"])), 6), scale=SPREAD_WIDTH,
                  scaled_by=dict(prior.scaled_by))
 

@@ -430,7 +430,7 @@ def _spread_priors(law: Law, declared: Mapping[str, Prior], given: Mapping[str, 
         if sd in given:
             continue
         try:
-            out[sd] = hyperprior(declared[p], p)
+            out[sd] = hyperprior(declared[p], p, trend=p in law.trending)
         except PriorError:
             if strict:
                 raise

@@ -55,11 +55,20 @@ def test_a_program_needs_the_column_and_a_real_parameter_spreads_in_its_unit():
     ds, _ = _runs()
     with pytest.raises(DataError, match="'unit', which is not a column"):
         build_program(get_law("coulomb_viscous").vary_by("unit", "T_C"), ds)
+    with pytest.raises(DataError, match="varies by 'velocity' is an input"):  # a continuous input is no group
+        build_program(get_law("coulomb_viscous").vary_by("velocity", "T_C"), ds)
     law = (get_law("coulomb_viscous") + "offset").vary_by("run", "offset")
-    program = build_program(law, ds)  # Normal prior: the spread is half its scale, data-scaled alike
-    assert program.priors["offset_sd"].args["scale"] == pytest.approx(0.5 * program.priors["offset"].args["scale"])
+    program = build_program(law, ds)  # Normal prior: the spread's median is a quarter of its scale, data-scaled alike
+    assert np.exp(program.priors["offset_sd"].args["loc"]) == pytest.approx(
+        hierarchy.REAL_SPREAD * program.priors["offset"].args["scale"])
     assert program.priors["offset_sd"].scaled_by == program.priors["offset"].scaled_by
-    assert hierarchy.hyperprior(Prior("HalfNormal", scale=2.0), "T_C") == Prior("HalfNormal", scale=hierarchy.SPREAD)
+    assert hierarchy.hyperprior(Prior("HalfNormal", scale=2.0), "T_C").dist == "LogNormal"
+    # a campaign scatter about a trend keeps its half-normal prior (calibrated forecasts)
+    assert hierarchy.hyperprior(Prior("HalfNormal", scale=2.0), "T_C", trend=True) == Prior(
+        "HalfNormal", scale=hierarchy.TREND_SPREAD)
+    hours = ds.assign_coords(run=("obs", [str(int(r[1:]) * 100) for r in ds["run"].values], ds["run"].attrs))
+    trend = build_program(get_law("coulomb_viscous").trend("run", "T_C"), hours)
+    assert trend.priors["T_C_sd"] == Prior("HalfNormal", scale=hierarchy.TREND_SPREAD)
 
 
 def test_study_file_vary_by_and_its_errors(tmp_path):
