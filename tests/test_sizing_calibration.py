@@ -36,7 +36,7 @@ drag ones. NOT met (issue 47 item 6, stated, not asserted): the concave shapes a
 % (above 97 %: oversizing), the convex accelerating one and the Stribeck + gear power law below
 85 % (:data:`SHORT`: only a lift well above the within-model band is asserted). The fixed growth
 of the miss with distance is the cause (:mod:`bayesfric.sizing.calibration`); the nested-cut
-estimate of that growth tried for it (``cuts=NESTED``, :mod:`bayesfric.sizing.growth`) did not
+estimate of that growth tried for it (``cuts=NESTED``, :mod:`tests.sizing_growth`) did not
 meet the targets either. ``benchmarks/bench_calibration_frontier.py`` shows why the Stribeck +
 gear case is hard at this data size: the fold's standardised miss hardly differs from when the
 candidate is the truth (AUC 0.62 between the two). Figures: docs/sizing.md.
@@ -54,15 +54,15 @@ from bayesfric import compare, sizing
 from bayesfric.compare.heldout import HeldOut
 from bayesfric.datasets.synthetic import make_dataset
 from bayesfric.sizing.calibration import Scheme
-from bayesfric.sizing.growth import measure_misses
 from bayesfric.sizing.misfit import local_misfit
+from tests.sizing_growth import measure_misses
 from tests.sizing_helpers import PASSED, hand_fit
 
 REPLICATES = 200
 SIGMA = 0.3
 SPEEDS = np.linspace(0.1, 2.0, 30)
 CUT = 1.0  # the study's blocked fold: its stacking weights answer the question
-NESTED = (0.7, 1.0, 1.3)  # nested cuts (experimental, bayesfric.sizing.growth): not the shipped method
+NESTED = (0.7, 1.0, 1.3)  # nested cuts (experimental, tests/sizing_growth.py): not the shipped method
 ASKED = "2.5..4 rad/s"
 REPORT_AT = (2.5, 3.0, 4.0)  # rad/s: grid points of the asked range (25 points, 0.0625 apart)
 ASSERT_AT = 3.0
@@ -123,7 +123,7 @@ def sources(y: np.ndarray, rng: np.random.Generator, cuts=(CUT,), bootstrap: boo
     """Every candidate's LawSource, weighted by Bayesian-bootstrap stacking on the study's fold (at
     CUT) and with the miss it measured, as a study gives them. ``bootstrap=False``: point stacking
     (the method before issue 47); ``cuts=NESTED``: the experimental nested-cut growth estimate
-    (:func:`bayesfric.sizing.growth.measure_misses`)."""
+    (:func:`tests.sizing_growth.measure_misses`)."""
     ds = make_dataset({"velocity": SPEEDS}, y)
     heldouts, schemes = {}, []
     for c in cuts:

@@ -139,7 +139,7 @@ class Miss:
     its standard error; ``n``: held-out points used; ``reach``: the largest held-out distance
     (tested ranges of the fold's training data). ``growth``: the power of distance the miss
     grows with (GROWTH, fixed, from one cut; estimated from nested cuts by
-    :mod:`bayesfric.sizing.growth`), ``growth_se`` its standard error (0: fixed), ``pivot``
+    :mod:`tests.sizing_growth`), ``growth_se`` its standard error (0: fixed), ``pivot``
     the scale (input units) at which the rate was measured best, ``cuts`` how many blocked
     folds along the axis measured it.
     """
@@ -188,7 +188,7 @@ class Miss:
         the full data's tested width ``L``, ``u = L (d + OFFSET)``).
 
         One cut (growth fixed): mean 0, sd ``κ · scale(u)``. Nested cuts
-        (:mod:`bayesfric.sizing.growth`): the rate's empirical-Bayes posterior (prior ``N(0, κ²)``,
+        (:mod:`tests.sizing_growth`): the rate's empirical-Bayes posterior (prior ``N(0, κ²)``,
         measured ``β̂ ± se``: mean ``f β̂``, variance ``f se²``, ``f = κ² / (κ² + se²)``; 0 when
         κ = 0) times ``(L/w_0)^q ((d + OFFSET)/t_0)^p`` over the powers' Gaussian posterior
         (log-normal moments).
@@ -264,7 +264,7 @@ def measure_miss(cv, ds: xr.Dataset, scheme: Scheme) -> Miss | None:
     """The miss of a law on one blocked scheme, growing with the fixed power GROWTH (see the
     module), or None when nothing was kept. ``cv`` is the law's
     :class:`bayesfric.compare.CVResult` of the scheme (with its held-out predictive), ``ds`` the
-    study's data. Nested cuts along one axis: :func:`bayesfric.sizing.growth.measure_misses`."""
+    study's data. Nested cuts along one axis: :func:`tests.sizing_growth.measure_misses`."""
     p = pieces(cv, ds, scheme)
     if p is None:
         return None

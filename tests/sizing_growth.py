@@ -1,10 +1,10 @@
-"""EXPERIMENTAL, not used by studies: how a law's miss grows with distance, estimated from nested
-blocked cuts along one axis (issue 47 item 6, unfinished).
+"""EXPERIMENTAL, a test helper, not part of the package: how a law's miss grows with distance,
+estimated from nested blocked cuts along one axis (unfinished).
 
 Status (measured on the exact-posterior harness, ``tests/test_sizing_calibration.py`` with
 ``cuts=NESTED`` = 0.7 / 1.0 / 1.3 rad/s, 40–60 replicates per case, so ±6–8 points): no variant
 tried meets the targets (85–97 % at every point of every shape, the candidate at ≤ 1.5× width),
-so nothing calls this module outside the harness; the shipped calibration stays one cut with the
+so it lives beside the harness, outside the package; the shipped calibration stays one cut with the
 fixed growth (:func:`bayesfric.sizing.calibration.measure_miss`). What was measured:
 
 * one power ``p`` of ``u = w (d + OFFSET)`` (self-similar), zero-mean band: the convex
