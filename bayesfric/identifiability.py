@@ -1,4 +1,4 @@
-"""What the data can determine of a stateful law, checked before fitting (issue 50 item 2).
+"""What the data can determine of a stateful law, checked before fitting.
 
 Each hysteresis law's notes (:mod:`bayesfric.laws.hysteresis`, :mod:`bayesfric.laws.slip`) say
 what identifies its parameters: "F_c, F_ratio, v_s need steady data spanning v_s", "σ1 needs

@@ -1,4 +1,4 @@
-"""Residual-structure checks (issue 47 item 4): at the same operating point, does the response
+"""Residual-structure checks: at the same operating point, does the response
 differ between groups, or trend with a column the law does not read, by more than the noise
 model allows?
 

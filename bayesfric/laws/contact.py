@@ -1,4 +1,4 @@
-"""Sliding-contact laws that scale with the normal force (tribometers, issue 29).
+"""Sliding-contact laws that scale with the normal force (tribometers).
 
 A tribometer presses two bodies together with a normal force ``F_N`` (the vocabulary's
 ``normal_force``, in N) and measures the friction force. Amontons–Coulomb friction is

@@ -51,7 +51,7 @@ affine in z, so it runs as an associative scan. Start state: the constant ``F_st
 the first step's held velocity -- 0 (default) at rest, z = 0; 1 saturated against the first
 motion (after a sweep the other way); −1 in steady sliding along it.
 
-Parametrisation (issue 29). The Stribeck curve is sampled as F_c and the ratio r = F_c/F_s ∈ (0, 1)
+Parametrisation. The Stribeck curve is sampled as F_c and the ratio r = F_c/F_s ∈ (0, 1)
 (``F_ratio``), not as F_c and F_s − F_c: data at one drive speed v₀ (seed 001's triangle drive)
 identify only g(v₀) = F_c (1 + (1/r − 1) e^(−(v₀/v_s)²)), and in (log F_c, logit r, log v_s) that
 ridge has the same width everywhere, whereas with F_c and F_s − F_c it narrowed to a funnel where

@@ -35,7 +35,7 @@ so the elements are ordered by break-away deflection and cannot swap labels; the
 identified and keeps its Gamma(2N, 1) prior). The increments' prior puts the median of Δ_N at 10 %
 of the largest |angle| for both laws; GMS reads no angle, so on data without one the scale is the
 largest excursion ∫v dt from a trajectory's start (:func:`bayesfric.datasets.views.travel`). GMS's
-scale was max|v|·max t until issue 29: 12.6× the stroke on two 1 Hz sine cycles, which started
+scale was once max|v|·max t: 12.6× the stroke on two 1 Hz sine cycles, which started
 every element beyond the loops and left a chain on Dahl loops in an all-elastic mode (R-hat 2.2).
 
 Elasto-plastic (Dupont, Hayward, Armstrong & Altpeter 2002, IEEE TAC 47(5):787-792)
@@ -50,8 +50,8 @@ remaining distance is crossed in ``SUBSTEPS`` exponential-Euler steps of du/dx =
 with α frozen per sub-step, capped at z_max (exact where α = 0 or 1; *approximate* in the blend,
 error checked against a 4000-step reference in tests/laws/test_slip.py); a sample whose remaining
 distance starts at or above z_max (α = 1 throughout) is crossed in one exact step instead. Dupont's micro-damping
-σ1 ż is omitted (its effect is confined to fast transients, cf. LuGre's notes). As LuGre's
-(issue 29), the Stribeck curve is sampled as F_c and ``F_ratio`` = F_c/F_s: where the data pin
+σ1 ż is omitted (its effect is confined to fast transients, cf. LuGre's notes). As LuGre's,
+the Stribeck curve is sampled as F_c and ``F_ratio`` = F_c/F_s: where the data pin
 only part of s(v) the ridge of F_c, F_ratio and v_s keeps one width (on the Dahl-simulated
 tribo_loops, 2 × (300 + 300) draws: tail ESS 87 → 187, divergences 2 → 0, 27 → 18 leapfrog
 steps per draw against F_c and F_s − F_c).
@@ -284,7 +284,7 @@ def elastoplastic_steady(velocity, sigma0, beta, F_c, F_ratio, v_s, sigma2, F_st
            "but a flat sliding level is reached two ways, v_s below the data's speeds (s = F_c) or "
            "above them (s = F_s less a drop that σ2 v partly cancels); the chains cross through F_c/F_s "
            "near 1, and NUTS diverges at the edge of the second arm: defaults on the tribo_loops "
-           "design, R-hat 1.012, ESS 660/437, 1 divergence after the retry at 0.99 (README, issue 29); "
+           "design, R-hat 1.012, ESS 660/437, 1 divergence after the retry at 0.99; "
            "check R-hat and divergences. Not sign-definite in velocity: the torque lags at reversals."),
     steady=elastoplastic_steady,
 )
@@ -362,7 +362,7 @@ def gms_law(n: int = N_DEFAULT) -> Law:
                       "deflections and viscous term, R-hat 1.6); check R-hat. On rate-independent (Dahl) "
                       "loops the Stribeck curve and C are left open (v_s below or above the tested speeds, "
                       "C over 3.5 decades): N = 4 with defaults, 360 rows, 830 leapfrog steps per draw, "
-                      "R-hat 1.012 with the log-likelihood converged (README, issue 29). Not "
+                      "R-hat 1.012 with the log-likelihood converged. Not "
                       "sign-definite in velocity."))(fn)
 
 

@@ -2,7 +2,7 @@
 
 ``offset`` is a constant response offset (sensor zero, a load, cable drag; not friction) with
 prior ``Normal(0, 0.5) × response``; ``viscous`` is ``c_v · q̇`` with the viscous coefficient of
-:mod:`bayesfric.laws.classical`. The drive-dynamics terms (issue 29) follow.
+:mod:`bayesfric.laws.classical`. The drive-dynamics terms follow.
 
 A drive's measured torque (force) is not friction alone: it is the inertial load, the gravity
 load and friction together, and identification in practice fits them together (seed 004 §1:

@@ -3,7 +3,7 @@
 (:mod:`bayesfric.study.tree`: the law × metric table ``/scores``, ``/criteria``,
 ``/diagnostics``, ``/checks``, ``/pointwise``).
 
-Every law keeps the place its score gives it (issue 29): a law whose result may not be ranked
+Every law keeps the place its score gives it: a law whose result may not be ranked
 (a fold failed the diagnostics gate, the evidence estimators disagree, the fit failed) is listed
 where it scored, its rank cell says ``⚠`` and why, and only the ranked laws are numbered, so
 rank 1 is the winner the summary names. Numbers are rounded to their standard errors

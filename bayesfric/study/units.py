@@ -281,7 +281,7 @@ def _checks_unit(job: LawJob, fit: xr.DataTree, program) -> xr.Dataset:
     prior = compare.fit_prior_draws(fit, program.law.params)  # the fit's 500 prior draws
     implausible = compare.prior_predictive_check(program, seed=job.seed, prior=prior).implausible
     psense = [f"{i} ({d})" for i, d in zip(sens.index, sens["diagnosis"], strict=True) if d != "-"]
-    start = time.perf_counter()  # residuals against the data set's other columns (issue 47 item 4)
+    start = time.perf_counter()  # residuals against the data set's other columns
     structure = compare.residual_structure(fit, job.ds, program=program)
     out = checks_dataset(implausible, pit.ks_pvalue, pit.within_band, pit.ci_prob, psense, pit.pit, pit.band,
                          structure)
@@ -294,7 +294,7 @@ def _compute_rest(job: LawJob, unit: Unit, fit: xr.DataTree, engines: Engines) -
     passed = compare.verdict_of(fit).passed
     if unit.stage == "loo":
         # refits that drop one point start from the full fit's draws when it passed the gate; a
-        # failed fit gets PSIS only unless the study runs failed fits' costly stages (issue 50)
+        # failed fit gets PSIS only unless the study runs failed fits' costly stages (failed_fits = "run")
         refit = passed or unit.params.get("failed_fits") == "run"
         return loo_dataset(compare.psis_loo(fit, engine=lambda: _engine(job, fit, passed, engines), seed=job.seed,
                                             no_refit="" if refit else NO_REFIT))

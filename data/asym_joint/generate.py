@@ -8,7 +8,7 @@ What is simulated: steady friction torque of a joint driven in both directions a
 direction (0.01-2 rad/s, log-spaced), two series. The truth is the Armstrong-Hélouvry law
 (Stribeck + viscous, seed 004 Eq. 5) whose static excess ``dT_s`` and viscous coefficient ``c_v``
 differ by direction, plus a constant torque offset (e.g. an unbalanced gravity load or a sensor
-zero), with Gaussian noise of 0.2 N*m -- the situation issue 13 describes for a measured joint.
+zero), with Gaussian noise of 0.2 N*m -- the situation met on a measured joint.
 The truth is :data:`TRUTH`; the law is built by :mod:`bayesfric.laws.variants`, the same code the
 study fits, so the data test the workbench's inference, not an independent physical model.
 
@@ -67,7 +67,7 @@ def toml_text() -> str:
     )
     return f'''[dataset]
 name = "{NAME}"
-title = "SIMULATED asymmetric joint with a torque offset (known truth, issue 13)"
+title = "SIMULATED asymmetric joint with a torque offset (known truth)"
 provenance = "simulated"
 source = "{source}"
 description = "{description}"

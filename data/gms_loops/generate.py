@@ -66,7 +66,7 @@ def toml_text() -> str:
                    "not measured: see data/gms_loops/README.md.")
     return f'''[dataset]
 name = "{NAME}"
-title = "SIMULATED pre-sliding loops and Stribeck runs from a two-element GMS model (known truth, issue 13)"
+title = "SIMULATED pre-sliding loops and Stribeck runs from a two-element GMS model (known truth)"
 provenance = "simulated"
 source = "{source}"
 description = "{description}"

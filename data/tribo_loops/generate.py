@@ -63,7 +63,7 @@ def toml_text() -> str:
     )
     return f'''[dataset]
 name = "{NAME}"
-title = "SIMULATED tribometer loops at µm scale (known truth, issue 13)"
+title = "SIMULATED tribometer loops at µm scale (known truth)"
 provenance = "simulated"
 source = "{source}"
 description = "{description}"

@@ -1,4 +1,4 @@
-"""Generate the *simulated* ball-screw drive log -- not measured, known truth (issue 29).
+"""Generate the *simulated* ball-screw drive log -- not measured, known truth.
 
 Usage: ``python examples/ball_screw/generate.py [OUTDIR]`` writes ``ball_screw.csv`` and
 ``ball_screw.toml`` (default OUTDIR: this folder). Bit-identical on every run: numpy float64, one
