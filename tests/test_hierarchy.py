@@ -12,13 +12,14 @@ import pytest
 from numpyro import handlers
 from scipy import stats
 
+import bayesfric
 from bayesfric import hierarchy, inference
 from bayesfric.compare.refit import joint_lpd
 from bayesfric.datasets.synthetic import simulate_runs
 from bayesfric.errors import DataError
 from bayesfric.laws import get_law
 from bayesfric.laws.variants import VariantError, describe
-from bayesfric.model import build_program, program_of_fit
+from bayesfric.model import build_program
 from bayesfric.priors import Prior
 from bayesfric.study.config import StudyError, study_from_raw
 
@@ -161,7 +162,7 @@ def test_hierarchical_fit_recovers_each_run_and_reads_back(hier_fit, tmp_path):
         lo, hi = (post[f"{p}_run"].quantile(q, dim=("chain", "draw")).values for q in (0.05, 0.95))
         assert np.mean((lo <= truth[p]) & (truth[p] <= hi)) >= 5 / 6, p
     path = inference.save_fit(fit, tmp_path / "fit.nc")
-    program = program_of_fit(inference.load_fit(path))
+    _, program = bayesfric.load_fit(path)
     assert program.groupings["run"].labels == tuple(f"r{i}" for i in range(6))
     np.testing.assert_array_equal(program.groupings["run"].index, build_program(program.law, ds).groupings["run"].index)
 

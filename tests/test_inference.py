@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 import xarray as xr
 
+import bayesfric
 from bayesfric.datasets.synthetic import simulate
-from bayesfric.inference import GATE, check, fit, load_fit, save_fit, verdict_of
+from bayesfric.inference import GATE, check, fit, save_fit, verdict_of
 from bayesfric.inference.diagnostics import Verdict, check_folds
 from bayesfric.laws import get_law
 from bayesfric.model import Noise
@@ -47,7 +48,8 @@ def test_datatree_contract(small_ds, sampler, tmp_path):
     plain = xr.open_datatree(path)
     summary = az.summary(plain)
     assert {"T_C", "c_v", "sigma"} <= set(summary.index)
-    again = load_fit(path)
+    again, program = bayesfric.load_fit(path)
+    assert program.law.name == dt.attrs["law"]
     np.testing.assert_array_equal(again["posterior"]["T_C"].values, dt["posterior"]["T_C"].values)
 
 

@@ -30,7 +30,9 @@ def load_fit(path: str | Path) -> tuple[xr.DataTree, Program]:
     Returns
     -------
     tree : xarray.DataTree
-        The fit (posterior, log_likelihood, observed_data, constant_data ..., provenance attrs).
+        The fit (posterior, log_likelihood, observed_data, constant_data ..., provenance attrs),
+        as :func:`bayesfric.fit` returns it: :func:`bayesfric.size`, :func:`bayesfric.compare_laws`
+        and :func:`bayesfric.diagnostics` take it.
     program : bayesfric.model.Program
         Its program (frozen): ``program.law``, ``program.priors``, ``program.density()`` ...
 

@@ -300,8 +300,8 @@ class StudyResult:
     def read(cls, study: config.Study, folder: str | Path) -> StudyResult:
         """Read the report folder of ``study`` (written by :func:`run` or ``bayesfric study``):
         its ``results.nc`` and the fit files it names."""
-        from bayesfric.inference import load_fit
         from bayesfric.sizing import SizingError
+        from bayesfric.sizing.single import read_fit
 
         folder = Path(folder)
         if not (folder / "results.nc").is_file():
@@ -309,7 +309,7 @@ class StudyResult:
         with xr.open_datatree(folder / "results.nc") as opened:
             tree = opened.load()
         files = tree["sizing_basis"]["fit"]
-        fits = {spec.name: load_fit(folder / str(files.sel(law=spec.name).values)) for spec in study.laws}
+        fits = {spec.name: read_fit(folder / str(files.sel(law=spec.name).values)) for spec in study.laws}
         return cls.from_tree(study, folder, tree, fits)
 
     @classmethod

@@ -27,7 +27,7 @@ from bayesfric.model import Noise, build_program
 from bayesfric.priors import Prior
 
 __all__ = [
-    "fit", "save_fit", "load_fit", "release_compiled_code", "memory_mappings", "MAPPINGS_BUDGET", "SAMPLERS",
+    "fit", "save_fit", "release_compiled_code", "memory_mappings", "MAPPINGS_BUDGET", "SAMPLERS",
     "GATE", "Gate", "Verdict", "check", "verdict_of", "SamplerConfig",
 ]
 
@@ -157,8 +157,3 @@ def save_fit(dt: xr.DataTree, path: str | Path) -> Path:
         if os.path.exists(tmp):
             os.unlink(tmp)
     return path
-
-
-def load_fit(path: str | Path) -> xr.DataTree:
-    """Open a saved fit (plain ``xarray.open_datatree`` works too)."""
-    return xr.open_datatree(path, engine="h5netcdf").load()

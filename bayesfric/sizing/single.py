@@ -14,7 +14,6 @@ from pathlib import Path
 import xarray as xr
 
 from bayesfric.errors import UserError
-from bayesfric.inference import load_fit
 from bayesfric.sizing.points import SizingError, SizingQuestion, check_question
 from bayesfric.sizing.result import SizingAnswer
 
@@ -22,7 +21,9 @@ __all__ = ["read_fit", "fit_question", "answer_fit"]
 
 
 def read_fit(path: str | Path) -> xr.DataTree:
-    """The fit saved at ``path`` (``bayesfric fit --out``, :func:`bayesfric.inference.save_fit`).
+    """The fit saved at ``path`` (``bayesfric fit --out``, :func:`bayesfric.inference.save_fit`, a
+    study's ``fits/<law>.nc``), read into memory and checked to be a bayesfric fit. The package's
+    one reader of fit files; :func:`bayesfric.load_fit` adds the program that produced it.
 
     Raises
     ------
@@ -33,7 +34,7 @@ def read_fit(path: str | Path) -> xr.DataTree:
     if not path.is_file():
         raise UserError(f"{path}: fit file not found" if not path.exists() else f"{path}: not a file")
     try:
-        fit = load_fit(path)
+        fit = xr.open_datatree(path, engine="h5netcdf").load()
     except Exception:  # h5py/netCDF raise many types for a file that is not a fit
         raise UserError(f"{path}: not a readable fit (a NetCDF file written by `bayesfric fit --out`)") from None
     _check_is_fit(fit, str(path))

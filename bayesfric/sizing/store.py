@@ -31,11 +31,11 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from bayesfric.inference import load_fit
 from bayesfric.sizing.basis import LOO, NEW_GROUP
 from bayesfric.sizing.calibration import Miss, Scheme
 from bayesfric.sizing.compute import LawSource
 from bayesfric.sizing.points import SizingError
+from bayesfric.sizing.single import read_fit
 
 __all__ = ["NODES", "RESULTS", "schemes_of", "basis_node", "read_basis", "exclusion", "basis_schemes", "sources"]
 
@@ -169,9 +169,9 @@ def _fit_of(basis: xr.DataTree, folder: Path, name: str) -> xr.DataTree:
     if not path.is_file() or path.resolve().parent != (folder / "fits").resolve():
         raise SizingError("", f"{path}: fit of {name} missing from the report; run the study again")
     try:
-        return load_fit(path)
-    except (OSError, ValueError) as exc:
-        raise SizingError("", f"{path}: unreadable fit ({exc}); run the study again") from None
+        return read_fit(path)
+    except (OSError, ValueError) as exc:  # read_fit's UserError names the file
+        raise SizingError("", f"{exc}; run the study again") from None
 
 
 def _checks(basis: xr.DataTree, name: str) -> tuple:
