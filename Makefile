@@ -21,14 +21,14 @@ main: venv
 PYTEST_PARALLEL := -n auto --maxprocesses 4 --dist loadfile
 
 test: browser
-	.venv/bin/python -m ruff check bayesfric tests benchmarks data examples
+	.venv/bin/python -m ruff check bayesfric tests benchmarks data examples scripts
 	.venv/bin/python -m pytest -q $(PYTEST_PARALLEL)
 
 test-fast: venv
 	.venv/bin/python -m pytest -q -m fast $(PYTEST_PARALLEL)
 
 lint: venv
-	.venv/bin/python -m ruff check bayesfric tests benchmarks data examples
+	.venv/bin/python -m ruff check bayesfric tests benchmarks data examples scripts
 
 bench: venv
 	.venv/bin/python benchmarks/bench_fit.py

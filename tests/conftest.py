@@ -30,7 +30,7 @@ FAST_FILES = frozenset(f"tests/{name}.py" for name in (
     "test_fingerprint", "test_readme", "test_thin", "test_modes", "test_drum_campaigns_data", "test_identifiability",
     "test_sampler_config",
     "test_sizing_distance",
-    "test_sizing_result", "test_new_run",
+    "test_sizing_result", "test_new_run", "test_docs_figures",
 ))
 
 
