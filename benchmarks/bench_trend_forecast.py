@@ -32,6 +32,15 @@ the rate, and the curves are widened by it as ``time_to_exceed`` does. Where a f
 gate no allowance is measured (as in a study); ``rate>0`` is the share of replicates with a
 positive rate, ``folds failed`` the replicates with a fold that failed the gate.
 
+Below each case, the time to exceed as the answer gives it: the share of replicates whose answer
+leads with the statement that the campaign levels bend upward (the shape check of
+:mod:`bayesfric.sizing.bend` on the fit's 7 campaigns at 1 rad/s: a one-sided 5 % t-test of
+curvature, :func:`bayesfric.compare.trendfit.curvature_test`), or bend downward; the crossing
+coverage and its mean and median interval score (an end beyond the 20 000 h search counts as
+20 000 h); and the **silent miss**: the share of replicates whose 90 % interval misses the true
+crossing AND whose answer does not carry the statement (within-model and with the allowance).
+The same at a one-sided 10 % level is printed for comparison (not shipped).
+
 Cases: ``linear`` (truth T_C = 2 (1 + t/6000), candidate linear: the trend form is a candidate);
 ``accelerating`` (truth T_C = 2 (1 + (t/6000)²), true crossing 6000 h as well, candidate linear:
 the form is NOT a candidate); ``accelerating-loglinear`` (the same truth, the log-linear form
@@ -52,6 +61,7 @@ from bayesfric.datasets.synthetic import simulate_campaigns
 from bayesfric.inference.engine import NutsEngine
 from bayesfric.laws import get_law
 from bayesfric.model import build_program
+from bayesfric.sizing.bend import point_bend
 from bayesfric.sizing.calibration import GROWTH, LAMBDA, Miss
 from bayesfric.sizing.exceed import crossing_times
 from bayesfric.sizing.forecast import allowance, forecast_pieces, widen_curves
@@ -77,18 +87,29 @@ def true_crossing(truth) -> float:
     return float(t[np.argmax(truth(t) + C_V >= CAPACITY)])
 
 
-def typical_curves(post: dict, form: str, labels, rng) -> np.ndarray:
-    """Friction at 1 rad/s over ``SEARCH`` per draw: the fitted trend (or a walk's path)."""
-    tau = SEARCH / span(coordinates(labels))
+def typical_curves(post: dict, form: str, labels, rng, times: np.ndarray = SEARCH) -> np.ndarray:
+    """Friction at 1 rad/s over ``times`` (a walk: ``SEARCH`` only) per draw: the fitted trend (or a walk's path)."""
+    tau = times / span(coordinates(labels))
     t_c, c_v = post["T_C"].reshape(-1)[:, None], post["c_v"].reshape(-1)[:, None]
     if form == "linear":
         return t_c * np.maximum(1 + post["T_C_trend"].reshape(-1)[:, None] * tau, FLOOR) + c_v
     if form == "loglinear":
         return t_c * np.exp(post["T_C_trend"].reshape(-1)[:, None] * tau) + c_v
     last = np.log(post["T_C_hours"].reshape(-1, len(labels))[:, 6])[:, None]  # 3000 h, the last trained
-    dtau = np.diff(np.concatenate([[3000.0], SEARCH])) / span(coordinates(labels))
-    steps = np.sqrt(dtau)[None, :] * rng.normal(size=(t_c.shape[0], SEARCH.size))
+    dtau = np.diff(np.concatenate([[3000.0], times])) / span(coordinates(labels))
+    steps = np.sqrt(dtau)[None, :] * rng.normal(size=(t_c.shape[0], times.size))
     return np.exp(last + post["T_C_sd"].reshape(-1)[:, None] * np.cumsum(steps, axis=1)) + c_v
+
+
+def campaign_bend(post: dict, form: str, labels):
+    """The time to exceed's shape check (:func:`bayesfric.sizing.bend.point_bend`) at 1 rad/s on the
+    7 trained campaigns: each campaign's log friction against the fitted trend's there (None: a walk)."""
+    if form == "walk":
+        return None
+    fitted = HOURS[:7]
+    level = post["T_C_hours"].reshape(-1, len(labels))[:, :7] + post["c_v"].reshape(-1)[:, None]
+    trend = typical_curves(post, form, labels, None, fitted)
+    return point_bend(fitted, np.log(level).mean(axis=0), np.log(trend).mean(axis=0))
 
 
 def run_case(name: str, replicates: int, scatter: float = SCATTER, forecast_from: float = 2500.0) -> dict:
@@ -112,7 +133,7 @@ def run_case(name: str, replicates: int, scatter: float = SCATTER, forecast_from
     labels = [f"{h:g}" for h in HOURS]
     crossing = true_crossing(truth)
     row = {k: [] for k in ("cover", "cover_cal", "score", "score_cal", "cross", "cross_cal", "width", "width_cal",
-                           "rate")} | {"failed": 0, "folds_failed": 0, "s": 0.0}
+                           "rate", "cscore", "cscore_cal", "bend", "p_up")} | {"failed": 0, "folds_failed": 0, "s": 0.0}
     for r in range(replicates):
         ds, values = data(r)
         start = time.perf_counter()
@@ -134,6 +155,9 @@ def run_case(name: str, replicates: int, scatter: float = SCATTER, forecast_from
         true_curve = values["T_C"][7] + C_V * AT
         rel = allowance(miss, np.array([3500.0]), first=0.0, last=3000.0)
         times = typical_curves(post, form, labels, rng)
+        bend = campaign_bend(post, form, labels)
+        row["bend"].append("not tested" if bend is None else bend.direction)
+        row["p_up"].append(np.nan if bend is None else bend.p_up)
         for tag, band, paths in (("", curve, times),
                                  ("_cal", widen_curves(curve, np.repeat(rel, AT.size), rng),
                                   widen_curves(times, allowance(miss, SEARCH, first=0.0, last=3000.0), rng))):
@@ -144,6 +168,7 @@ def run_case(name: str, replicates: int, scatter: float = SCATTER, forecast_from
                                      method="inverted_cdf")
             row["cross" + tag].append(c_lo <= crossing <= c_hi)
             row["width" + tag].append(c_hi - c_lo)
+            row["cscore" + tag].append(interval_score(min(c_lo, SEARCH[-1]), min(c_hi, SEARCH[-1]), crossing))
         row["failed"] += int(not fits.verdicts[k].passed)
     row["truth"] = crossing
     return row
@@ -192,7 +217,23 @@ def main() -> None:
                   + f"       {row['failed']:5d}  {row['s'] / n:5.2f}  {np.mean(np.asarray(row['rate']) > 0):.2f}"
                   + f"  {row['folds_failed']:5d}",
                   flush=True)
+        print_exceed(name, row)
     print(f"binomial sd of a 90 % coverage over {n} replicates: {np.sqrt(0.09 / n):.3f}")
+
+
+def print_exceed(name: str, row: dict) -> None:
+    """The time to exceed's figures for one case: coverage, interval score, the statement, the silent miss."""
+    bend, p_up = np.asarray(row["bend"]), np.asarray(row["p_up"], dtype=float)
+    said, loose = bend == "upward", p_up < 0.10  # the shipped one-sided 5 % test; at 10 % for comparison
+    print(f"  {name}: time to exceed (truth {row['truth']:.0f} h): statement (levels bend upward) in "
+          f"{said.mean():.3f}, downward in {np.mean(bend == 'downward'):.3f}, not tested in "
+          f"{np.mean(bend == 'not tested'):.3f}; at a one-sided 10 % level the statement would come in "
+          f"{loose.mean():.3f}", flush=True)
+    for tag, what in (("", "within"), ("_cal", "allowed")):
+        miss = ~np.asarray(row["cross" + tag], dtype=bool)
+        print(f"    {what:7s} crossing cover {1 - miss.mean():.3f}  interval score (inf -> {SEARCH[-1]:.0f} h) mean "
+              f"{np.mean(row['cscore' + tag]):8.0f} median {np.median(row['cscore' + tag]):8.0f}  silent miss "
+              f"{np.mean(miss & ~said):.3f} (at 10 %: {np.mean(miss & ~loose):.3f})", flush=True)
 
 
 if __name__ == "__main__":
