@@ -210,7 +210,7 @@ def _time_to_exceed(args: argparse.Namespace) -> None:
 
 def _about(attrs: dict) -> str:
     """The lines ``predict`` and ``score`` print before their result: what answers, for what."""
-    lines = [f"WARNING: {attrs['new_run']}"] if attrs.get("new_run") else []
+    lines = [f"WARNING: {attrs[key]}" for key in ("new_run", "bend") if attrs.get(key)]
     lines += [f"{attrs['source']} on {attrs['data']}", f"answering for: {attrs['answer_for']}",
              f"weights: {attrs['weighting']} ({attrs['weighting_note']})"]
     lines += [f"{key}: {attrs[key]}" for key in ("excluded", "no_average", "noise_note") if attrs.get(key)]

@@ -184,26 +184,17 @@ def hyperprior(prior: Prior, name: str, trend: bool = False) -> Prior:
     (half a real parameter's prior scale): campaigns of one machine scatter by a few per cent
     about its wear trend, seven or more campaigns inform that scatter, and the forecasts of the
     next campaign and of the time to exceed are calibrated with this prior (``docs/sizing.md``).
-    Otherwise (runs, series, units):
+    Otherwise (runs, series, units), on a dimensionless unconstrained scale (positive or bounded
+    parameters): ``LogNormal(log 0.2, 0.7)``, a median spread of 20 % between runs, 90 % of the
+    prior between about 6 % and 63 %; a real-valued parameter (an offset, a gravity coefficient)
+    scatters in its own unit: the same shape, median a quarter of its prior's scale, data-scaled.
 
-    On a dimensionless unconstrained scale (positive or bounded parameters):
-    ``LogNormal(log 0.2, 0.7)``, a median spread of 20 % between runs, 90 % of the prior between
-    about 6 % and 63 %. A real-valued parameter (an offset, a gravity coefficient) scatters in its
-    own unit: the same shape with median a quarter of its prior's scale, data-scaled as that
-    prior is.
-
-    Why a prior whose density vanishes at zero spread, and not a half-normal or half-Cauchy
-    peaked there (Gelman 2006; brms's half-Student-t default): with two, three or five levels the
-    data hold one to four degrees of freedom about the spread, so its posterior is mostly its
-    prior. A prior with its mode at zero then lets two runs that happen to agree set the spread
-    near zero: the next run's band collapses onto the tested runs, and the centred levels form a
-    funnel with the typical value that NUTS cannot cross (measured: 9 of 20 fits of two
-    simulated runs failed the gate with ``HalfNormal(0.3)``, 8 of 20 with ``Gamma(2, 8)``, whose
-    density vanishes only linearly; 0 of 30 with this prior). Two or three runs cannot tell a
-    spread of 1 % from one of 10 %; this prior answers for a new run as if runs differ by
-    6–60 %, which errs on the safe side where they differ less (boundary-avoiding priors for
-    group-level scales: Chung et al. 2013). Its log-normal upper tail leaves room for levels a
-    factor 2–3 apart when the data show them (give a prior for ``<p>_sd`` to say more).
+    Why a prior whose density vanishes at zero spread, not a half-normal or half-Cauchy peaked
+    there (Gelman 2006; brms): with two or three levels the data hold one or two degrees of
+    freedom about the spread, so its posterior is mostly its prior; peaked at zero, it lets two
+    runs that happen to agree collapse the next run's band, and the centred levels form a funnel
+    NUTS cannot cross. Measured and argued in ``docs/laws.md`` (group terms) and ``docs/sizing.md``
+    (a new run); boundary-avoiding scale priors: Chung et al. 2013.
 
     Raises
     ------

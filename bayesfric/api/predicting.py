@@ -131,6 +131,18 @@ def _new_run(src: _Sources, group: Any, seed: int, preds: list) -> tuple[Any, li
     return rule, out
 
 
+def _bend(src: _Sources, ds: xr.Dataset, weights: dict[str, float] | None, seed: int) -> str:
+    """What the answer says first where the log lies beyond the fitted data along an input and the
+    data bend upward against every weighted law there (:mod:`bayesfric.sizing.shape`)."""
+    from bayesfric.sizing.shape import fits_bend
+
+    fits = {s.name: s.fit for s in src.laws}
+    used = weights if weights is not None else {src.laws[0].name: 1.0}
+    inputs = [k for k, v in ds.coords.items() if v.attrs.get("role") == "input"]
+    found = fits_bend(fits, used, {k: np.asarray(ds[k].values, dtype=float) for k in inputs}, seed)
+    return found.statement if found.upward else ""
+
+
 def _weights(src: _Sources, ds: xr.Dataset, new_run=None) -> tuple[dict[str, float] | None, str, str]:
     """(law -> weight > 0 of the average, or None for one fit; the weighting; its note)."""
     from bayesfric.sizing import choose_basis
@@ -178,6 +190,7 @@ def _prepare(source, data, group, seed, keys: dict[str, str]):
     new_run, preds = _new_run(src, group, seed, preds)
     weights, weighting, note = _weights(src, ds, new_run)
     attrs = {"source": src.label, "data": where, "new_run": new_run.statement,
+             "bend": _bend(src, ds, weights, seed),
              "weighting": weighting, "weighting_note": note,
              "weights": json.dumps(weights or {}), "bands": _BANDS,
              "answer_for": "; ".join(sorted({p.answer_for for p in preds if p.answer_for}))

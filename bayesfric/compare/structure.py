@@ -74,8 +74,9 @@ from bayesfric.limits import CHUNK_NUMBERS
 from bayesfric.model import OBS_SITE, Program, program_of_fit
 from bayesfric.quantities import QUANTITIES, parse_unit
 
-__all__ = ["ALPHA", "Column", "StructureCheck", "residual_structure", "fit_residuals", "operating_basis",
-           "structure_tests", "columns_to_test", "structure_dataset", "checks_of", "stack_structure", "DIM"]
+__all__ = ["ALPHA", "Column", "StructureCheck", "residual_structure", "curvature_checks", "fit_residuals",
+           "operating_basis", "structure_tests", "columns_to_test", "structure_dataset", "checks_of", "stack_structure",
+           "DIM"]
 
 #: Posterior draws the residuals' mean and noise sd are averaged over (evenly thinned).
 MAX_DRAWS = 200
@@ -246,9 +247,38 @@ def residual_structure(fit: xr.DataTree, data: xr.Dataset, *, alpha: float = ALP
     columns = columns_to_test(data, law)
     starts = trajectory_starts(data) if data.attrs.get("trajectory") else None
     point = _operating_point(program.inputs, law, data, starts)
-    return structure_tests(resid, sd, point, columns, starts=starts, alpha=alpha,
-                           unit=QUANTITIES[law.response].unit if law.response in QUANTITIES else "",
-                           suggestions={c.name: _suggestion(c, law) for c in columns})
+    unit = QUANTITIES[law.response].unit if law.response in QUANTITIES else ""
+    return structure_tests(resid, sd, point, columns, starts=starts, alpha=alpha, unit=unit,
+                           suggestions={c.name: _suggestion(c, law) for c in columns}) + curvature_checks(
+        program, resid, sd, starts, unit)
+
+
+def curvature_checks(program: Program, resid: np.ndarray, sd: np.ndarray, starts: np.ndarray | None,
+                     unit: str = "") -> tuple[StructureCheck, ...]:
+    """Lack of fit along each of a steady law's own inputs (:mod:`bayesfric.compare.lackoffit`) as
+    checks of kind ``"curvature"``: ``effect`` the relative bend times the mean ``|m|`` (response
+    units, positive: convex, the data above the law at both ends), ``effect_sd`` its t statistic,
+    ``p_value`` the F-test of ``u²`` and ``u³``. A stateful law's residuals along a trajectory are
+    not tested (its sizing is at steady state, judged by :mod:`bayesfric.sizing.shape` where it has
+    steady data)."""
+    from bayesfric.compare.lackoffit import lack_of_fit
+
+    law = program.law
+    if law.trajectory:
+        return ()
+    mu = np.asarray(program.response, dtype=float) - resid
+    inputs = {k: np.asarray(v, dtype=float) for k, v in program.inputs.items() if k in law.operating_inputs}
+    if not inputs:
+        return ()
+    size = float(np.mean(np.abs(mu)))
+    out = []
+    for t in lack_of_fit(resid * np.sign(mu), sd, inputs, starts=starts, scale=size):
+        way = "upward (convex" if t.curvature > 0 else "downward (concave"
+        out.append(StructureCheck(
+            t.axis, "curvature", int(np.unique(inputs[t.axis]).size), t.curvature * size, t.t, t.p_value, t.threshold,
+            t.flagged, f"a law whose curve bends {way} against this one) along {t.axis}", unit,
+            ", ".join(k for k in inputs if k != t.axis), t.rho, t.df))
+    return tuple(out)
 
 
 def _operating_point(inputs: Mapping[str, np.ndarray], law: Law, data: xr.Dataset,

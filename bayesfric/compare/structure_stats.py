@@ -76,6 +76,8 @@ class StructureCheck:
 
     def sentence(self) -> str:
         """The finding in words, with its size, its test and what would model it."""
+        if self.kind == "curvature":
+            return self._curvature_sentence()
         what = (f"differs between the {self.levels} groups of '{self.column}'" if self.kind == "group"
                 else f"trends with '{self.column}'")
         p = "< 1e-16" if self.p_value <= 0 else f"= {self.p_value:.2g}"
@@ -84,6 +86,16 @@ class StructureCheck:
         return (f"the response {what} by up to {self.effect:.2g}{unit} at the same "
                 f"{self.conditioned_on or 'operating point'} ({self.effect_sd:.2g} noise sd; F-test p {p}{ar1})"
                 + (f"; what would model it: {self.suggestion}" if self.suggestion else ""))
+
+
+    def _curvature_sentence(self) -> str:
+        way = "upward (convex: the data above the law at both ends" if self.effect > 0 else \
+            "downward (concave: the data below the law at both ends"
+        p = "< 1e-16" if self.p_value <= 0 else f"= {self.p_value:.2g}"
+        unit = f" {self.unit.replace('*', '·')}" if self.unit else ""
+        return (f"the residuals bend {way}) along '{self.column}' by {abs(self.effect):.2g}{unit} at the middle of "
+                f"the tested range (t = {self.effect_sd:.1f}; F-test of u², u³ p {p}): the law's curve lacks a "
+                "curvature the data show, and beyond the data it grows apart from them")
 
 
 # -- the operating-point basis -----------------------------------------------------------------

@@ -289,7 +289,7 @@ def residual_structure(t: TreeView) -> list[Finding]:
     hits: dict[str, list] = {}
     for name in t.laws:
         for c in t.structure(name):
-            if c.flagged:
+            if c.flagged and c.kind != "curvature":
                 hits.setdefault(c.column, []).append((name, c))
     out = []
     for column, found in hits.items():
@@ -308,7 +308,6 @@ def residual_structure(t: TreeView) -> list[Finding]:
 def new_run(t: TreeView):
     """The new-run rule over the study's laws (:mod:`bayesfric.sizing.newrun`), from the tree."""
     from bayesfric.sizing.newrun import law_groups, rule
-
     return rule([law_groups(name, t.fit(name), t.passed(name), t.structure(name)) for name in t.laws])
 
 
@@ -330,8 +329,26 @@ def new_run_recommendation(rule, rec: Finding) -> Finding:
     else:
         head = (f"No law models {cols}, which the residual-structure check flagged: answers for a new "
                 f"{cols} are the pooled laws widened by the measured spread. For the tested levels: ",)
-    parts = tuple((h, False) if isinstance(h, str) else h for h in head)
-    return Finding(parts + rec.parts, True)
+    return Finding(tuple((h, False) if isinstance(h, str) else h for h in head) + rec.parts, True)
+
+
+def lack_of_fit(t: TreeView) -> list[Finding]:
+    """One finding per input along which some law's residuals bend (checks of kind ``curvature``):
+    which laws, the largest bend with its test, and what an answer beyond the data says."""
+    hits: dict[str, list] = {}
+    for name in t.laws:
+        for c in t.structure(name):
+            if c.flagged and c.kind == "curvature":
+                hits.setdefault(c.column, []).append((name, c))
+    out = []
+    for column, found in hits.items():
+        name, worst = max(found, key=lambda h: abs(h[1].effect_sd))
+        names = ", ".join(n for n, _ in found)
+        who = "every law" if len(found) == len(t.laws) else f"{len(found)} of {len(t.laws)} laws ({names})"
+        out.append(_f(f"LACK OF FIT along '{column}' ({who}): {worst.sentence()} (largest under ", _law(name),
+                      "). An answer beyond the data along it says first where every law it rests on bends upward.",
+                      warning=True))
+    return out
 
 
 def summary_block(t: TreeView, sizing: SizingAnswer | None = None,
@@ -346,7 +363,7 @@ def summary_block(t: TreeView, sizing: SizingAnswer | None = None,
         answers.append(plain(NO_CRITERION, warning=True))
     if (verdict := no_law_extrapolates(t.blocked, table)) is not None:
         answers.insert(0, verdict)
-    answers[:0] = residual_structure(t)
+    answers[:0] = residual_structure(t) + lack_of_fit(t)
     warnings = counted_winners(crits, table) + _warnings(t) + list(extra_warnings or [])
     blocked_winners = {sc.best(table, "elpd_cv", s) for s in t.blocked}
     if loo_winner and blocked_winners and loo_winner not in blocked_winners:

@@ -36,6 +36,7 @@ from bayesfric.sizing.misfit import LocalMisfit, local_misfit
 from bayesfric.sizing.newrun import NewRun, law_groups, rule
 from bayesfric.sizing.points import SizingQuestion
 from bayesfric.sizing.result import SizingAnswer, as_answer
+from bayesfric.sizing.shape import Bend, bend
 
 __all__ = ["SIGNIFICANT", "SHARE", "answer_question", "answer", "undetected"]
 
@@ -174,6 +175,15 @@ def _predicted(sources: Sequence[LawSource], grid, seed: int, new_run: NewRun) -
     return out
 
 
+def _bend(distance, average: Mixture | None, used: Sequence[LawAnswer],
+          misfits: Mapping[str, LocalMisfit | None]) -> Bend:
+    """The bend of the data against the laws the answer rests on (:mod:`bayesfric.sizing.shape`):
+    the average's weights, or the one law a single fit answers from."""
+    weights = dict(average.weights) if average is not None else ({used[0].name: 1.0} if len(used) == 1 else {})
+    tests = {name: (m.lack_of_fit() if (m := misfits.get(name)) is not None else None) for name in weights}
+    return bend(distance, weights, tests)
+
+
 def _averages(used, draws, weights, question, qs, key) -> Mixture | None:
     good = {k: v for k, v in weights.items() if math.isfinite(v) and v > 0 and k in {a.name for a in used}}
     return mixture(used, draws, good, question.confidence, qs, key) if good else None
@@ -214,6 +224,9 @@ def answer_question(question: SizingQuestion, sources: Sequence[LawSource], data
     flag = undetected(sources, average.weights, basis, grid, data) if average is not None and basis else ""
     if flag:
         warnings.append(flag)
+    bent = _bend(distance, average, used, misfits)
+    if bent.direction == "downward":
+        warnings.append(bent.statement)
     for a in answers:
         a.weight = average.weights.get(a.name, 0.0) if average is not None else 0.0
         a.weight_raw = weights.get(a.name, math.nan)
@@ -228,7 +241,8 @@ def answer_question(question: SizingQuestion, sources: Sequence[LawSource], data
     else:
         governing = 0
     out = Answer(question, grid, tested, distance, answers, average, average_loo, no_average, governing,
-                 qs, warnings, basis=basis, undetected=flag, draws=draws, calibrated_draws=calibrated)
+                 qs, warnings, basis=basis, undetected=flag, draws=draws, calibrated_draws=calibrated,
+                 bend=bent.statement if bent.upward else "", bend_upward=bent.upward)
     if fan:
         out.fan = _fan(out, sources, data, seed, schemes=schemes, misfits=misfits)
     return out

@@ -223,6 +223,8 @@ class Answer:
     fan: Fan | None = None
     basis: Basis | None = None  # which weights and measured misses answer it (None: a single fit)
     undetected: str = ""  # laws the blocked folds cannot tell from the truth here, and by how much ("": none)
+    bend: str = ""  # the data bend away from every weighted law along an extrapolated axis (sizing.shape; "": not)
+    bend_upward: bool = False  # that bend is upward: the band is NOT calibrated for the shape the data show
     draws: dict[str, Draws] = field(default_factory=dict)  # law -> its draws at the points (kept: q(p) of any p)
     calibrated_draws: dict[str, Draws] = field(default_factory=dict)  # law -> with the model-form error added
 

@@ -68,10 +68,19 @@ class LocalMisfit:
     scale: Mapping[str, tuple[bool, float]]
     r: np.ndarray
     s: np.ndarray
+    size: np.ndarray | None = None  # |m| per row: the law's mean magnitude (the residuals' scale)
 
     def at(self, grid: Mapping[str, np.ndarray]) -> np.ndarray:
         """The misfit rate (relative sd) at the points ``grid`` (input -> SI values)."""
         return np.abs(self.shift(grid))
+
+    def lack_of_fit(self) -> dict:
+        """Input -> :class:`~bayesfric.compare.lackoffit.LackOfFit` of these residuals along it
+        (an input with a single value or few is not tested: absent)."""
+        from bayesfric.compare.lackoffit import lack_of_fit
+
+        size = np.ones_like(self.r) if self.size is None else np.asarray(self.size, dtype=float)
+        return {t.axis: t for t in lack_of_fit(self.r * size, self.s * size, self.coords, scale=float(size.mean()))}
 
     def shift(self, grid: Mapping[str, np.ndarray]) -> np.ndarray:
         """The signed misfit at the points ``grid``: ``sign(r̄) · sqrt(max(0, r̄² − LAMBDA se²))``,
@@ -123,4 +132,4 @@ def local_misfit(fit: xr.DataTree, data: Mapping[str, np.ndarray], measured: np.
             coords[k], scale[k] = x[ok] / width, (absolute, width)
     if not coords:
         return None
-    return LocalMisfit(coords, scale, (y[rows][ok] - m[ok]) / m[ok], sd[ok] / np.abs(m[ok]))
+    return LocalMisfit(coords, scale, (y[rows][ok] - m[ok]) / m[ok], sd[ok] / np.abs(m[ok]), np.abs(m[ok]))

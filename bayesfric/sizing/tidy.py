@@ -78,12 +78,15 @@ def p_text(p: float, se: float, bound: float) -> str:
 
 def first_warnings(answer: Answer) -> list[str]:
     """What the data cannot support, said before any number: the answer for a new run (which laws
-    it comes from where the data show the runs differ, :mod:`bayesfric.sizing.newrun`); no law
+    it comes from where the data show the runs differ, :mod:`bayesfric.sizing.newrun`); data that
+    bend upward against every weighted law (:mod:`bayesfric.sizing.shape`); no law
     extrapolates here; a direction no blocked fold tests; a model-form error nothing measured."""
     basis = answer.basis
     out = []
     if basis is not None and basis.new_run:
         out.append(basis.new_run)
+    if getattr(answer, "bend", ""):
+        out.append(answer.bend)
     if basis is not None and basis.no_extrapolation:
         out.append(f"NO LAW EXTRAPOLATES HERE: {basis.no_extrapolation}; only calibrated numbers are quoted")
     if basis is not None and basis.uncovered:

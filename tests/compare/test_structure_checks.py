@@ -213,9 +213,13 @@ def test_residuals_are_the_data_minus_the_posterior_mean_of_the_mean_function(of
 
 def test_a_fit_flags_the_run_offset_and_not_the_angle(offset_fit):
     ds, f = offset_fit
-    checks = {c.column: c for c in residual_structure(f, ds)}
+    found = residual_structure(f, ds)
+    checks = {c.column: c for c in found if c.kind != "curvature"}
     assert set(checks) == {"run", "angle"}
     assert checks["run"].flagged and not checks["angle"].flagged
+    # along its own input the law (the truth, up to the run offset) shows no lack of fit
+    (bend,) = [c for c in found if c.kind == "curvature"]
+    assert bend.column == "velocity" and not bend.flagged and "bend" in bend.sentence()
     assert 0.2 < checks["run"].effect < 0.4  # Coulomb levels 0.3 N·m apart
     assert "vary_by = { run = [\"T_C\"] }" in checks["run"].suggestion
     with pytest.raises(ValueError, match="rows"):
