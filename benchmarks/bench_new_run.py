@@ -11,8 +11,9 @@ SIMULATED data. Each replicate draws ``train + 1`` runs of the truth at the same
 ``exp(s · z)``, ``s`` drawn per replicate uniformly from ``--spread`` (10-30 % by default; noise
 sd 0.05 N·m, about 2.5 % of the torque: :func:`bayesfric.datasets.synthetic.simulate_runs`).
 The last run is held back; the others are fitted (NUTS, the default 4 chains x 1000 draws,
-the gate's verdict of the full fit's mask; ``used`` counts fits that passed it outright, so a
-fit a study would use as multimodal or unidentified is counted as not used):
+the gate's verdict of the full fit's mask; ``used`` counts fits that passed it, or that failed
+on mixing alone with a converged pointwise log-likelihood, as a study uses them; a multimodal fit
+a study would combine is counted as not used):
 
 * ``by run``: the truth's law with ``vary_by("run", "T_C", "c_v")`` (the default spread prior,
   :func:`bayesfric.hierarchy.hyperprior`), answered for a NEW run (:func:`bayesfric.hierarchy.mean_draws`);
@@ -35,11 +36,13 @@ from __future__ import annotations
 import argparse
 import time
 
+import jax
 import numpy as np
 
 from bayesfric.compare.structure_stats import Column, structure_tests
 from bayesfric.datasets.synthetic import simulate_runs
 from bayesfric.hierarchy import level_values
+from bayesfric.inference.diagnostics import GATE, mixing_only, with_predictions
 from bayesfric.inference.engine import NutsEngine
 from bayesfric.laws import get_law
 from bayesfric.model import build_program
@@ -70,6 +73,25 @@ def replicate_data(law, truth, train: int, lo: float, hi: float, r: int):
 
     curve = np.asarray(law.mean({"velocity": jnp.asarray(AT)}, {k: jnp.asarray(v[-1]) for k, v in values.items()}, {}))
     return ds.isel(obs=np.flatnonzero(~held)), curve
+
+
+def used_as_a_fit_is(fits, program, pointwise) -> bool:
+    """Whether a study would use this fit: it passed the gate, or it failed on mixing alone and its
+    pointwise log-likelihood converged (parameters not identified, predictions converged: the
+    rule :func:`bayesfric.inference.diagnostics.resolve_fold` shares with a full fit)."""
+    import xarray as xr
+
+    verdict = fits.verdicts[0]
+    if verdict.passed:
+        return True
+    if not mixing_only(verdict, fits.samples[next(iter(fits.samples))].shape[1]):
+        return False
+    draws = {k: np.asarray(v[0]) for k, v in fits.samples.items()}
+    chains, per = next(iter(draws.values())).shape[:2]
+    flat = {k: v.reshape((chains * per,) + v.shape[2:]) for k, v in draws.items()}
+    ll = np.asarray(pointwise(flat)).reshape(chains, per, -1)
+    loglik = xr.Dataset({"y": (("chain", "draw", "obs"), ll)})
+    return bool(with_predictions(verdict, loglik, GATE).predictions_converged)
 
 
 def posterior_tree(fits, program):
@@ -119,6 +141,7 @@ def one_case(truth_name: str, train: int, args) -> dict:
     programs = {"by run": build_program(law.vary_by("run", "T_C", "c_v"), first, priors=spread),
                 "pooled": build_program(law, first)}
     engines = {k: NutsEngine.build(p, seed=0) for k, p in programs.items()}
+    pointwise = {k: jax.jit(jax.vmap(p.density().pointwise)) for k, p in programs.items()}
     rows = {k: {"cover": [], "score": [], "used": 0, "s": 0.0} for k in VARIANTS}
     for r in range(args.replicates):
         ds, curve = replicate_data(law, truth, train, lo, hi, r)
@@ -128,7 +151,7 @@ def one_case(truth_name: str, train: int, args) -> dict:
             fits = engine.with_response(np.asarray(ds["torque"].values)).run(np.ones((1, ds.sizes["obs"]), bool),
                                                                            seed=r)
             rows[name]["s"] += time.perf_counter() - start
-            used = fits.verdicts[0].passed
+            used = used_as_a_fit_is(fits, programs[name], pointwise[name])
             fit = posterior_tree(fits, programs[name])
             mu = curves(law, programs[name], fit, AT, r)
             bands[name] = mu

@@ -25,7 +25,14 @@ Scenarios (truth = mean torque at speed v > 0):
   viscous term ``4 + 3 v^0.6``, a Stribeck dip on a linear law, three concave ones (saturating
   ``3 + 4 (1 − e^(−v/0.8))``, logarithmic, tanh + viscous), a convex accelerating one
   ``4 + 2 v + 0.15 v³``, and a Stribeck decay plus a gear power-law viscous term ``3 √v`` (the
-  robot-joint generator's shape).
+  robot-joint generator's shape);
+* two more accelerating ones (:data:`ACCELERATING`): exponential growth ``4 + 2 v + 0.3 e^v``
+  and power-law drag ``4 + v + 0.5 v^2.5``.
+
+Each case also reports the **silent miss** per point: the share of replicates where the calibrated
+90 % band misses the truth and the answer did not say so first (that the data bend upward against
+every weighted law, :mod:`bayesfric.sizing.shape`; for a band above the truth, the downward remark
+counts), and the part of it where the truth lies above the band (an under-sized drive).
 
 Asserted (R = 200): when the truth is a candidate, the calibrated band covers it at 3 rad/s in
 85–95 % of replicates (consistent at 1 % false alarm) with median width ≤ 1.5× the within-model
@@ -39,7 +46,11 @@ of the miss with distance is the cause (:mod:`bayesfric.sizing.calibration`); th
 estimate of that growth tried for it (``cuts=NESTED``, :mod:`tests.sizing_growth`) did not
 meet the targets either. ``benchmarks/bench_calibration_frontier.py`` shows why the Stribeck +
 gear case is hard at this data size: the fold's standardised miss hardly differs from when the
-candidate is the truth (AUC 0.62 between the two). Figures: docs/sizing.md.
+candidate is the truth (AUC 0.62 between the two). The statement is asserted: made in at most 10 %
+of the candidate's replicates (consistent at 1 % false alarm), in ≥ 95 % where the data bend
+strongly (quadratic drag, power-law drag), ≥ 75 % in :data:`UNDER_SAID`; under-sized without a
+word in ≤ 10 % of replicates at every point of every other shape. NOT met (stated): the
+:data:`UNDER_SAID` shapes are under-sized without a word in 15–18 %. Figures: docs/sizing.md.
 """
 
 from __future__ import annotations
@@ -81,7 +92,15 @@ SHORT = {  # no candidate is the truth; below 85 %: stated, not hidden
     "convex accelerating": lambda v: 4.0 + 2.0 * v + 0.15 * v**3,
     "Stribeck + gear power law": lambda v: 2.0 + 2.0 * np.exp(-np.sqrt(v / 0.1)) + 3.0 * np.sqrt(v),
 }
-TRUTHS = {"candidate": lambda v: 5.0 + 2.0 * v, **COVERED, **SHORT}
+ACCELERATING = {  # no candidate is the truth; convex, growing faster beyond the data than inside it
+    "exponential growth": lambda v: 4.0 + 2.0 * v + 0.3 * np.exp(v),
+    "power-law drag v^2.5": lambda v: 4.0 + 1.0 * v + 0.5 * v**2.5,
+}
+TRUTHS = {"candidate": lambda v: 5.0 + 2.0 * v, **COVERED, **SHORT, **ACCELERATING}
+#: Accelerating shapes whose band misses the truth from below without the statement in more than a
+#: tenth of replicates (measured 15 % and 18 %, docs/sizing.md): the curvature they show on the data
+#: (t about 2.5) is found by the one-sided test in 82-85 %, and the misses fall where it shows least.
+UNDER_SAID = ("convex accelerating", "exponential growth")
 
 
 def posterior(x: np.ndarray, y: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
@@ -160,6 +179,7 @@ def calibrate(replicates: int = REPLICATES, seed: int = 2026, truths=None, cuts=
     out = {}
     for scenario, truth in (truths or TRUTHS).items():
         within, calibrated, ratio, new_obs, score_w, score_c, flagged = [], [], [], [], [], [], []
+        said, silent, under = [], [], []
         mu = np.abs(truth(x))
         for r in range(replicates):
             y = truth(SPEEDS) + rng.normal(0, SIGMA, SPEEDS.size)
@@ -175,6 +195,13 @@ def calibrate(replicates: int = REPLICATES, seed: int = 2026, truths=None, cuts=
             score_w.append(interval_score(*band_w, mu))
             score_c.append(interval_score(*band_c, mu))
             flagged.append(bool(answer.undetected))
+            # the lead statement: the data bend upward against every weighted law (sizing.shape); a
+            # downward bend is said among the warnings (the band errs safe)
+            up, down = bool(answer.bend), any("bend DOWNWARD" in w for w in answer.warnings)
+            said.append(up)
+            low, high = mu < band_c[0], mu > band_c[1]  # the truth below the band (oversized) or above it
+            silent.append((high & (not up)) | (low & (not (up or down))))
+            under.append(high & (not up))
             new = np.abs(truth(x) + rng.normal(0, SIGMA, x.size))
             new_obs.append((cal.noisy.q(0.05) <= new) & (new <= cal.noisy.q(0.95)))
         out[scenario] = {
@@ -182,7 +209,8 @@ def calibrate(replicates: int = REPLICATES, seed: int = 2026, truths=None, cuts=
             "within": np.mean(within, axis=0)[cols], "calibrated": np.mean(calibrated, axis=0)[cols],
             "width ratio": np.median(ratio, axis=0)[cols], "new observation": np.mean(new_obs, axis=0)[cols],
             "score within": np.mean(score_w, axis=0)[cols], "score calibrated": np.mean(score_c, axis=0)[cols],
-            "flagged": float(np.mean(flagged)),
+            "flagged": float(np.mean(flagged)), "said": float(np.mean(said)),
+            "silent": np.mean(silent, axis=0)[cols], "silent under": np.mean(under, axis=0)[cols],
             "covers": int(np.sum(np.asarray(calibrated)[:, cols[REPORT_AT.index(ASSERT_AT)]])),
         }
     return out
@@ -199,13 +227,15 @@ def table(result: dict) -> str:
     """The figures as printed (and quoted in docs/sizing.md)."""
     lines = []
     for scenario, r in result.items():
-        lines.append(f"{scenario} (folds cannot tell a weighted law from the truth in {r['flagged']:.0%}):")
+        lines.append(f"{scenario} (folds cannot tell a weighted law from the truth in {r['flagged']:.0%}; the data "
+                     f"bend upward against every weighted law, said first, in {r['said']:.1%}):")
         for i, v in enumerate(r["x"]):
             lines.append(f"  v = {v:.2f} rad/s (distance {r['distance'][i]:.2f}): 90 % band of the mean curve covers "
                          f"the truth {r['within'][i]:.1%} within-model, {r['calibrated'][i]:.1%} calibrated (median "
                          f"width {r['width ratio'][i]:.2f}x); interval score {r['score within'][i]:.2f} within-model, "
                          f"{r['score calibrated'][i]:.2f} calibrated; with noise covers a new observation "
-                         f"{r['new observation'][i]:.1%}")
+                         f"{r['new observation'][i]:.1%}; silent miss {r['silent'][i]:.1%} (truth above the band, "
+                         f"unsaid: {r['silent under'][i]:.1%})")
     return "\n".join(lines)
 
 
@@ -223,6 +253,15 @@ def test_calibrated_sizing_covers_the_truth_beyond_the_envelope():
         assert result[scenario]["calibrated"][i] > result[scenario]["within"][i] + 0.3, scenario
     assert result["Stribeck + gear power law"]["flagged"] >= 0.5
     assert result["viscous + quadratic drag"]["flagged"] <= 0.1
+    # the statement that the data bend upward against every weighted law (sizing.shape): a false
+    # alarm consistent with at most 10 % where the truth is a candidate, said where the data show it
+    assert result["candidate"]["said"] * REPLICATES <= stats.binom.isf(0.01, REPLICATES, 0.10)
+    for scenario in ("viscous + quadratic drag", "power-law drag v^2.5"):
+        assert result[scenario]["said"] >= 0.95, scenario
+    for scenario in UNDER_SAID:  # NOT met (stated): a tenth or more under-sized without a word
+        assert result[scenario]["said"] >= 0.75, scenario
+    for scenario in set(TRUTHS) - set(UNDER_SAID):  # under-sized (truth above the band) and unsaid
+        assert np.all(result[scenario]["silent under"] <= 0.10), scenario
 
 
 def test_bootstrap_stacking_softens_a_weight_of_one_from_a_few_points_and_agrees_on_many():
