@@ -232,23 +232,22 @@ def test_two_runs_the_group_term_law_passes_and_carries_the_new_run_answer(two_r
     diag = result.tree["diagnostics"].to_dataset()
     assert bool(diag["passed"].sel(law=by_run)), str(diag["problems"].sel(law=by_run).values)
     sizing = result.sizing
-    average = sizing[sizing.role == "average"]
-    assert set(average["law"]) and (average["warnings"].str.startswith("FOR A NEW 'run'")).all()
-    laws = sizing[sizing.role == "law"].set_index("law")
-    weights = result.tree["sizing"].to_dataset() if "sizing" in result.tree.children else None
-    assert weights is not None
+    # the answer for a new run comes from the group-term law alone, and says so first
+    laws = sizing[sizing.role == "law"]
+    used = laws.groupby("law")["weight_used"].max()
+    assert used[by_run] == pytest.approx(1.0) and used.drop(by_run).max() == 0.0
+    assert sizing["warnings"].str.startswith("FOR A NEW 'run'").all()
     summary = (folder / "reports" / "runs" / "summary.md").read_text()
     first = next(line for line in summary.splitlines() if line.startswith("- "))
     assert first.startswith("- FOR A NEW 'run'")
     recommendation = next(line for line in summary.splitlines() if line.startswith("**For a NEW 'run'"))
-    pooled = ("coulomb\\_viscous", "armstrong\\_helouvry ")
-    assert by_run.replace("_", "\\_") in recommendation.split("For the tested ones")[0]
-    assert not any(f"use **{p.strip()}**" in recommendation for p in pooled)
-    # the pooled laws carry no weight in the new-run average; two runs cannot weigh laws for a new run
-    mix = result.tree["sizing"].to_dataset()["mix_weight"]
-    assert float(mix.sel(law="average").sel(component=by_run).max()) == pytest.approx(1.0)
+    for_new = recommendation.split("For the tested")[0]
+    assert f"use **{by_run.replace('_', chr(92) + '_')}**" in for_new  # the pooled laws are not recommended
+    # two runs cannot weigh laws for a new run, and leave-one-run-out cannot rank them: both say so
     assert "cannot tell the laws apart for a new group: 2 groups" in summary
-    assert len(laws)
+    scores = result.scores
+    logo = scores[(scores.metric == "elpd_cv") & (scores.scheme == "leave-one-run-out")]
+    assert not logo["reliable"].any() and logo["reason"].str.contains("each fold trained on 1").all()
 
 
 @pytest.mark.slow
