@@ -26,9 +26,10 @@ def available_cpus() -> int:
         return os.cpu_count() or 1
 
 
-@dataclass
+@dataclass(frozen=True)
 class FoldFits:
-    """Raw output of one :meth:`NutsEngine.run` call.
+    """Raw output of one :meth:`NutsEngine.run` call (immutable: a retry or a resolved fold is a
+    new value, :func:`dataclasses.replace`).
 
     Attributes
     ----------

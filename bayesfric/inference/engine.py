@@ -241,28 +241,33 @@ class NutsEngine:
         # a dense metric that failed: first the diagonal one at the same target (its divergences
         # may say the metric was wrong, not that the step was too long), then, if that fails
         # too, the raised target (so never a worse verdict than the raised target alone)
-        self._again(fits, masks, seed, [i for i, v in enumerate(fits.verdicts) if not v.passed and went_dense[i]],
-                    target)
+        fits = self._again(fits, masks, seed, [i for i, v in enumerate(fits.verdicts)
+                                               if not v.passed and went_dense[i]], target)
         if retry is not None and retry > target:
-            self._again(fits, masks, seed, [i for i, v in enumerate(fits.verdicts)
-                                            if not v.passed and (v.divergences or went_dense[i])], retry)
-        fits.diagonal[:] = fits.diagonal & went_dense
-        fits.seconds = time.perf_counter() - start
-        return fits
+            fits = self._again(fits, masks, seed, [i for i, v in enumerate(fits.verdicts)
+                                                   if not v.passed and (v.divergences or went_dense[i])], retry)
+        return replace(fits, diagonal=fits.diagonal & went_dense, seconds=time.perf_counter() - start)
 
-    def _again(self, fits: FoldFits, masks: np.ndarray, seed: int, retry: list[int], target: float) -> None:
-        """Sample the folds ``retry`` once more at ``target`` (diagonal metric under ``auto``), same
-        keys and starts, and keep that run in ``fits`` (the run's own result, being assembled)."""
+    def _again(self, fits: FoldFits, masks: np.ndarray, seed: int, retry: list[int], target: float) -> FoldFits:
+        """``fits`` with the folds ``retry`` sampled once more at ``target`` (diagonal metric under
+        ``auto``), same keys and starts: a new result, ``fits`` unchanged."""
         if not retry:
-            return
+            return fits
         again = self._sample(masks[retry], np.asarray(retry), seed, target,
                              np.inf if self.metric == "auto" else DENSE_ABOVE)
-        for whole, part in ((fits.samples, again[0]), (fits.stats, again[1])):
-            for name in whole:
-                whole[name][retry] = part[name]
-        fits.lpd[retry], fits.target_accept[retry], fits.diagonal[retry] = again[2], target, True
+
+        def merged(whole: np.ndarray, part: np.ndarray) -> np.ndarray:
+            out = np.array(whole, copy=True)
+            out[retry] = part
+            return out
+
+        verdicts = list(fits.verdicts)
         for i, verdict in zip(retry, self._verdicts(again[0], again[1]), strict=True):
-            fits.verdicts[i] = verdict
+            verdicts[i] = verdict
+        return replace(fits, samples={k: merged(v, again[0][k]) for k, v in fits.samples.items()},
+                       stats={k: merged(v, again[1][k]) for k, v in fits.stats.items()},
+                       lpd=merged(fits.lpd, again[2]), verdicts=verdicts,
+                       target_accept=merged(fits.target_accept, target), diagonal=merged(fits.diagonal, True))
 
     def _sample(self, masks: np.ndarray, folds: np.ndarray, seed: int, target_accept: float,
                 dense_above: float) -> tuple:
