@@ -61,6 +61,15 @@ def test_no_group_aware_law_widens_the_pooled_laws_by_their_measured_spread():
     assert "no law models 'run'" in r.statement and "vary_by" in r.statement
 
 
+def test_a_column_only_a_minority_of_blind_laws_shows_is_their_misfit_not_a_new_run_question():
+    quiet = _flag(between=0.1, flagged=False)
+    minority = [LawGroups("coulomb", frozenset(), True, (_flag(),), 2.0)] + [
+        LawGroups(f"law{i}", frozenset(), True, (quiet,), 2.0) for i in range(3)]
+    assert rule(minority).mode == ""
+    half = minority[:3]  # one of two blind laws shows it
+    assert rule(half[:2]).mode == "widened"
+
+
 def test_a_failed_blind_law_flags_nothing():
     failed = [LawGroups("cv", frozenset(), False, (_flag(),), 2.0)]
     assert rule(failed).mode == ""

@@ -185,14 +185,18 @@ class NewRun:
 def rule(laws: Sequence[LawGroups]) -> NewRun:
     """The new-run rule (see the module) over every law of a study or prediction.
 
-    A column counts as flagged when a usable law that does not model it has it flagged; a law
-    is *aware* when it models every flagged column.
+    A column counts as flagged when at least half of the usable laws that do not model it have it
+    flagged (a column only the worst law shows is that law's misfit, not a difference between
+    runs the better laws missed); a law is *aware* when it models every flagged column.
     """
     flagged: dict[str, list] = {}
     for law in laws:
         if law.usable:
             for column, check in law.flagged().items():
                 flagged.setdefault(column, []).append((law, check))
+    blind = {c: sum(1 for law in laws if law.usable and c not in law.models and c in {k.column for k in law.checks})
+             for c in flagged}
+    flagged = {c: found for c, found in flagged.items() if 2 * len(found) >= blind[c]}
     if not flagged:
         return NewRun()
     columns = tuple(flagged)
