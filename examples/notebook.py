@@ -25,7 +25,10 @@ fits = {law: bayesfric.fit(law, data, noise="proportional", **settings) for law 
 # Compare: PSIS-LOO (high-k points refitted exactly) and stacking weights.
 table = bayesfric.compare_laws(fits, data)
 print(table[["elpd_loo", "se", "elpd_diff", "weight", "reliable"]].round(3).to_string())
-best = table[table.reliable].index[0]
+reliable = table.index[table.reliable]  # fits that passed the diagnostics gate, best first
+if not len(reliable):  # e.g. --quick's short chains: say so, and go on only to show the API
+    print("NO fit passed the diagnostics gate: the answer below is not one to act on")
+best = reliable[0] if len(reliable) else table.index[0]
 
 # Size: the best law at 6 rad/s (beyond the tested 4 rad/s), 99 % of |T|, against a 40 N*m drive.
 result = bayesfric.size(fits[best], at={"velocity": (6, "rad/s")}, capacity=(40, "N*m"), confidence=0.99)

@@ -244,7 +244,10 @@ def test_a_study_of_runs_ranks_the_hierarchical_law_first_by_leave_one_run_out(t
     hier = next(i for i in logo.index if i != "coulomb_viscous")
     assert logo.loc[hier, "estimate"] - logo.loc["coulomb_viscous", "estimate"] > 3 * logo.loc[hier, "se"]
     summary = (tmp_path / "reports" / "runs" / "summary.md").read_text()
-    recommendation = next(line for line in summary.splitlines() if line.startswith("**Recommended"))
+    # the recommendation leads with what it is for a new run (the runs were flagged), then the tested ones
+    recommendation = next(line for line in summary.splitlines() if line.startswith("**") and "Recommended:" in line)
+    assert recommendation.startswith(f"**For a NEW 'run' (the default question of sizing, predict and score): use "
+                                     f"**{hier.replace('_', chr(92) + '_')}**")
     assert "answers for a NEW run" in recommendation  # said where the decision is, not only under Sizing
     checked = next(line for line in summary.splitlines() if "Answers for a new group" in line)
     diag = result.tree["diagnostics"].to_dataset()

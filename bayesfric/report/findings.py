@@ -320,7 +320,8 @@ def new_run_recommendation(rule, rec: Finding) -> Finding:
     if rule.mode == "aware":
         head = (f"For a NEW {cols} (the default question of sizing, predict and score): use ",
                 (", ".join(rule.aware), True),
-                f" — they model {cols}, which the residual-structure check flagged; the laws blind to it "
+                f" — {'it models' if len(rule.aware) == 1 else 'they model'} {cols}, which the residual-structure "
+                "check flagged; the laws blind to it "
                 f"({', '.join(rule.blind) or 'none'}) describe the tested levels' average. For the tested ones: ")
     elif rule.mode == "cannot":
         head = (f"CANNOT ANSWER FOR A NEW {cols}: every law that models it ({', '.join(rule.failed)}) failed the "

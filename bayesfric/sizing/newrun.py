@@ -167,7 +167,8 @@ class NewRun:
         seen = "; ".join(f"{self.levels[c]} levels of '{c}' differ by up to {self.effects[c]}" for c in self.columns)
         found = f"the residual-structure check found that the tested {seen} at the same operating point"
         if self.mode == "aware":
-            left = f"; {', '.join(self.blind)} (blind to it) are left out" if self.blind else ""
+            left = (f"; {', '.join(self.blind)} (blind to it) {'is' if len(self.blind) == 1 else 'are'} left out"
+                    if self.blind else "")
             return (f"FOR A NEW {cols}: {found}; this answer comes only from the laws that model {cols} "
                     f"({', '.join(self.aware)}){left}")
         spread = "; ".join(f"{n}: {', '.join(f'{r:.1%} sd between the levels of {c!r}' for c, r in s.items())}"
