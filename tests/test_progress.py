@@ -62,7 +62,10 @@ def test_a_chain_in_slices_draws_what_one_scan_draws():
     for lo, hi in ((0, 70), (70, 71), (71, 210)):
         carry, out = step(carry, keys[lo:hi], schedule[lo:hi])
         parts.append(out.position)
-    np.testing.assert_array_equal(np.concatenate(parts), whole.position)
+    # the same arithmetic in two compiled programs: XLA may fuse the whole scan differently from its
+    # slices (jax 0.12.1 differs in the last bits, 1e-9 relative after 210 steps); a wrong slice
+    # boundary (a key or schedule row skipped or repeated) changes the draws at order one
+    np.testing.assert_allclose(np.concatenate(parts), whole.position, rtol=1e-7, atol=1e-9)
 
 
 def test_chunked_engine_draws_equal_one_call(data):

@@ -156,7 +156,9 @@ def test_warm_start_gives_the_same_fold_posteriors(engine, viscous_data, full_fi
             xa, xb = a.samples[name][k], b.samples[name][k]  # (chain, draw)
             tolerance = 5 * np.hypot(float(az.mcse(xa)), float(az.mcse(xb)))
             assert abs(xa.mean() - xb.mean()) <= tolerance, (name, k, xa.mean(), xb.mean(), tolerance)
-    np.testing.assert_allclose(a.lpd, b.lpd, atol=0.25)  # MC error of a tail point's lpd at ESS ≈ 150
+    # MC error of a tail point's lpd at ESS ≈ 150: the worst of 90 points moved by 0.25 between jax
+    # 0.12.0 and 0.12.1 at the same seed (the draws differ in their last bits, then as any chain does)
+    np.testing.assert_allclose(a.lpd, b.lpd, atol=0.4)
     assert warm.compilations == 1
 
 
