@@ -4,7 +4,7 @@ used, and does its 90 % band for a *new* run cover that run's true mean curve?
 Usage::
 
     .venv/bin/python benchmarks/bench_new_run.py [--replicates 100] [--train-runs 2 3 5]
-        [--truths coulomb_viscous armstrong_helouvry] [--spread 0.1-0.3]
+        [--truths coulomb_viscous armstrong_helouvry] [--spread 0.1-0.3] [--every 20]
 
 SIMULATED data. Each replicate draws ``train + 1`` runs of the truth at the same 20 speeds
 (0.1-2 rad/s), its Coulomb level and viscous coefficient varying between runs by a factor
@@ -165,11 +165,13 @@ def one_case(truth_name: str, train: int, args) -> dict:
             lo_b, hi_b = np.quantile(mu, ALPHA / 2, axis=0), np.quantile(mu, 1 - ALPHA / 2, axis=0)
             rows[name]["cover"].append((lo_b <= curve) & (curve <= hi_b))
             rows[name]["score"].append(interval_score(lo_b, hi_b, curve))
+        if args.every and (r + 1) % args.every == 0 and r + 1 < args.replicates:
+            report(truth_name, train, rows, args, n=r + 1)  # the figures so far (a long run can be cut)
     return rows
 
 
-def report(truth: str, train: int, rows: dict, args) -> None:
-    n = args.replicates
+def report(truth: str, train: int, rows: dict, args, n: int | None = None) -> None:
+    n = n or args.replicates
     prior = "default" if args.spread_prior is None else f"LogNormal(log {args.spread_prior:g}, 0.7)"
     print(f"\n{truth}, {train} training runs (+1 held back), spread {args.spread} (log scale, per replicate), "
           f"noise sd {SIGMA} N*m, {n} replicates, spread prior {prior}")
@@ -180,7 +182,7 @@ def report(truth: str, train: int, rows: dict, args) -> None:
         cover, score = np.mean(row["cover"], axis=0), np.mean(row["score"], axis=0)
         s = row["s"] / n if row["s"] else float("nan")
         print(f"{name:14s} {row['used'] / n:5.2f}  " + "  ".join(f"{c:8.3f}" for c in cover) + "   "
-              + "/".join(f"{x:.2f}" for x in score) + f"   {s:5.2f}")
+              + "/".join(f"{x:.2f}" for x in score) + f"   {s:5.2f}", flush=True)
 
 
 def main() -> None:
@@ -191,6 +193,7 @@ def main() -> None:
     ap.add_argument("--spread", default="0.1-0.3", help="range of the run-to-run log-scale spread, LO-HI")
     ap.add_argument("--spread-prior", type=float, default=None,
                     help="median of a LogNormal(., 0.7) spread prior instead of the default (a sensitivity check)")
+    ap.add_argument("--every", type=int, default=0, help="also print the figures so far every N replicates")
     args = ap.parse_args()
     print("SIMULATED data (bayesfric.datasets.synthetic.simulate_runs)")
     for truth in args.truths:
