@@ -268,7 +268,7 @@ def headlines(result: SizingAnswer) -> list[Finding]:
             continue
         mix = answer.average.calibrated or answer.average
         what = "calibrated for model-form error" if answer.average.calibrated is not None else "within-model"
-        if getattr(answer, "bend_upward", False):
+        if answer.bend_upward:
             what += ", NOT for the upward bend the data show"
         steady = " at steady state (constant speed)" if steady_line(answer.used, answer.average.weights) else ""
         tail = f"{steady} at confidence {q.confidence:g} ({what}, model average, {_point_text(answer, j)}"
